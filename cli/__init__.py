@@ -1,0 +1,1 @@
+"""The `coexist` command line: one module per job, registered in `cli.main`."""

@@ -1,0 +1,68 @@
+"""The domain contract: what the trainer and the inference engine need from an environment.
+
+PettingZoo describes how to *step* a world; it does not say which goals exist, how to build the
+views each network is evaluated on, or how agent j sees the state agent i sees (the *perspective
+transform* of paper §3.2). A `Domain` adds exactly that, so the trainer and the services stay free
+of environment-specific code.
+
+Every network in coexist is evaluated on a *view* built from the ego agent's observation:
+
+- task view  (ego, other)   -> the ego's task network Q_t (one view per other agent, Q averaged);
+- impact view (ego, partner) -> the impact network Q_i for that partner's goal;
+- partner view (partner, ego) -> the partner's task network, whose soft value V^h is the impact
+  reward of eq. 6 (the same pair seen from the partner's side);
+- joint view: the ego's whole observation, for the joint-learner baseline (one net per goal combo).
+
+Shapes carry suffixes: `obs_BD` is a batch B of observations of size D.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+
+@runtime_checkable
+class Domain(Protocol):
+    """Environment description shared by trainer, model store metadata and inference engine."""
+
+    name: str
+    goals: tuple[str, ...]
+    action_meanings: tuple[str, ...]
+    max_agents: int
+    pair_obs_dim: int
+
+    @property
+    def n_actions(self) -> int: ...
+
+    def obs_dim(self, n_agents: int) -> int:
+        """Length of one agent's observation in a world of `n_agents` agents."""
+        ...
+
+    def observation_layout(self, n_agents: int) -> list[str]:
+        """One human-readable name per observation feature (documented in `GET /v1/envs`)."""
+        ...
+
+    def task_views(self, obs_BD: np.ndarray, n_agents: int) -> np.ndarray:
+        """Views for the ego's task network, shape (B, K, pair_obs_dim), K >= 1."""
+        ...
+
+    def impact_view(self, obs_BD: np.ndarray, n_agents: int, partner: int) -> np.ndarray:
+        """(ego, partner) view for an impact network, shape (B, pair_obs_dim); partner in 1..N-1."""
+        ...
+
+    def partner_view(self, obs_BD: np.ndarray, n_agents: int, partner: int) -> np.ndarray:
+        """(partner, ego) view: the pair as the partner sees it, shape (B, pair_obs_dim)."""
+        ...
+
+
+def check_goal(domain: Domain, goal: str, field: str = "goal") -> int:
+    """Index of `goal` in the domain's catalogue, or a ValueError naming the field."""
+    try:
+        return domain.goals.index(goal)
+    except ValueError:
+        shown = ", ".join(domain.goals[:8]) + (", ..." if len(domain.goals) > 8 else "")
+        raise ValueError(
+            f"{field}: unknown goal {goal!r} for env {domain.name!r} (expected one of {shown})"
+        ) from None
