@@ -1,1 +1,2 @@
-"""Coexistence environments: PettingZoo worlds plus the domain descriptions the trainer and server need."""
+"""Coexistence environments: PettingZoo worlds plus the domain descriptions (`envs.base.Domain`)
+that the trainer and the inference service need and PettingZoo lacks."""

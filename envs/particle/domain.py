@@ -1,0 +1,97 @@
+"""The particle world as an `envs.base.Domain`: goal catalogue, observation layout and views.
+
+Task and impact networks see *pair views* of 8 features, so one network serves scenes with any
+number of agents:
+
+| view          | built from the ego's observation (B, 4N)  | shape         |
+|---------------|-------------------------------------------|---------------|
+| task views    | [ego, other_j] for j = 1..N-1             | (B, N-1, 8)   |
+| impact view   | [ego, other_k]                            | (B, 8)        |
+| partner view  | [other_k, ego] (the pair as k sees it)    | (B, 8)        |
+
+With N = 1 there is no other agent, but the task network still takes a pair. Its single task
+view pairs the ego with a *phantom* at rest in the world's centre, `[0.5, 0.5, 0, 0]`. Why a
+fixed phantom is safe: the ego's action moves only the ego, so it changes only the first term of
+its task reward (its own distance to its target area); the influence term depends on where the
+others are, which the ego cannot change. The task policy therefore barely depends on the other
+agent, and a phantom that never moves cannot make it depend on the ego's action either. The centre
+lies well inside the positions seen in training.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from envs.particle.batched import MAX_AGENTS
+from envs.particle.goals import GOAL_IDS
+from envs.particle.world import ACTION_MEANINGS, STATE_DIM
+
+PHANTOM_4 = np.array([0.5, 0.5, 0.0, 0.0], dtype=np.float32)
+_FEATURES = ("x", "y", "vx", "vy")
+
+
+class ParticleDomain:
+    """Domain description of the particle world (implements `envs.base.Domain`)."""
+
+    name = "particle"
+    goals: tuple[str, ...] = GOAL_IDS
+    action_meanings: tuple[str, ...] = ACTION_MEANINGS
+    max_agents = MAX_AGENTS
+    pair_obs_dim = 2 * STATE_DIM
+
+    @property
+    def n_actions(self) -> int:
+        return len(self.action_meanings)
+
+    def _check_n(self, n_agents: int) -> None:
+        if not 1 <= n_agents <= self.max_agents:
+            raise ValueError(f"n_agents: expected 1..{self.max_agents}, got {n_agents}")
+
+    def obs_dim(self, n_agents: int) -> int:
+        self._check_n(n_agents)
+        return STATE_DIM * n_agents
+
+    def observation_layout(self, n_agents: int) -> list[str]:
+        self._check_n(n_agents)
+        owners = ["self"] + [f"other{j}" for j in range(1, n_agents)]
+        return [f"{owner}.{feature}" for owner in owners for feature in _FEATURES]
+
+    def _blocks(self, obs_BD: np.ndarray, n_agents: int) -> np.ndarray:
+        """Observation split into agent blocks, shape (B, N, 4)."""
+        dim = self.obs_dim(n_agents)
+        obs_BD = np.asarray(obs_BD)
+        if obs_BD.ndim != 2 or obs_BD.shape[1] != dim:
+            raise ValueError(
+                f"obs_BD: expected shape (B, {dim}) for {n_agents} agents, got {obs_BD.shape}"
+            )
+        return obs_BD.reshape(obs_BD.shape[0], n_agents, STATE_DIM)
+
+    def _check_partner(self, n_agents: int, partner: int) -> None:
+        if not 1 <= partner <= n_agents - 1:
+            raise ValueError(
+                f"partner: expected an other agent's block 1..{n_agents - 1}, got {partner}"
+            )
+
+    def task_views(self, obs_BD: np.ndarray, n_agents: int) -> np.ndarray:
+        blocks_BN4 = self._blocks(obs_BD, n_agents)
+        batch = blocks_BN4.shape[0]
+        ego_B14 = blocks_BN4[:, :1, :]
+        if n_agents == 1:
+            others_BK4 = np.broadcast_to(PHANTOM_4.astype(blocks_BN4.dtype), (batch, 1, STATE_DIM))
+        else:
+            others_BK4 = blocks_BN4[:, 1:, :]
+        ego_BK4 = np.broadcast_to(ego_B14, others_BK4.shape)
+        return np.concatenate([ego_BK4, others_BK4], axis=-1)
+
+    def impact_view(self, obs_BD: np.ndarray, n_agents: int, partner: int) -> np.ndarray:
+        blocks_BN4 = self._blocks(obs_BD, n_agents)
+        self._check_partner(n_agents, partner)
+        return np.concatenate([blocks_BN4[:, 0], blocks_BN4[:, partner]], axis=-1)
+
+    def partner_view(self, obs_BD: np.ndarray, n_agents: int, partner: int) -> np.ndarray:
+        blocks_BN4 = self._blocks(obs_BD, n_agents)
+        self._check_partner(n_agents, partner)
+        return np.concatenate([blocks_BN4[:, partner], blocks_BN4[:, 0]], axis=-1)
+
+
+PARTICLE = ParticleDomain()
