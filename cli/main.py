@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import typer
 
-from cli import demo
+from cli import demo, models, train
 
 app = typer.Typer(
     name="coexist",
@@ -18,7 +18,15 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 
+
+@app.callback()
+def main() -> None:
+    """coexist: train, store and serve AAIL task and impact networks."""
+
+
 app.command("demo")(demo.demo)
+app.add_typer(train.app, name="train")
+app.add_typer(models.app, name="models")
 
 
 if __name__ == "__main__":  # pragma: no cover

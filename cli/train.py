@@ -1,0 +1,265 @@
+"""`coexist train ...`: train task, impact and joint-learner networks and register them.
+
+    coexist train task   --env particle --goals all|a3,b,... [--seed 0] [--steps N]
+    coexist train impact --env particle --goals all|...
+    coexist train joint  --env particle --combos a2+b3,c+c4
+    coexist train zoo    --env particle            # tasks, then impacts (and --combos for JL)
+
+Every command shows a progress bar per batch of goals, prints a summary table at the end and
+registers each network (with `latest`, plus `production` when its quality gate passes).
+`--run-dir` keeps the record of finished batches: rerun with `--resume` after an interruption.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import replace
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+app = typer.Typer(help="Train task, impact and joint-learner networks.", no_args_is_help=True)
+
+EnvOpt = Annotated[str, typer.Option(help="Environment name.")]
+GoalsOpt = Annotated[str, typer.Option(help="'all' or comma-separated goal ids (a3, b, 4 ...).")]
+SeedOpt = Annotated[int, typer.Option(help="Seed of networks, rollouts and gates.")]
+StepsOpt = Annotated[
+    int | None, typer.Option(help="Batched env steps per batch (default: config).")
+]
+BatchOpt = Annotated[int, typer.Option(help="Goals trained together in one batch.")]
+StoreOpt = Annotated[str | None, typer.Option(help="Model store URL (default: embedded SQLite).")]
+RunDirOpt = Annotated[Path, typer.Option(help="Where the run's record and plots go.")]
+ResumeOpt = Annotated[bool, typer.Option(help="Skip batches this run directory already finished.")]
+CombosOpt = Annotated[
+    str, typer.Option(help="JL combinations: ego+partner[+partner...], comma-separated.")
+]
+
+
+def _goals(env: str, goals: str) -> list[str]:
+    from envs.base import check_goal
+    from envs.registry import get_domain
+
+    try:
+        domain = get_domain(env)
+    except ValueError as err:
+        raise typer.BadParameter(str(err), param_hint="--env") from None
+    if goals == "all":
+        return list(domain.goals)
+    chosen = [g.strip() for g in goals.split(",") if g.strip()]
+    try:
+        for g in chosen:
+            check_goal(domain, g, "--goals")
+    except ValueError as err:
+        raise typer.BadParameter(str(err), param_hint="--goals") from None
+    if not chosen:
+        raise typer.BadParameter("expected 'all' or at least one goal id", param_hint="--goals")
+    return chosen
+
+
+def _combos(env: str, combos: str) -> list[list[str]]:
+    out = [_goals(env, ",".join(c.split("+"))) for c in combos.split(",") if c.strip()]
+    for combo in out:
+        if not 2 <= len(combo) <= 5:
+            raise typer.BadParameter(
+                f"{'+'.join(combo)}: expected 2 to 5 goals", param_hint="--combos"
+            )
+    return out
+
+
+@contextmanager
+def _session(
+    store_url: str | None, run_dir: Path, resume: bool, **fingerprint: Any
+) -> Iterator[Any]:
+    """Open the store, the run record and a rich progress display for one command."""
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeRemainingColumn,
+    )
+
+    from model_store.defaults import open_store
+    from trainer.zoo import RunState
+    from trainer.zoo import fingerprint as make_fingerprint
+
+    store = open_store(store_url)
+    try:
+        run = RunState.open(run_dir, make_fingerprint(**fingerprint), resume)
+    except ValueError as err:
+        raise typer.BadParameter(str(err), param_hint="--resume") from None
+    columns = (
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeRemainingColumn(),
+    )
+    with Progress(*columns, transient=False) as bars:
+
+        def progress(description: str, total: int) -> Any:
+            task_id = bars.add_task(description, total=total)
+
+            def advance(done: int, _total: int) -> None:
+                if done % 25 == 0 or done == _total:
+                    bars.update(task_id, completed=done)
+
+            return advance
+
+        yield store, run, progress
+    store.close()
+
+
+def _configs(steps: int | None) -> tuple[Any, Any, Any]:
+    from trainer.config import ImpactConfig, JointConfig, TaskConfig
+
+    task, impact, joint = TaskConfig(), ImpactConfig(), JointConfig()
+    if steps is not None:
+        task = replace(task, total_steps=steps)
+        impact = replace(impact, total_steps=steps)
+        joint = replace(joint, total_steps=steps)
+    return task, impact, joint
+
+
+@app.command("task")
+def task(
+    env: EnvOpt = "particle",
+    goals: GoalsOpt = "all",
+    seed: SeedOpt = 0,
+    steps: StepsOpt = None,
+    goals_per_batch: BatchOpt = 35,
+    store_url: StoreOpt = None,
+    run_dir: RunDirOpt = Path("runs/task"),
+    resume: ResumeOpt = False,
+    alias: Annotated[
+        str, typer.Option(help="Alias for networks that pass their gate (e.g. 'partners').")
+    ] = "production",
+) -> None:
+    """Train one task network per goal (paper §3.1)."""
+    from trainer.report import print_summary, write_curves
+    from trainer.zoo import run_tasks
+
+    goal_ids = _goals(env, goals)
+    config, _, _ = _configs(steps)
+    with _session(
+        store_url,
+        run_dir,
+        resume,
+        kind="task",
+        goals=goal_ids,
+        seed=seed,
+        config=config,
+        alias=alias,
+    ) as (store, run, progress):
+        batches = run_tasks(
+            store,
+            goal_ids,
+            config,
+            seed=seed,
+            goals_per_batch=goals_per_batch,
+            run=run,
+            progress=progress,
+            env=env,
+            serve_alias=alias,
+        )
+    print_summary(batches)
+    write_curves(batches, run_dir)
+
+
+@app.command("impact")
+def impact(
+    env: EnvOpt = "particle",
+    goals: GoalsOpt = "all",
+    seed: SeedOpt = 0,
+    steps: StepsOpt = None,
+    goals_per_batch: BatchOpt = 35,
+    store_url: StoreOpt = None,
+    run_dir: RunDirOpt = Path("runs/impact"),
+    resume: ResumeOpt = False,
+) -> None:
+    """Train one impact network per partner goal by self-play (paper §3.2); needs the task nets."""
+    from trainer.report import print_summary, write_curves
+    from trainer.zoo import run_impacts
+
+    goal_ids = _goals(env, goals)
+    _, config, _ = _configs(steps)
+    with _session(
+        store_url, run_dir, resume, kind="impact", goals=goal_ids, seed=seed, config=config
+    ) as (store, run, progress):
+        batches = run_impacts(
+            store,
+            goal_ids,
+            config,
+            seed=seed,
+            goals_per_batch=goals_per_batch,
+            run=run,
+            progress=progress,
+            env=env,
+        )
+    print_summary(batches)
+    write_curves(batches, run_dir)
+
+
+@app.command("joint")
+def joint(
+    env: EnvOpt = "particle",
+    combos: CombosOpt = "a2+b3,c+c4",
+    seed: SeedOpt = 0,
+    steps: StepsOpt = None,
+    store_url: StoreOpt = None,
+    run_dir: RunDirOpt = Path("runs/joint"),
+    resume: ResumeOpt = False,
+) -> None:
+    """Train joint-learner (JL) baselines, one per goal combination; needs the task nets."""
+    from trainer.report import print_summary, write_curves
+    from trainer.zoo import run_joint
+
+    combo_ids = _combos(env, combos)
+    _, _, config = _configs(steps)
+    with _session(
+        store_url, run_dir, resume, kind="joint", combos=combo_ids, seed=seed, config=config
+    ) as (store, run, progress):
+        batches = run_joint(
+            store, combo_ids, config, seed=seed, run=run, progress=progress, env=env
+        )
+    print_summary(batches)
+    write_curves(batches, run_dir)
+
+
+@app.command("zoo")
+def zoo(
+    env: EnvOpt = "particle",
+    goals: GoalsOpt = "all",
+    combos: CombosOpt = "",
+    seed: SeedOpt = 0,
+    steps: StepsOpt = None,
+    goals_per_batch: BatchOpt = 35,
+    store_url: StoreOpt = None,
+    run_dir: RunDirOpt = Path("runs/zoo"),
+    resume: ResumeOpt = False,
+) -> None:
+    """The whole pipeline in order: task networks, impact networks, then JL combinations."""
+    from trainer.report import print_summary, write_curves
+    from trainer.zoo import run_impacts, run_joint, run_tasks
+
+    goal_ids = _goals(env, goals)
+    combo_ids = _combos(env, combos) if combos else []
+    task_cfg, impact_cfg, joint_cfg = _configs(steps)
+    fp = dict(
+        kind="zoo",
+        goals=goal_ids,
+        combos=combo_ids,
+        seed=seed,
+        configs=[task_cfg, impact_cfg, joint_cfg],
+    )
+    with _session(store_url, run_dir, resume, **fp) as (store, run, progress):
+        common = dict(seed=seed, run=run, progress=progress, env=env)
+        batches = run_tasks(store, goal_ids, task_cfg, goals_per_batch=goals_per_batch, **common)
+        batches += run_impacts(
+            store, goal_ids, impact_cfg, goals_per_batch=goals_per_batch, **common
+        )
+        if combo_ids:
+            batches += run_joint(store, combo_ids, joint_cfg, **common)
+    print_summary(batches)
+    write_curves(batches, run_dir)

@@ -1,0 +1,90 @@
+"""Validation of an artifact (architecture spec + safetensors weights) before it is stored.
+
+The store never trusts an upload: the spec must parse (`policy.qnet.QNetSpec.from_json`), agree
+with the registered model's observation and action sizes, and the weights must be a well-formed
+safetensors file whose tensors are exactly the spec's (names, shapes, dtype float32/float16/
+bfloat16, all finite). Every failure is an `InvalidArtifact` naming the field or tensor.
+The weights are parsed by the safetensors library, never unpickled.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass
+from typing import Any
+
+from model_store.entities import Lineage
+from model_store.errors import ArtifactTooLarge, InvalidArtifact
+from model_store.naming import parse_ref
+
+
+@dataclass(frozen=True)
+class CheckedArtifact:
+    spec: dict[str, Any]
+    sha256: str
+    size_bytes: int
+
+
+def sha256_hex(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def check_artifact(
+    spec: dict[str, Any],
+    weights: bytes,
+    *,
+    obs_dim: int,
+    n_actions: int,
+    max_bytes: int,
+) -> CheckedArtifact:
+    """Validate `spec` and `weights` for a model with the given sizes; InvalidArtifact if not."""
+    # Imported here: policy.qnet pulls in numpy only, but the store module stays light to import.
+    from policy.qnet import QNetSpec, tensors_from_safetensors
+
+    if not isinstance(weights, bytes | bytearray | memoryview):
+        raise InvalidArtifact("weights: expected the bytes of a safetensors file", field="weights")
+    weights = bytes(weights)
+    if len(weights) > max_bytes:
+        raise ArtifactTooLarge(
+            f"weights: {len(weights)} bytes is over this store's limit of {max_bytes} bytes",
+            field="weights",
+        )
+    if not isinstance(spec, dict):
+        raise InvalidArtifact("spec: expected a JSON object", field="spec")
+    try:
+        parsed = QNetSpec.from_json(spec)
+    except (ValueError, TypeError, KeyError) as exc:
+        raise InvalidArtifact(f"spec: {exc}", field="spec") from None
+    for key, expected in (("obs_dim", obs_dim), ("n_actions", n_actions)):
+        got = spec.get(key)
+        if got != expected:
+            raise InvalidArtifact(
+                f"spec.{key}: the model is registered with {key}={expected}, the spec says {got}",
+                field=f"spec.{key}",
+            )
+    try:
+        tensors_from_safetensors(parsed, weights)
+    except (ValueError, TypeError) as exc:
+        raise InvalidArtifact(f"weights: {exc}", field="weights") from None
+    return CheckedArtifact(spec=dict(spec), sha256=sha256_hex(weights), size_bytes=len(weights))
+
+
+def check_lineage(lineage: Lineage) -> Lineage:
+    """JSON-safe config/metrics (no NaN/inf), parents as 'name/version' refs."""
+    if not isinstance(lineage, Lineage):
+        raise InvalidArtifact("lineage: expected a Lineage", field="lineage")
+    for key in ("config", "metrics"):
+        value = getattr(lineage, key)
+        try:
+            json.dumps(value, allow_nan=False)
+        except (TypeError, ValueError) as exc:
+            raise InvalidArtifact(
+                f"lineage.{key}: not plain JSON without NaN/inf ({exc})", field=f"lineage.{key}"
+            ) from None
+    for i, parent in enumerate(lineage.parents):
+        field = f"lineage.parents[{i}]"
+        ref = parse_ref(parent, field)
+        if ref.version is None:
+            raise InvalidArtifact(f"{field}: expected 'name/version', got {parent!r}", field=field)
+    return lineage

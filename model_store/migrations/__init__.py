@@ -1,0 +1,1 @@
+"""Alembic migrations of the model store (run programmatically by `model_store.sql.migrate`)."""

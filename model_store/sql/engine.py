@@ -1,0 +1,122 @@
+"""Engine creation for the two backends.
+
+| backend    | URL                                 | what is set up                                |
+|------------|-------------------------------------|-----------------------------------------------|
+| SQLite     | `sqlite:///path/to/models.db`       | WAL journal, busy_timeout, foreign keys, real |
+|            |                                     | transactions (BEGIN issued by us), no pooling |
+| PostgreSQL | `postgresql+psycopg://user@host/db` | psycopg 3, pre-ping, connect timeout          |
+|            | (`postgresql://`, `postgres://` are |                                               |
+|            | rewritten to psycopg)               |                                               |
+
+SQLite notes (why): Python's sqlite3 module opens transactions lazily and never around DDL, which
+breaks atomic migrations and lets two writers both read a version counter before either writes.
+So the driver's own transaction handling is switched off and we emit `BEGIN` ourselves: write
+sessions use `BEGIN IMMEDIATE` (writers queue on busy_timeout instead of failing), readers a plain
+deferred `BEGIN` (in WAL mode they never wait for a writer). Pooling is off (`NullPool`) so every
+session opens the file afresh: a database file whose directory disappeared is an error at once
+instead of a ghost connection to an unlinked file, and forked processes share no connections.
+After the file exists it is opened with `mode=rw`, so SQLite never silently creates a new, empty
+database in its place.
+"""
+
+from __future__ import annotations
+
+import sqlite3
+from pathlib import Path
+from typing import Any
+from urllib.parse import quote
+
+from sqlalchemy import Engine, create_engine, event
+from sqlalchemy.engine import URL, make_url
+from sqlalchemy.pool import NullPool
+
+from model_store.errors import InvalidArgument, StoreUnavailable
+
+SQLITE_BUSY_TIMEOUT_MS = 15_000
+PG_CONNECT_TIMEOUT_S = 5
+BEGIN_MODE_OPTION = "coexist_sqlite_begin"  # execution option: "IMMEDIATE" for write sessions
+
+
+def normalise_url(url: str | URL) -> URL:
+    """Parse a store URL; plain `postgresql://` (and `postgres://`) become psycopg 3 URLs."""
+    try:
+        parsed = make_url(str(url) if isinstance(url, URL) else url)
+    except Exception as exc:  # sqlalchemy raises ArgumentError and others
+        raise InvalidArgument(
+            f"store_url: cannot parse {url!r} ({exc})", field="store_url"
+        ) from None
+    if parsed.drivername in ("postgresql", "postgres"):
+        parsed = parsed.set(drivername="postgresql+psycopg")
+    if parsed.get_backend_name() not in ("sqlite", "postgresql"):
+        raise InvalidArgument(
+            f"store_url: unsupported backend {parsed.get_backend_name()!r} "
+            "(expected sqlite:///path or postgresql://...)",
+            field="store_url",
+        )
+    return parsed
+
+
+def is_sqlite(url: URL) -> bool:
+    return url.get_backend_name() == "sqlite"
+
+
+def create_store_engine(url: str | URL) -> Engine:
+    """An engine for `url`, configured as described in the module docstring."""
+    parsed = normalise_url(url)
+    if is_sqlite(parsed):
+        return _sqlite_engine(parsed)
+    return create_engine(
+        parsed,
+        pool_pre_ping=True,
+        connect_args={"connect_timeout": PG_CONNECT_TIMEOUT_S},
+    )
+
+
+def _sqlite_engine(url: URL) -> Engine:
+    path = url.database
+    if not path or path == ":memory:":
+        raise InvalidArgument(
+            "store_url: an in-memory SQLite database cannot be shared between sessions; "
+            "use a file (sqlite:///path/to/models.db)",
+            field="store_url",
+        )
+    file = Path(path).expanduser().absolute()
+    _create_sqlite_file(file)
+    uri = f"file:{quote(str(file))}?mode=rw"
+
+    def connect() -> sqlite3.Connection:
+        return sqlite3.connect(
+            uri, uri=True, timeout=SQLITE_BUSY_TIMEOUT_MS / 1000, check_same_thread=False
+        )
+
+    engine = create_engine("sqlite://", creator=connect, poolclass=NullPool)
+
+    @event.listens_for(engine, "connect")
+    def _on_connect(dbapi_conn: Any, _record: Any) -> None:
+        dbapi_conn.isolation_level = None  # we issue BEGIN ourselves (see module docstring)
+        cursor = dbapi_conn.cursor()
+        cursor.execute(f"PRAGMA busy_timeout = {SQLITE_BUSY_TIMEOUT_MS}")
+        cursor.execute("PRAGMA foreign_keys = ON")
+        cursor.execute("PRAGMA synchronous = NORMAL")
+        cursor.close()
+
+    @event.listens_for(engine, "begin")
+    def _on_begin(conn: Any) -> None:
+        mode = conn.get_execution_options().get(BEGIN_MODE_OPTION, "")
+        conn.exec_driver_sql(f"BEGIN {mode}".strip())
+
+    return engine
+
+
+def _create_sqlite_file(path: Path) -> None:
+    """Create the directory and the database file (in WAL mode) if they do not exist yet."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        conn = sqlite3.connect(path, timeout=SQLITE_BUSY_TIMEOUT_MS / 1000)
+        try:
+            # WAL is a property of the file: set once, every later connection inherits it.
+            conn.execute("PRAGMA journal_mode = WAL")
+        finally:
+            conn.close()
+    except (OSError, sqlite3.Error) as exc:
+        raise StoreUnavailable(f"cannot open SQLite database {str(path)!r}: {exc}") from None

@@ -1,0 +1,280 @@
+"""`SqlModelStore`: the model store on SQLite or PostgreSQL (see `model_store.store` for the
+semantics, `model_store.sql.engine` for the per-backend set-up).
+
+Every public method is one managed session: commit on success, rollback on any error, ORM rows
+converted to entities before the session closes. Database errors become domain errors here:
+`IntegrityError` -> `AlreadyExists`, any other DBAPI error (unreachable server, a vanished file,
+a dropped schema) -> `StoreUnavailable`. Writers take the change-counter lock first
+(`queries.lock_change_counter`), so version numbers and event ids are allocated one writer at a
+time; readers never wait for it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
+from typing import Any
+
+from sqlalchemy import delete, exists, or_, select
+from sqlalchemy.exc import DBAPIError, IntegrityError
+from sqlalchemy.orm import Session, selectinload, sessionmaker
+
+from model_store.entities import MODEL_KINDS, Event, Page, RegisteredModel
+from model_store.errors import AlreadyExists, Conflict, InvalidArgument, StoreUnavailable
+from model_store.naming import (
+    path_prefixes,
+    validate_env,
+    validate_goal,
+    validate_model_name,
+    validate_tags,
+)
+from model_store.sql import queries as q
+from model_store.sql.convert import (
+    decode_page_token,
+    encode_page_token,
+    event_entity,
+    model_entity,
+    now,
+)
+from model_store.sql.engine import BEGIN_MODE_OPTION, create_store_engine, normalise_url
+from model_store.sql.migrate import ensure_schema
+from model_store.sql.orm import EventRow, GoalRow, ModelRow, SchemaMetaRow, TagRow, VersionRow
+from model_store.sql.versions import VersionOps
+from model_store.store import ModelStore
+
+DEFAULT_MAX_ARTIFACT_BYTES = 64 * 1024 * 1024
+MAX_PAGE_SIZE = 1000
+
+
+class SqlModelStore(VersionOps, ModelStore):
+    """Model store backed by a SQL database reached at `url` (SQLite file or PostgreSQL)."""
+
+    def __init__(
+        self,
+        url: str,
+        *,
+        max_artifact_bytes: int = DEFAULT_MAX_ARTIFACT_BYTES,
+        auto_migrate: bool = True,
+    ) -> None:
+        if max_artifact_bytes < 1:
+            raise InvalidArgument(
+                "max_artifact_bytes: must be positive", field="max_artifact_bytes"
+            )
+        self.url = normalise_url(url)
+        self.max_artifact_bytes = max_artifact_bytes
+        self._engine = create_store_engine(self.url)
+        try:
+            self.schema_revision = ensure_schema(self._engine, auto_migrate=auto_migrate)
+        except DBAPIError as exc:
+            self._engine.dispose()
+            raise StoreUnavailable(f"{self._where()}: {_first_line(exc)}") from exc
+        except BaseException:
+            self._engine.dispose()
+            raise
+        self._readers = sessionmaker(self._engine, expire_on_commit=False)
+        writer_engine = self._engine.execution_options(**{BEGIN_MODE_OPTION: "IMMEDIATE"})
+        self._writers = sessionmaker(writer_engine, expire_on_commit=False)
+
+    def __repr__(self) -> str:
+        return f"SqlModelStore({self.url.render_as_string(hide_password=True)!r})"
+
+    def close(self) -> None:
+        self._engine.dispose()
+
+    def _where(self) -> str:
+        return f"model store database {self.url.render_as_string(hide_password=True)} unavailable"
+
+    @contextmanager
+    def _session(self, *, write: bool = False) -> Iterator[Session]:
+        """One transaction; database errors become domain errors (see module docstring)."""
+        maker = self._writers if write else self._readers
+        try:
+            with maker() as session, session.begin():
+                if write:
+                    q.lock_change_counter(session)
+                yield session
+        except IntegrityError as exc:
+            raise AlreadyExists(f"conflicting concurrent write: {_first_line(exc)}") from exc
+        except DBAPIError as exc:
+            raise StoreUnavailable(f"{self._where()}: {_first_line(exc)}") from exc
+
+    # --- registered models -----------------------------------------------------------------
+    def create_model(
+        self,
+        name: str,
+        *,
+        env: str,
+        kind: str,
+        goals: Sequence[str],
+        obs_dim: int,
+        n_actions: int,
+        description: str = "",
+        tags: Mapping[str, str] | None = None,
+        exist_ok: bool = False,
+    ) -> RegisteredModel:
+        validate_model_name(name)
+        validate_env(env)
+        if kind not in MODEL_KINDS:
+            raise InvalidArgument(f"kind: {kind!r} is not one of {MODEL_KINDS}", field="kind")
+        if isinstance(goals, str) or not goals:
+            raise InvalidArgument("goals: expected a non-empty list of goals", field="goals")
+        goal_list = [validate_goal(g, f"goals[{i}]") for i, g in enumerate(goals)]
+        for key, value in (("obs_dim", obs_dim), ("n_actions", n_actions)):
+            if not isinstance(value, int) or isinstance(value, bool) or value < 1:
+                raise InvalidArgument(
+                    f"{key}: expected a positive integer, got {value!r}", field=key
+                )
+        if not isinstance(description, str):
+            raise InvalidArgument("description: expected a string", field="description")
+        tag_map = validate_tags(tags or {})
+        with self._session(write=True) as session:
+            existing = session.execute(select(ModelRow.id).where(ModelRow.name == name)).first()
+            if existing is None:
+                _refuse_nested_name(session, name)
+            else:
+                model = model_entity(q.find_model(session, name))
+                same = (model.env, model.kind, list(model.goals), model.obs_dim, model.n_actions)
+                if exist_ok and same == (env, kind, goal_list, obs_dim, n_actions):
+                    return model
+                raise AlreadyExists(f"model {name!r} already exists", field="name")
+            stamp = now()
+            row = ModelRow(
+                name=name,
+                env=env,
+                kind=kind,
+                obs_dim=obs_dim,
+                n_actions=n_actions,
+                description=description,
+                last_version=0,
+                created_at=stamp,
+                updated_at=stamp,
+            )
+            row.goals = [GoalRow(position=i, goal=g) for i, g in enumerate(goal_list)]
+            row.tags = [TagRow(key=k, value=v) for k, v in sorted(tag_map.items())]
+            row.aliases = []
+            session.add(row)
+            session.flush()
+            q.emit(session, "model_created", name)
+            return model_entity(row)
+
+    def get_model(self, name: str) -> RegisteredModel:
+        with self._session() as session:
+            return model_entity(q.find_model(session, name))
+
+    def list_models(
+        self,
+        *,
+        env: str | None = None,
+        kind: str | None = None,
+        goal: str | None = None,
+        tag: str | None = None,
+        page_size: int = 50,
+        page_token: str | None = None,
+    ) -> Page[RegisteredModel]:
+        if not isinstance(page_size, int) or not 1 <= page_size <= MAX_PAGE_SIZE:
+            raise InvalidArgument(
+                f"page_size: expected 1..{MAX_PAGE_SIZE}, got {page_size!r}", field="page_size"
+            )
+        stmt = select(ModelRow).order_by(ModelRow.name).limit(page_size + 1)
+        if env is not None:
+            stmt = stmt.where(ModelRow.env == env)
+        if kind is not None:
+            if kind not in MODEL_KINDS:
+                raise InvalidArgument(f"kind: {kind!r} is not one of {MODEL_KINDS}", field="kind")
+            stmt = stmt.where(ModelRow.kind == kind)
+        if goal is not None:
+            stmt = stmt.where(exists().where(GoalRow.model_id == ModelRow.id, GoalRow.goal == goal))
+        if tag is not None:
+            key, has_value, value = tag.partition("=")
+            cond = [TagRow.model_id == ModelRow.id, TagRow.key == key]
+            if has_value:
+                cond.append(TagRow.value == value)
+            stmt = stmt.where(exists().where(*cond))
+        if page_token:
+            stmt = stmt.where(ModelRow.name > decode_page_token(page_token))
+        stmt = stmt.options(
+            selectinload(ModelRow.goals),
+            selectinload(ModelRow.tags),
+            selectinload(ModelRow.aliases),
+        )
+        with self._session() as session:
+            rows = list(session.execute(stmt).scalars())
+            items = tuple(model_entity(r) for r in rows[:page_size])
+        token = encode_page_token(items[-1].name) if len(rows) > page_size else None
+        return Page(items=items, next_page_token=token)
+
+    def update_model(
+        self,
+        name: str,
+        *,
+        description: str | None = None,
+        tags: Mapping[str, str] | None = None,
+    ) -> RegisteredModel:
+        if description is not None and not isinstance(description, str):
+            raise InvalidArgument("description: expected a string", field="description")
+        tag_map = validate_tags(tags) if tags is not None else None
+        with self._session(write=True) as session:
+            row = q.find_model(session, name)
+            if description is not None:
+                row.description = description
+            if tag_map is not None:
+                row.tags = [TagRow(key=k, value=v) for k, v in sorted(tag_map.items())]
+            row.updated_at = now()
+            q.emit(session, "model_updated", name)
+            session.flush()
+            return model_entity(row)
+
+    def delete_model(self, name: str) -> None:
+        with self._session(write=True) as session:
+            row = q.find_model(session, name)
+            for alias in list(row.aliases):
+                row.aliases.remove(alias)
+            session.flush()
+            # A bulk delete: the versions are never loaded (their weights may be large).
+            session.execute(delete(VersionRow).where(VersionRow.model_id == row.id))
+            session.delete(row)
+            q.emit(session, "model_deleted", name)
+
+    # --- change feed -----------------------------------------------------------------------
+    def change_token(self) -> str:
+        with self._session() as session:
+            meta = session.execute(select(SchemaMetaRow).where(SchemaMetaRow.id == 1)).scalar_one()
+            return f"{meta.change_seq}-{meta.store_id[:12]}"
+
+    def events(self, since_id: int = 0, limit: int = 100) -> list[Event]:
+        if not isinstance(since_id, int) or since_id < 0:
+            raise InvalidArgument(
+                f"since_id: expected an integer >= 0, got {since_id!r}", field="since_id"
+            )
+        if not isinstance(limit, int) or not 1 <= limit <= MAX_PAGE_SIZE:
+            raise InvalidArgument(
+                f"limit: expected 1..{MAX_PAGE_SIZE}, got {limit!r}", field="limit"
+            )
+        stmt = select(EventRow).where(EventRow.id > since_id).order_by(EventRow.id).limit(limit)
+        with self._session() as session:
+            return [event_entity(r) for r in session.execute(stmt).scalars()]
+
+
+def _refuse_nested_name(session: Session, name: str) -> None:
+    """No model name may be a path prefix of another: it keeps `name/3` refs unambiguous."""
+    nested = session.execute(
+        select(ModelRow.name)
+        .where(
+            or_(
+                ModelRow.name.in_(path_prefixes(name)),
+                ModelRow.name.startswith(name + "/", autoescape=True),
+            )
+        )
+        .limit(1)
+    ).scalar_one_or_none()
+    if nested is not None:
+        raise Conflict(
+            f"name: {name!r} and the existing model {nested!r} would make refs ambiguous "
+            "(one name is a path prefix of the other)",
+            field="name",
+        )
+
+
+def _first_line(exc: BaseException) -> str:
+    orig: Any = getattr(exc, "orig", None) or exc
+    return (str(orig).strip().splitlines() or [type(orig).__name__])[0]

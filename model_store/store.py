@@ -1,0 +1,141 @@
+"""The model store interface: what the trainer, the inference service and the REST API rely on.
+
+One implementation ships (`model_store.sql.SqlModelStore`, SQLite or PostgreSQL); tests and other
+backends implement the same abstract class. All methods are safe to call from several threads and
+several processes at once; each is one transaction (all or nothing).
+
+Semantics fixed here, for every backend:
+
+- Versions are numbered 1, 2, 3 ... per model, gaplessly and never reused (a deleted version's
+  number is not handed out again).
+- `register_version` validates spec and weights, stores them with their sha256, and points the
+  given aliases (default: `latest`) at the new version in the same transaction.
+- `resolve(ref)`: `name@alias`, `name/3`, or a bare `name`, which means `name@production`.
+  No model name is a path prefix of another (`create_model` refuses it with `Conflict`), so
+  `particle/task/4` is unambiguous: version 4 of `particle/task` if that model exists, else the
+  model `particle/task/4` at `production` (see `model_store.naming`).
+- `load_weights` re-computes the sha256 on every load; a mismatch is `ChecksumMismatch`.
+- Archiving keeps a version's data (it can still be resolved by number and loaded) but is refused
+  while an alias points at it (`Conflict` listing the aliases): silently dropping `production`
+  would take a model out of service. Aliases may not be pointed at an archived version.
+- Deleting a version removes its data and the aliases that point at it (each removal is an
+  `alias_deleted` event); deleting a model removes everything it owns.
+- `change_token()` is a short opaque string that changes with every committed write (it is the
+  newest event id plus the store's identity); `events(since_id)` lists the changes in commit order.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Mapping, Sequence
+from typing import Self
+
+from model_store.entities import Event, Lineage, ModelVersion, Page, RegisteredModel
+
+
+class ModelStore(ABC):
+    """Abstract registry of Q-networks. Errors are the classes of `model_store.errors`."""
+
+    # --- registered models -----------------------------------------------------------------
+    @abstractmethod
+    def create_model(
+        self,
+        name: str,
+        *,
+        env: str,
+        kind: str,
+        goals: Sequence[str],
+        obs_dim: int,
+        n_actions: int,
+        description: str = "",
+        tags: Mapping[str, str] | None = None,
+        exist_ok: bool = False,
+    ) -> RegisteredModel:
+        """Register a model name. With `exist_ok`, an existing model with the same env, kind,
+        goals and sizes is returned; one that differs is still `AlreadyExists`."""
+
+    @abstractmethod
+    def get_model(self, name: str) -> RegisteredModel: ...
+
+    @abstractmethod
+    def list_models(
+        self,
+        *,
+        env: str | None = None,
+        kind: str | None = None,
+        goal: str | None = None,
+        tag: str | None = None,
+        page_size: int = 50,
+        page_token: str | None = None,
+    ) -> Page[RegisteredModel]:
+        """Models ordered by name. `tag` is `key` (has the tag) or `key=value`."""
+
+    @abstractmethod
+    def update_model(
+        self,
+        name: str,
+        *,
+        description: str | None = None,
+        tags: Mapping[str, str] | None = None,
+    ) -> RegisteredModel:
+        """Change the description and/or replace the whole tag set (None = leave as is)."""
+
+    @abstractmethod
+    def delete_model(self, name: str) -> None: ...
+
+    # --- versions --------------------------------------------------------------------------
+    @abstractmethod
+    def register_version(
+        self,
+        name: str,
+        *,
+        spec: dict,
+        weights: bytes,
+        lineage: Lineage,
+        aliases: Sequence[str] = ("latest",),
+    ) -> ModelVersion: ...
+
+    @abstractmethod
+    def get_version(self, name: str, version: int) -> ModelVersion: ...
+
+    @abstractmethod
+    def list_versions(self, name: str, *, include_archived: bool = True) -> list[ModelVersion]:
+        """All versions of a model, newest first."""
+
+    @abstractmethod
+    def resolve(self, ref: str) -> ModelVersion: ...
+
+    @abstractmethod
+    def load_weights(self, name: str, version: int) -> bytes: ...
+
+    @abstractmethod
+    def archive_version(self, name: str, version: int) -> ModelVersion: ...
+
+    @abstractmethod
+    def delete_version(self, name: str, version: int) -> None: ...
+
+    # --- aliases ---------------------------------------------------------------------------
+    @abstractmethod
+    def set_alias(self, name: str, alias: str, version: int) -> None:
+        """Point `alias` at `version` (creating or moving it) atomically."""
+
+    @abstractmethod
+    def delete_alias(self, name: str, alias: str) -> None: ...
+
+    # --- change feed -----------------------------------------------------------------------
+    @abstractmethod
+    def change_token(self) -> str: ...
+
+    @abstractmethod
+    def events(self, since_id: int = 0, limit: int = 100) -> list[Event]:
+        """Events with id > `since_id`, oldest first, at most `limit` (1..1000)."""
+
+    # --- lifecycle -------------------------------------------------------------------------
+    def close(self) -> None:  # noqa: B027 - optional hook, most stores hold nothing
+        """Release connections; the store must not be used afterwards."""
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()

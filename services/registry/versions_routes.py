@@ -1,0 +1,209 @@
+"""Versions and aliases of a model, under `/models/{name}/-/...`.
+
+Model names contain slashes, so a name's sub-resources are separated from it by a `-` segment,
+which no model name can contain (`model_store.naming`):
+
+    /v1/registry/models/particle/task/a3/-/versions/2/weights
+
+Upload (`POST .../-/versions`) takes `multipart/form-data` with the parts `spec` (the architecture
+JSON), `weights` (the safetensors file) and optionally `lineage` (JSON); the body is read with a
+size cap and refused with 413 as soon as it is over the limit.
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Header, Path, Query, Request, Response, status
+from starlette.concurrency import run_in_threadpool
+
+from model_store.artifacts import sha256_hex
+from model_store.entities import Lineage
+from model_store.errors import ArtifactTooLarge, InvalidArtifact
+from services.deps import ReadAuth, SettingsDep, StoreDep, WriteAuth
+from services.registry.errors import ERROR_RESPONSES, ApiError
+from services.registry.multipart import Part, boundary_of, parse_form_data
+from services.registry.schemas import AliasOut, AliasSet, VersionOut
+
+router = APIRouter(responses=ERROR_RESPONSES)
+FORM_OVERHEAD_BYTES = 1 << 20  # room for the spec, lineage and part headers beside the weights
+MODEL = "/models/{name:path}/-"
+VersionNumber = Annotated[int, Path(ge=1, description="version number, from 1")]
+
+_UPLOAD_BODY: dict[str, Any] = {
+    "requestBody": {
+        "required": True,
+        "content": {
+            "multipart/form-data": {
+                "schema": {
+                    "type": "object",
+                    "required": ["spec", "weights"],
+                    "properties": {
+                        "spec": {"type": "string", "description": "architecture spec (JSON)"},
+                        "lineage": {"type": "string", "description": "lineage (JSON object)"},
+                        "weights": {"type": "string", "format": "binary"},
+                    },
+                }
+            }
+        },
+    }
+}
+
+
+async def _read_capped(request: Request, limit: int) -> bytes:
+    declared = request.headers.get("content-length")
+    if declared is not None and declared.isdigit() and int(declared) > limit:
+        raise ArtifactTooLarge(
+            f"body: {declared} bytes is over the limit of {limit}", field="weights"
+        )
+    body = bytearray()
+    async for chunk in request.stream():
+        body += chunk
+        if len(body) > limit:
+            raise ArtifactTooLarge(f"body: over the limit of {limit} bytes", field="weights")
+    return bytes(body)
+
+
+def _json_part(parts: dict[str, Part], name: str, *, required: bool) -> Any:
+    if name not in parts:
+        if required:
+            raise InvalidArtifact(f"{name}: missing form field", field=name)
+        return None
+    try:
+        return json.loads(parts[name].data)
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise InvalidArtifact(f"{name}: not valid JSON ({exc})", field=name) from None
+
+
+@router.post(
+    f"{MODEL}/versions",
+    response_model=VersionOut,
+    status_code=status.HTTP_201_CREATED,
+    openapi_extra=_UPLOAD_BODY,
+    responses={413: {"description": "weights over the size limit"}},
+    tags=["versions"],
+)
+async def upload_version(
+    name: str,
+    request: Request,
+    store: StoreDep,
+    settings: SettingsDep,
+    _: WriteAuth,
+    response: Response,
+    alias: Annotated[list[str], Query(description="aliases to set besides `latest`")] = [],  # noqa: B006
+) -> VersionOut:
+    """Register a new version (numbered automatically) from a spec and a safetensors file;
+    `latest` and the `alias` query parameters then point at it."""
+    boundary = boundary_of(request.headers.get("content-type", ""))
+    if boundary is None:
+        raise ApiError(415, "unsupported_media_type", "expected multipart/form-data", field="body")
+    body = await _read_capped(request, settings.max_artifact_bytes + FORM_OVERHEAD_BYTES)
+    parts = parse_form_data(boundary, body)
+    spec = _json_part(parts, "spec", required=True)
+    lineage_json = _json_part(parts, "lineage", required=False)
+    if lineage_json is None:
+        lineage_json = {}
+    if "weights" not in parts:
+        raise InvalidArtifact("weights: missing form field (the safetensors file)", field="weights")
+    if isinstance(lineage_json, dict):
+        lineage_json.setdefault("registered_by", "rest-api")
+    lineage = Lineage.from_json(lineage_json)
+    weights = parts["weights"].data
+    if len(weights) > settings.max_artifact_bytes:
+        raise ArtifactTooLarge(
+            f"weights: {len(weights)} bytes is over the limit of {settings.max_artifact_bytes}",
+            field="weights",
+        )
+    version = await run_in_threadpool(
+        store.register_version,
+        name,
+        spec=spec,
+        weights=weights,
+        lineage=lineage,
+        aliases=("latest", *alias),
+    )
+    response.headers["Location"] = f"/v1/registry/models/{name}/-/versions/{version.version}"
+    return VersionOut.of(version)
+
+
+@router.get(f"{MODEL}/versions", response_model=list[VersionOut], tags=["versions"])
+def list_versions(name: str, store: StoreDep, _: ReadAuth) -> list[VersionOut]:
+    """All versions, newest first."""
+    return [VersionOut.of(v) for v in store.list_versions(name)]
+
+
+@router.get(f"{MODEL}/versions/{{version}}", response_model=VersionOut, tags=["versions"])
+def get_version(name: str, version: VersionNumber, store: StoreDep, _: ReadAuth) -> VersionOut:
+    """A version's metadata: spec, sha256, size, status and lineage."""
+    return VersionOut.of(store.get_version(name, version))
+
+
+@router.get(
+    f"{MODEL}/versions/{{version}}/weights",
+    response_class=Response,
+    responses={200: {"content": {"application/octet-stream": {}}}, 304: {}},
+    tags=["versions"],
+)
+def download_weights(
+    name: str,
+    version: VersionNumber,
+    store: StoreDep,
+    _: ReadAuth,
+    if_none_match: Annotated[str | None, Header()] = None,
+) -> Response:
+    """The safetensors bytes (checksum verified), with `X-Checksum-Sha256` and an ETag."""
+    meta = store.get_version(name, version)
+    etag = f'"{meta.sha256}"'
+    if if_none_match is not None and etag in [t.strip() for t in if_none_match.split(",")]:
+        return Response(status_code=status.HTTP_304_NOT_MODIFIED, headers={"ETag": etag})
+    data = store.load_weights(name, version)
+    filename = f"{name.replace('/', '_')}_v{version}.safetensors"
+    return Response(
+        content=data,
+        media_type="application/octet-stream",
+        headers={
+            "X-Checksum-Sha256": sha256_hex(data),
+            "ETag": etag,
+            "Content-Disposition": f'attachment; filename="{filename}"',
+        },
+    )
+
+
+@router.post(f"{MODEL}/versions/{{version}}/archive", response_model=VersionOut, tags=["versions"])
+def archive_version(name: str, version: VersionNumber, store: StoreDep, _: WriteAuth) -> VersionOut:
+    """Archive (keeps the data); refused with 409 while an alias points at the version."""
+    return VersionOut.of(store.archive_version(name, version))
+
+
+@router.delete(
+    f"{MODEL}/versions/{{version}}", status_code=status.HTTP_204_NO_CONTENT, tags=["versions"]
+)
+def delete_version(name: str, version: VersionNumber, store: StoreDep, _: WriteAuth) -> Response:
+    """Delete a version and its data; aliases pointing at it are removed."""
+    store.delete_version(name, version)
+    return Response(status_code=status.HTTP_204_NO_CONTENT)
+
+
+@router.put(f"{MODEL}/aliases/{{alias}}", response_model=AliasOut, tags=["aliases"])
+def set_alias(name: str, alias: str, body: AliasSet, store: StoreDep, _: WriteAuth) -> AliasOut:
+    """Create or move an alias (atomically) to a ready version."""
+    store.set_alias(name, alias, body.version)
+    return AliasOut(name=name, alias=alias, version=body.version)
+
+
+@router.delete(
+    f"{MODEL}/aliases/{{alias}}", status_code=status.HTTP_204_NO_CONTENT, tags=["aliases"]
+)
+def delete_alias(name: str, alias: str, store: StoreDep, _: WriteAuth) -> Response:
+    store.delete_alias(name, alias)
+    return Response(status_code=status.HTTP_204_NO_CONTENT)
+
+
+@router.get("/resolve", response_model=VersionOut, tags=["versions"])
+def resolve(
+    store: StoreDep,
+    _: ReadAuth,
+    ref: Annotated[str, Query(description="`name@alias`, `name/3`, or `name` (= @production)")],
+) -> VersionOut:
+    return VersionOut.of(store.resolve(ref))

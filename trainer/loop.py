@@ -1,0 +1,114 @@
+"""The soft-Q training loop of Algorithm 1, shared by the task, impact and joint learners.
+
+What differs between the learners is only *what the learning agent sees and is rewarded with*,
+so that lives in a `Rollout` (task.py, impact.py, joint.py); this loop owns acting, replay,
+updates and target copies, for G networks at once.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+import torch
+
+from policy.qnet import QNetSpec
+from trainer.config import SoftQConfig
+from trainer.replay import StackedReplay
+from trainer.soft_q import StackedSoftQ
+
+
+class Rollout(Protocol):
+    """Batched environments for G networks with E environments each."""
+
+    n_nets: int
+    envs_per_net: int
+    obs_dim: int
+    n_actions: int
+
+    def observe(self) -> np.ndarray:
+        """The learners' current views, (G, E, D) float32."""
+        ...
+
+    def step(self, actions_GE: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Apply the learners' actions; returns (reward_GE, next_view_GED) of this transition.
+
+        Episodes that end are restarted inside the rollout (after the transition is returned);
+        their returns are handed out by `finished_returns`."""
+        ...
+
+    def finished_returns(self) -> list[list[float]]:
+        """Returns of the episodes finished since the last call, one list per network."""
+        ...
+
+
+@dataclass
+class TrainingCurves:
+    """Mean episode return per network, sampled along training (paper Fig. 4)."""
+
+    steps: list[int] = field(default_factory=list)
+    returns_G: list[list[float]] = field(default_factory=list)
+    losses_G: list[list[float]] = field(default_factory=list)
+
+
+ProgressFn = Callable[[int, int], None]
+
+
+def train_soft_q(
+    rollout: Rollout,
+    config: SoftQConfig,
+    *,
+    seed: int,
+    progress: ProgressFn | None = None,
+    log_every: int = 100,
+) -> tuple[StackedSoftQ, TrainingCurves]:
+    """Train G soft-Q networks on `rollout` for `config.total_steps` batched steps."""
+    torch.manual_seed(seed)
+    generator = torch.Generator().manual_seed(seed)
+    spec = QNetSpec(
+        obs_dim=rollout.obs_dim, n_actions=rollout.n_actions, hidden=tuple(config.hidden)
+    )
+    learner = StackedSoftQ(
+        spec,
+        rollout.n_nets,
+        lr=config.lr,
+        gamma=config.gamma,
+        alpha=config.alpha,
+        generator=generator,
+    )
+    replay = StackedReplay(rollout.n_nets, config.replay_size, rollout.obs_dim)
+    curves = TrainingCurves()
+    pending: list[list[float]] = [[] for _ in range(rollout.n_nets)]
+    losses = torch.zeros(rollout.n_nets)
+    n_loss = 0
+
+    view_GED = torch.from_numpy(rollout.observe())
+    for step in range(config.total_steps):
+        act_GE = learner.act(view_GED)
+        rew_GE, next_GED = rollout.step(act_GE.numpy())
+        replay.add(view_GED, act_GE, torch.from_numpy(rew_GE), torch.from_numpy(next_GED))
+        view_GED = torch.from_numpy(rollout.observe())
+
+        if step >= config.warmup_steps:
+            for _ in range(config.updates_per_step):
+                stats = learner.update(replay.sample(config.batch_size, generator))
+                losses += stats.loss_G
+                n_loss += 1
+                if learner.n_updates % config.target_every == 0:
+                    learner.sync_target()
+
+        for g, finished in enumerate(rollout.finished_returns()):
+            pending[g].extend(finished)
+        at_log_point = (step + 1) % log_every == 0 or step + 1 == config.total_steps
+        if at_log_point and all(pending):
+            curves.steps.append(step + 1)
+            curves.returns_G.append([float(np.mean(p)) for p in pending])
+            curves.losses_G.append((losses / max(n_loss, 1)).tolist())
+            pending = [[] for _ in range(rollout.n_nets)]
+            losses.zero_()
+            n_loss = 0
+        if progress is not None:
+            progress(step + 1, config.total_steps)
+    return learner, curves

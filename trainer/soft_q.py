@@ -1,0 +1,81 @@
+"""Soft Q-learning for G networks at once (paper eqs. 2-5, Algorithm 1).
+
+The G networks are independent (one per goal) but their weights are stacked, so one batched
+matmul evaluates all of them and one Adam step updates all of them. Adam is element-wise, so a
+stacked Adam is exactly G separate Adams; the loss is the *sum* of the G per-network losses, so
+each network receives exactly its own gradient.
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass
+
+import torch
+
+from policy.qnet import QNetSpec, StackedQNet
+from policy.torch_ops import sample_boltzmann_t, soft_value_t
+from trainer.replay import Batch
+
+
+@dataclass(frozen=True)
+class UpdateStats:
+    """Per-network results of one update: loss_G (eq. 4) and mean predicted Q."""
+
+    loss_G: torch.Tensor
+    q_mean_G: torch.Tensor
+
+
+def soft_q_target(
+    rew_GB: torch.Tensor, next_q_GBA: torch.Tensor, gamma: float, alpha: float
+) -> torch.Tensor:
+    """Eq. 5: r + γ V_target(s'), with V from eq. 3. No terminal mask: episodes only time out."""
+    return rew_GB + gamma * soft_value_t(next_q_GBA, alpha)
+
+
+class StackedSoftQ:
+    """Online and target stacks of G Q-networks, Boltzmann acting and soft-Q updates."""
+
+    def __init__(
+        self,
+        spec: QNetSpec,
+        n_nets: int,
+        *,
+        lr: float,
+        gamma: float,
+        alpha: float,
+        generator: torch.Generator,
+    ) -> None:
+        self.spec = spec
+        self.gamma = gamma
+        self.alpha = alpha
+        self.online = StackedQNet(spec, n_nets, generator=generator)
+        self.target = copy.deepcopy(self.online)
+        self.target.requires_grad_(False)
+        self.optimizer = torch.optim.Adam(self.online.parameters(), lr=lr)
+        self.generator = generator
+        self.n_updates = 0
+
+    @torch.no_grad()
+    def act(self, obs_GED: torch.Tensor) -> torch.Tensor:
+        """Boltzmann exploration at temperature α (eq. 2): one sampled action per env."""
+        return sample_boltzmann_t(self.online(obs_GED), self.alpha, self.generator)
+
+    def update(self, batch: Batch) -> UpdateStats:
+        """One gradient step on J_Q (eq. 4) for all G networks."""
+        with torch.no_grad():
+            target_GB = soft_q_target(
+                batch.rew_GB, self.target(batch.next_obs_GBD), self.gamma, self.alpha
+            )
+        q_GBA = self.online(batch.obs_GBD)
+        q_GB = q_GBA.gather(2, batch.act_GB.unsqueeze(-1)).squeeze(-1)
+        loss_G = 0.5 * (target_GB - q_GB).pow(2).mean(dim=1)  # eq. 4, per network
+        self.optimizer.zero_grad(set_to_none=True)
+        loss_G.sum().backward()
+        self.optimizer.step()
+        self.n_updates += 1
+        return UpdateStats(loss_G=loss_G.detach(), q_mean_G=q_GB.detach().mean(dim=1))
+
+    def sync_target(self) -> None:
+        """Hard copy θ̄ ← θ (Algorithm 1)."""
+        self.target.load_state_dict(self.online.state_dict())

@@ -1,0 +1,204 @@
+"""The whole pipeline for an environment: task networks, then impact networks, then JL baselines.
+
+Order matters: an impact network for partner goal h is trained against the *registered* task
+network of h (its `production` version, else `latest`), and names that version as its parent.
+Work is done in batches of goals; a run directory records finished batches, so an interrupted
+run resumes where it stopped (`--resume`) instead of starting again.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import torch
+
+from model_store.entities import ModelVersion
+from model_store.errors import NotFound
+from model_store.naming import task_model_name
+from model_store.store import ModelStore
+from policy.qnet import QNetSpec, StackedQNet, tensors_from_safetensors
+from trainer.config import ImpactConfig, JointConfig, TaskConfig
+from trainer.learners import TrainedBatch, chunked, train_impacts, train_joint, train_tasks
+from trainer.loop import ProgressFn
+from trainer.publish import publish_batch
+
+# (description, total steps) -> per-step progress callback
+ProgressFactory = Callable[[str, int], ProgressFn]
+
+
+def load_task_nets(
+    store: ModelStore, env: str, goals: Sequence[str], alias: str = "production"
+) -> tuple[StackedQNet, list[ModelVersion]]:
+    """Stack the registered task networks of `goals` (alias, falling back to `latest`)."""
+    versions = []
+    for goal in goals:
+        name = task_model_name(env, goal)
+        try:
+            versions.append(store.resolve(f"{name}@{alias}"))
+        except NotFound:
+            versions.append(store.resolve(f"{name}@latest"))
+    specs = {json.dumps(v.spec, sort_keys=True) for v in versions}
+    if len(specs) != 1:
+        raise ValueError(f"task networks of {list(goals)} have different architectures")
+    spec = QNetSpec.from_json(versions[0].spec)
+    states = []
+    for v in versions:
+        tensors = tensors_from_safetensors(spec, store.load_weights(v.name, v.version))
+        states.append({k: torch.from_numpy(a) for k, a in tensors.items()})
+    return StackedQNet.from_members(spec, states), versions
+
+
+@dataclass
+class RunState:
+    """What an interrupted run has finished (kept as JSON in its run directory)."""
+
+    path: Path
+    fingerprint: str
+    done: dict[str, list[str]] = field(default_factory=dict)  # batch key -> version refs
+
+    @classmethod
+    def open(cls, run_dir: Path, fingerprint: str, resume: bool) -> RunState:
+        file = run_dir / "run.json"
+        if resume and file.exists():
+            data = json.loads(file.read_text())
+            if data["fingerprint"] != fingerprint:
+                raise ValueError(
+                    f"--resume: {run_dir} was started with other settings; start a new run"
+                )
+            return cls(file, fingerprint, data["done"])
+        run_dir.mkdir(parents=True, exist_ok=True)
+        state = cls(file, fingerprint)
+        state.save()
+        return state
+
+    def save(self) -> None:
+        tmp = self.path.with_suffix(".tmp")
+        tmp.write_text(json.dumps({"fingerprint": self.fingerprint, "done": self.done}, indent=1))
+        tmp.replace(self.path)  # atomic: a crash never leaves a half-written record
+
+    def record(self, key: str, versions: list[ModelVersion]) -> None:
+        self.done[key] = [f"{v.name}/{v.version}" for v in versions]
+        self.save()
+
+
+def fingerprint(**parts: object) -> str:
+    blob = json.dumps(parts, sort_keys=True, default=str).encode()
+    return hashlib.sha256(blob).hexdigest()[:16]
+
+
+def run_tasks(
+    store: ModelStore,
+    goals: Sequence[str],
+    config: TaskConfig,
+    *,
+    seed: int,
+    goals_per_batch: int,
+    run: RunState,
+    progress: ProgressFactory,
+    env: str = "particle",
+    serve_alias: str = "production",
+) -> list[TrainedBatch]:
+    batches = []
+    for i, chunk in enumerate(chunked(goals, goals_per_batch)):
+        key = f"task:{','.join(chunk)}"
+        if key in run.done:
+            continue
+        batch = train_tasks(
+            chunk,
+            config,
+            seed=seed + i,
+            progress=progress(f"task {chunk[0]}..{chunk[-1]}", config.total_steps),
+        )
+        run.record(key, publish_batch(store, batch, env=env, serve_alias=serve_alias))
+        batches.append(batch)
+    return batches
+
+
+def run_impacts(
+    store: ModelStore,
+    goals: Sequence[str],
+    config: ImpactConfig,
+    *,
+    seed: int,
+    goals_per_batch: int,
+    run: RunState,
+    progress: ProgressFactory,
+    env: str = "particle",
+) -> list[TrainedBatch]:
+    batches = []
+    for i, chunk in enumerate(chunked(goals, goals_per_batch)):
+        key = f"impact:{','.join(chunk)}"
+        if key in run.done:
+            continue
+        partner_nets, task_versions = load_task_nets(store, env, chunk)
+        batch = train_impacts(
+            chunk,
+            partner_nets,
+            config,
+            seed=seed + 1000 + i,
+            progress=progress(f"impact {chunk[0]}..{chunk[-1]}", config.total_steps),
+        )
+        parents: dict[tuple[str, ...], list[str]] = {
+            (g,): [f"{v.name}/{v.version}"] for g, v in zip(chunk, task_versions, strict=True)
+        }
+        run.record(key, publish_batch(store, batch, env=env, parents=parents))
+        batches.append(batch)
+    return batches
+
+
+def run_joint(
+    store: ModelStore,
+    combos: Sequence[Sequence[str]],
+    config: JointConfig,
+    *,
+    seed: int,
+    run: RunState,
+    progress: ProgressFactory,
+    env: str = "particle",
+) -> list[TrainedBatch]:
+    """JL networks; combinations with the same number of agents train together."""
+    batches = []
+    by_size: dict[int, list[tuple[str, ...]]] = {}
+    for combo in combos:
+        by_size.setdefault(len(combo), []).append(tuple(combo))
+    for size, group in sorted(by_size.items()):
+        key = "joint:" + ";".join("+".join(c) for c in group)
+        if key in run.done:
+            continue
+        partner_nets: list[StackedQNet] = []
+        parents: dict[tuple[str, ...], list[str]] = {c: [] for c in group}
+        for slot in range(1, size):
+            nets, versions = load_task_nets(store, env, [c[slot] for c in group])
+            partner_nets.append(nets)
+            for c, v in zip(group, versions, strict=True):
+                parents[c].append(f"{v.name}/{v.version}")
+        batch = train_joint(
+            group,
+            partner_nets,
+            config,
+            seed=seed + 2000 + size,
+            progress=progress(f"joint {size} agents", config.total_steps),
+        )
+        run.record(key, publish_batch(store, batch, env=env, parents=parents))
+        batches.append(batch)
+    return batches
+
+
+def goals_without(
+    store: ModelStore, env: str, kind: str, goals: Sequence[str], alias: str
+) -> list[str]:
+    """Goals whose `{env}/{kind}/{goal}` model has no version under `alias`."""
+    from model_store.naming import impact_model_name
+
+    name_of = task_model_name if kind == "task" else impact_model_name
+    missing = []
+    for goal in goals:
+        try:
+            store.resolve(f"{name_of(env, goal)}@{alias}")
+        except NotFound:
+            missing.append(goal)
+    return missing
