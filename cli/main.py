@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import typer
 
-from cli import demo, models, train
+from cli import demo, models, run, train
 
 app = typer.Typer(
     name="coexist",
@@ -25,6 +25,7 @@ def main() -> None:
 
 
 app.command("demo")(demo.demo)
+app.command("run")(run.run)
 app.add_typer(train.app, name="train")
 app.add_typer(models.app, name="models")
 

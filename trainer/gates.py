@@ -1,13 +1,15 @@
 """Quality gates: is a trained network good enough to be served (`production`)?
 
 Task gate (per goal g), on `eval_episodes` seeded random starts, a partner heading for a random
-goal with the scripted controller (deterministic, so both runs below see the same partner):
+goal with the scripted controller (deterministic, so every run below sees the same partner):
 - success: share of episodes in which the ego reaches its target area, sampling its actions from
   the Boltzmann policy at the training α (what the server returns), must be ≥ `success_threshold`;
-- return: its mean *own-target* return (−Σ_t distance to its target area: the part of the reward
-  its actions control; the influence part depends only on the partner, who behaves identically in
-  both runs) must be within max(`return_margin` × |scripted|, `return_slack`) of the scripted straight-to-target
-  controller's on the same starts.
+- return: the mean *own-target* return (−Σ_t distance to its target area: the part of the reward
+  the ego's actions control; the influence part depends only on the partner, identical in every
+  run) of the network's greedy policy must be within max(`return_margin` × |scripted|,
+  `return_slack`) of the scripted straight-to-target controller's on the same starts. Greedy,
+  because this compares what the network *learned* with a deterministic controller; sampling
+  noise at α is measured by the success rate and reported (`sampled_own_target_return`).
 
 Impact gate (per partner goal h): on seeded random starts the partner acts with its task network;
 the partner's mean return with the impact-driven ego must exceed its mean return with an ego that
@@ -44,6 +46,7 @@ class TaskGate:
     own_target_return: float
     scripted_own_target_return: float
     passed: bool
+    sampled_own_target_return: float = float("nan")
 
     def metrics(self) -> dict[str, Any]:
         return asdict(self)
@@ -101,15 +104,20 @@ def task_gates(
     world = BatchedParticleWorld(goals_BN, max_steps=config.eval_steps + 1, seed=seed)
     generator = torch.Generator().manual_seed(seed)
 
-    def learned(state_BN4: np.ndarray, obs_BND: np.ndarray) -> np.ndarray:
-        q = _grouped_q(nets, PARTICLE.task_views(obs_BND[:, 0], 2)[:, 0], n_nets)
-        ego = sample_boltzmann_t(q, config.alpha, generator).numpy().reshape(-1)
-        return np.stack([ego, scripted_actions(state_BN4, goals_BN)[:, 1]], axis=1)
+    def learned(greedy: bool) -> EgoPolicy:
+        def policy(state_BN4: np.ndarray, obs_BND: np.ndarray) -> np.ndarray:
+            q = _grouped_q(nets, PARTICLE.task_views(obs_BND[:, 0], 2)[:, 0], n_nets)
+            acts = q.argmax(-1) if greedy else sample_boltzmann_t(q, config.alpha, generator)
+            partner = scripted_actions(state_BN4, goals_BN)[:, 1]
+            return np.stack([acts.numpy().reshape(-1), partner], axis=1)
+
+        return policy
 
     def scripted(state_BN4: np.ndarray, obs_BND: np.ndarray) -> np.ndarray:
         return scripted_actions(state_BN4, goals_BN)
 
-    ret, _, own, reached = _run(world, goals_BN, starts, config.eval_steps, learned)
+    ret, _, sampled_own, reached = _run(world, goals_BN, starts, config.eval_steps, learned(False))
+    _, _, own, _ = _run(world, goals_BN, starts, config.eval_steps, learned(True))
     _, _, ref, _ = _run(world, goals_BN, starts, config.eval_steps, scripted)
     gates = []
     for g, goal in enumerate(goals):
@@ -120,12 +128,13 @@ def task_gates(
         passed = bool(success >= config.success_threshold and close_enough)
         gates.append(
             TaskGate(
-                GOAL_IDS[goal],
-                float(success),
-                float(ret[part].mean()),
-                float(own_mean),
-                float(ref_mean),
-                passed,
+                goal=GOAL_IDS[goal],
+                success_rate=float(success),
+                mean_return=float(ret[part].mean()),
+                own_target_return=float(own_mean),
+                scripted_own_target_return=float(ref_mean),
+                passed=passed,
+                sampled_own_target_return=float(sampled_own[part].mean()),
             )
         )
     return gates

@@ -26,12 +26,13 @@ from model_store.sql.convert import now, version_entity
 from model_store.sql.orm import AliasRow, ModelRow, VersionRow
 
 REGISTER_ATTEMPTS = 3  # retries of a version allocation that lost a race (belt and braces)
+MAX_VERSION = 2**63 - 1  # the database's BIGINT / SQLite INTEGER range
 
 
 def _check_version_number(version: int) -> int:
-    if not isinstance(version, int) or isinstance(version, bool) or version < 1:
+    if not isinstance(version, int) or isinstance(version, bool) or not 1 <= version <= MAX_VERSION:
         raise InvalidArgument(
-            f"version: expected an integer >= 1, got {version!r}", field="version"
+            f"version: expected an integer in 1..{MAX_VERSION}, got {version!r}", field="version"
         )
     return version
 

@@ -29,7 +29,7 @@ from services.registry.schemas import AliasOut, AliasSet, VersionOut
 router = APIRouter(responses=ERROR_RESPONSES)
 FORM_OVERHEAD_BYTES = 1 << 20  # room for the spec, lineage and part headers beside the weights
 MODEL = "/models/{name:path}/-"
-VersionNumber = Annotated[int, Path(ge=1, description="version number, from 1")]
+VersionNumber = Annotated[int, Path(ge=1, le=2**63 - 1, description="version number, from 1")]
 
 _UPLOAD_BODY: dict[str, Any] = {
     "requestBody": {

@@ -226,3 +226,8 @@ def test_settings_come_from_the_environment(monkeypatch, tmp_path: Path) -> None
         assert get_settings() is settings
     finally:
         get_settings.cache_clear()
+
+
+def test_huge_version_number_is_a_4xx_not_a_500(client) -> None:
+    response = client.get("/v1/registry/models/particle/task/a3/-/versions/99999999999999999999999")
+    _error(response, 422)

@@ -1,0 +1,99 @@
+"""`coexist run`: particle episodes against a running policy server (the environment client).
+
+    coexist run --server http://127.0.0.1:8000 --ego a2 --partners b3 --episodes 20
+    coexist run --server grpc://127.0.0.1:50051 --ego a2 --partners a0,b2,c4,e1 --gif run.gif
+
+The ego (agent 0) acts through the server with `--method`; each partner follows its own task
+policy, also served (method `sl`, the partner as the ego of its own request), so no model is
+needed locally. Prints per-agent and team returns (mean ± standard error over episodes), success
+(inside its own target area at the end) and episode length. `services.env_client` runs the loop.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+
+def _client(server: str, transport: str | None) -> Any:
+    from services.sdk import CoexistClient, GrpcCoexistClient
+
+    use_grpc = transport == "grpc" or (transport is None and server.startswith("grpc://"))
+    if use_grpc:
+        target = server.removeprefix("grpc://").removeprefix("http://").removeprefix("https://")
+        return GrpcCoexistClient(target)
+    if server.startswith("grpc://"):
+        raise typer.BadParameter(
+            "a grpc:// URL needs --transport grpc (or none)", param_hint="--server"
+        )
+    return CoexistClient(server)
+
+
+def run(
+    server: Annotated[
+        str, typer.Option(help="Server URL: http://host:port (REST) or grpc://host:port.")
+    ] = "http://127.0.0.1:8000",
+    env: Annotated[str, typer.Option(help="Environment.")] = "particle",
+    ego: Annotated[str, typer.Option(help="The ego agent's goal (agent 0).")] = "a2",
+    partners: Annotated[
+        str, typer.Option(help="Comma-separated partner goals (agents 1..N-1).")
+    ] = "b3",
+    method: Annotated[str, typer.Option(help="Ego method: aail, nail, sl or jl.")] = "aail",
+    episodes: Annotated[int, typer.Option(min=1, help="Number of episodes.")] = 20,
+    seed: Annotated[int, typer.Option(min=0, help="Seed of start states and sampling.")] = 0,
+    max_steps: Annotated[int, typer.Option(min=1, help="Steps before truncation.")] = 200,
+    transport: Annotated[
+        str | None, typer.Option(help="http or grpc (default: from the URL's scheme).")
+    ] = None,
+    gif: Annotated[Path | None, typer.Option(help="Render the first episode to this GIF.")] = None,
+    greedy: Annotated[bool, typer.Option(help="Act greedily instead of sampling.")] = False,
+    alias: Annotated[str, typer.Option(help="Model alias to serve from.")] = "production",
+) -> None:
+    """Run episodes where the ego acts through the server and partners follow their task policy."""
+    from rich.console import Console
+    from rich.progress import Progress
+    from rich.table import Table
+
+    from envs.particle.render import save_gif
+    from services.env_client import run_episodes, summarise
+    from services.sdk import CoexistError
+
+    if transport not in (None, "http", "grpc"):
+        raise typer.BadParameter("expected http or grpc", param_hint="--transport")
+    partner_goals = [g.strip() for g in partners.split(",") if g.strip()]
+    console = Console()
+    client = _client(server, transport)
+    try:
+        with Progress(console=console, transient=True) as progress:
+            task = progress.add_task(f"{episodes} episodes", total=episodes)
+            results = run_episodes(
+                client, env=env, ego_goal=ego, partner_goals=partner_goals, method=method,
+                episodes=episodes, seed=seed, max_steps=max_steps, alias=alias, greedy=greedy,
+                record_first=gif is not None, on_episode=lambda _: progress.advance(task),
+            )  # fmt: skip
+    except (CoexistError, ValueError) as err:
+        console.print(f"[red]error:[/red] {err}")
+        raise typer.Exit(1) from None
+    finally:
+        client.close()
+
+    summary = summarise(results)
+    goals = results[0].goals
+    table = Table(title=f"{env}: {len(results)} episodes, ego {method}, seed {seed} ({server})")
+    for column, justify in (("agent", "left"), ("goal", "left"), ("policy", "left"),
+                            ("return (mean ± se)", "right"), ("success", "right")):  # fmt: skip
+        table.add_column(column, justify=justify)  # type: ignore[arg-type]
+    for i, goal in enumerate(goals):
+        policy = method if i == 0 else "sl (own task)"
+        name = f"agent_{i}" + (" (ego)" if i == 0 else "")
+        rate = f"{summary.success_rate[i]:.0%}"
+        table.add_row(name, goal, policy, str(summary.returns[i]), rate)
+    table.add_row("team", "", "", str(summary.team_return), "", style="bold")
+    console.print(table)
+    console.print(f"episode length: {summary.length} steps (max {max_steps})")
+    if gif is not None:
+        gif.parent.mkdir(parents=True, exist_ok=True)
+        save_gif(results[0].frames, gif)
+        console.print(f"wrote {gif} ({len(results[0].frames)} frames, episode 0)")

@@ -1,0 +1,109 @@
+"""Pure steps of `act` between the cache and the blend: build each network's input rows from the
+views, regroup the Q-values per partner, list the models used, sample the actions.
+
+Row layout of the member inputs (B observation rows, K task views, U_g partners with goal g):
+
+| member          | input rows                                   | Q-values used as                   |
+|-----------------|----------------------------------------------|------------------------------------|
+| task            | (B*K, pair_dim), row b*K + k = view k of b   | mean over k -> q_task (B, A)       |
+| impact, goal g  | (U_g*B, pair_dim), block u = the impact view | block u -> partner u's Q for g     |
+|                 | of the u-th partner with goal g              |                                    |
+| joint           | (B, obs_dim), the whole observation          | q (B, A)                           |
+
+`slots[(position, goal)] = (member, block)` says where a partner's Q for a goal lies.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from policy.blend import mix_goal_beliefs
+from services.engine.errors import InvalidRequest
+from services.engine.messages import Member, ModelUsed
+from services.engine.networks import StackedGroup
+from services.engine.validation import CheckedRequest
+
+Slots = dict[tuple[int, str], tuple[int, int]]
+
+
+def member_inputs(
+    checked: CheckedRequest, members: Sequence[Member], group: StackedGroup
+) -> tuple[list[np.ndarray], Slots]:
+    """Each member's input rows (table above) and the partners' slots."""
+    obs_BD, n_agents, domain = checked.obs_BD, checked.n_agents, checked.runtime.domain
+    if members[0][0] == "joint":
+        joint = group.nets[0]
+        if joint.spec.obs_dim != obs_BD.shape[1]:
+            raise InvalidRequest(
+                "observations",
+                f"the joint network {joint.name} takes {joint.spec.obs_dim} features, "
+                f"the observations have {obs_BD.shape[1]} (a joint network knows no bystanders)",
+            )
+        return [obs_BD], {}
+    views_BKP = domain.task_views(obs_BD, n_agents)
+    inputs = [views_BKP.reshape(-1, views_BKP.shape[-1])]
+    if len(members) == 1:
+        return inputs, {}
+    member_of = {goal: j for j, (role, goal) in enumerate(members) if role == "impact"}
+    blocks: list[list[np.ndarray]] = [[] for _ in members]
+    slots: Slots = {}
+    for position, partner in enumerate(checked.partners):
+        view_BP = domain.impact_view(obs_BD, n_agents, partner.index)
+        for goal in partner.goals:
+            j = member_of[goal]
+            slots[(position, goal)] = (j, len(blocks[j]))
+            blocks[j].append(view_BP)
+    inputs += [b[0] if len(b) == 1 else np.concatenate(b) for b in blocks[1:]]
+    return inputs, slots
+
+
+def impact_q(
+    checked: CheckedRequest,
+    q_members: Sequence[np.ndarray],
+    slots: Mapping[tuple[int, str], tuple[int, int]],
+) -> np.ndarray:
+    """One impact Q-vector per partner, (B, P, A); a goal distribution is mixed by its
+    probabilities (§3.2, `mix_goal_beliefs`: the expected impact Q)."""
+    batch, n_actions = checked.obs_BD.shape[0], checked.runtime.domain.n_actions
+    per_partner = []
+    for position, partner in enumerate(checked.partners):
+        q_GBA = []
+        for goal in partner.goals:
+            j, block = slots[(position, goal)]
+            q_GBA.append(q_members[j][block * batch : (block + 1) * batch])
+        if partner.probs is None:
+            per_partner.append(q_GBA[0])
+        else:
+            q_B1GA = np.stack(q_GBA, axis=1)[:, None]
+            probs_B1G = np.broadcast_to(np.asarray(partner.probs), (batch, 1, len(q_GBA)))
+            per_partner.append(mix_goal_beliefs(q_B1GA, probs_B1G)[:, 0])
+    if not per_partner:
+        return np.zeros((batch, 0, n_actions))
+    return np.stack(per_partner, axis=1)
+
+
+def models_used(
+    checked: CheckedRequest, members: Sequence[Member], group: StackedGroup
+) -> list[ModelUsed]:
+    """The task (or joint) network, then per partner (in request order) each goal's impact net."""
+    first = group.nets[0]
+    used = [ModelUsed(members[0][0], first.name, first.version, first.sha256, None, members[0][1])]
+    if len(members) > 1:
+        net_of = {goal: group.nets[j] for j, (role, goal) in enumerate(members) if role == "impact"}
+        for partner in checked.partners:
+            for goal in partner.goals:
+                net = net_of[goal]
+                used.append(
+                    ModelUsed("impact", net.name, net.version, net.sha256, partner.index, goal)
+                )
+    return used
+
+
+def sample_actions(probs_BA: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """One action per row drawn from `probs_BA` by inverse CDF (one uniform per row, in order):
+    the first action whose cumulative probability exceeds u, so a p = 0 action is never drawn."""
+    cdf_BA = np.cumsum(probs_BA, axis=1)
+    u_B1 = rng.random((probs_BA.shape[0], 1)) * cdf_BA[:, -1:]
+    return np.minimum((cdf_BA <= u_B1).sum(axis=1), probs_BA.shape[1] - 1)

@@ -1,0 +1,232 @@
+"""`InferenceEngine`: the blended action distributions of paper §3.3 for B observation rows.
+One engine per server process, shared by the REST and gRPC transports.
+
+| step     | what                                                          | where          |
+|----------|---------------------------------------------------------------|----------------|
+| check    | every field; bad ones -> `InvalidRequest(field, message)`     | `validation`   |
+| resolve  | `{env}/task/{ego_goal}` and `{env}/impact/{g}` for every      | `model_cache`  |
+|          | partner goal g with probability > 0 (sl: the task net only;   |                |
+|          | jl: `{env}/joint/{ego}+{p1}+...`, partners ordered by index), |                |
+|          | by `name@alias` or a pinned version                           |                |
+| stack    | the networks' weights, once per combination of versions       | `model_cache`  |
+| forward  | one `numpy_stacked_forward` over all members (task net on its | `networks`,    |
+|          | K task views, each impact net on its partners' impact views)  | `assembly`     |
+| blend    | `policy.blend.blend` (eqs. 8-10) on the task Q (mean over the |                |
+|          | K views) and one impact Q per partner; jl: the joint Q alone  |                |
+| sample   | inverse CDF per row from `default_rng(seed)`, one stream over | `assembly`     |
+|          | the rows (row r of a batch is not row 1 of a single request)  |                |
+
+Choices the paper leaves open: the temperature is the request's, else the task (jl: joint)
+model's training α (`lineage.config["alpha"]`), else 0.02. For jl the "task" diagnostics describe
+the joint policy (`task_weight` 1, partner weights 0); jl needs each partner's announced goal.
+Partners given with `sl` are checked but load no network.
+
+Hot reload: `refresh()` (or the daemon thread of `start_refresh_thread`, every
+`refresh_interval_s`) swaps moved aliases to their new versions, loaded before the swap; see
+`model_cache`.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+
+import numpy as np
+
+from envs.registry import known_envs
+from model_store.entities import ModelVersion
+from model_store.errors import InvalidArgument, ModelStoreError
+from model_store.naming import joint_model_name
+from model_store.store import ModelStore
+from policy.blend import BlendMethod, blend
+from services.engine.assembly import impact_q, member_inputs, models_used, sample_actions
+from services.engine.environments import env_runtime
+from services.engine.errors import EngineError, InvalidRequest
+from services.engine.messages import (
+    DEFAULT_TEMPERATURE,
+    ActRequest,
+    ActResult,
+    EngineStats,
+    EngineStatus,
+    EnvInfo,
+    Member,
+)
+from services.engine.model_cache import ModelCache
+from services.engine.networks import forward_group
+from services.engine.validation import CheckedRequest, check_request
+
+log = logging.getLogger(__name__)
+
+
+class InferenceEngine:
+    """Resolve, load, stack, evaluate, blend and sample (module docstring)."""
+
+    def __init__(
+        self,
+        store: ModelStore,
+        *,
+        cache_size: int = 256,
+        stack_cache_size: int = 64,
+        refresh_interval_s: float = 2.0,
+        max_batch: int = 4096,
+    ) -> None:
+        for name, value in (("cache_size", cache_size), ("stack_cache_size", stack_cache_size)):
+            if value < 1:
+                raise ValueError(f"{name}: expected >= 1, got {value}")
+        if not refresh_interval_s > 0:
+            raise ValueError(f"refresh_interval_s: expected > 0, got {refresh_interval_s}")
+        if max_batch < 1:
+            raise ValueError(f"max_batch: expected >= 1, got {max_batch}")
+        self.store = store
+        self.refresh_interval_s = refresh_interval_s
+        self.max_batch = max_batch
+        self.stats = EngineStats()
+        self.cache = ModelCache(
+            store, self.stats, cache_size=cache_size, stack_cache_size=stack_cache_size
+        )
+        self._rng = np.random.default_rng()  # for unseeded requests
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    # --- act -------------------------------------------------------------------------------
+    def act(self, request: ActRequest) -> list[ActResult]:
+        """One result per observation row; `EngineError` on bad input or missing models."""
+        try:
+            results = self._act(request)
+        except EngineError:
+            self.stats.errors += 1
+            raise
+        self.stats.requests += 1
+        self.stats.rows += len(results)
+        return results
+
+    def _act(self, request: ActRequest) -> list[ActResult]:
+        checked = check_request(request, self.max_batch)
+        domain, method = checked.runtime.domain, request.method
+        members, versions = self._resolve_members(request, checked)
+        group = self.cache.group(versions, members, domain)
+        inputs, slots = member_inputs(checked, members, group)
+        q_members = forward_group(group, inputs)
+        batch, n_actions = checked.obs_BD.shape[0], domain.n_actions
+        if method == "jl":
+            q_task_BA = q_members[0]
+        else:  # the task Q averaged over the K task views (one per other agent)
+            q_task_BA = q_members[0].reshape(batch, -1, n_actions).mean(axis=1)
+        blend_method: BlendMethod = "sl"
+        q_impact_BPA = np.zeros((batch, 0, n_actions))  # sl, jl: the task/joint network alone
+        if method in ("nail", "aail"):
+            blend_method = "nail" if method == "nail" else "aail"
+            q_impact_BPA = impact_q(checked, q_members, slots)
+        if not (np.isfinite(q_task_BA).all() and np.isfinite(q_impact_BPA).all()):
+            raise InvalidRequest("observations", "values so large that the Q-values overflow")
+        temperature = request.temperature or group.nets[0].alpha or DEFAULT_TEMPERATURE
+        blended = blend(blend_method, q_task_BA, q_impact_BPA, temperature)
+        partner_weights_BP = blended.partner_weights_BP
+        if blend_method == "sl":  # no impact network was evaluated: every partner weighs 0
+            partner_weights_BP = np.zeros((batch, len(checked.partners)))
+        rng = self._rng if request.seed is None else np.random.default_rng(request.seed)
+        actions = sample_actions(blended.probs_BA, rng).tolist()
+        greedy = blended.probs_BA.argmax(axis=1).tolist()
+        probs, entropy = blended.probs_BA.tolist(), blended.task_entropy_B.tolist()
+        w_task, w_partners = blended.task_weight_B.tolist(), partner_weights_BP.tolist()
+        models = models_used(checked, members, group)
+        return [
+            ActResult(
+                probs[b], actions[b], greedy[b], method, entropy[b], w_task[b], w_partners[b],
+                list(models),
+            )
+            for b in range(batch)
+        ]  # fmt: skip
+
+    def _resolve_members(
+        self, request: ActRequest, checked: CheckedRequest
+    ) -> tuple[list[Member], list[ModelVersion]]:
+        """The networks the request needs and their versions: the task (or joint) network
+        first, then the impact networks sorted by name (so that the order in which partners
+        are listed does not change the stacked group)."""
+        runtime, alias, pinned = checked.runtime, request.alias, request.versions
+        if request.method == "jl":
+            goals = [
+                request.ego_goal,
+                *(p.goals[0] for p in sorted(checked.partners, key=lambda p: p.index)),
+            ]
+            try:
+                name = joint_model_name(runtime.domain.name, goals[0], goals[1:])
+            except InvalidArgument:  # a goal no model name can hold: there is no such network
+                name = f"{runtime.domain.name}/joint/{'+'.join(goals)}"
+            why = "jl needs the joint network of this goal combination"
+            return [("joint", request.ego_goal)], [
+                self.cache.resolve(name, alias, pinned, "method", why)
+            ]
+        task_name = runtime.task_names[request.ego_goal]
+        members: list[Member] = [("task", request.ego_goal)]
+        versions = [self.cache.resolve(task_name, alias, pinned, "ego_goal", "no task network")]
+        if request.method == "sl":
+            return members, versions
+        field_of: dict[str, str] = {}  # goal -> the first partner field that asks for it
+        for i, partner in enumerate(checked.partners):
+            suffix = "goal" if partner.probs is None else "goal_probs"
+            for goal in partner.goals:
+                field_of.setdefault(goal, f"partners[{i}].{suffix}")
+        for goal in sorted(field_of, key=runtime.impact_names.__getitem__):
+            name = runtime.impact_names[goal]
+            why = "no impact network"
+            versions.append(self.cache.resolve(name, alias, pinned, field_of[goal], why))
+            members.append(("impact", goal))
+        return members, versions
+
+    # --- environments, hot reload, status --------------------------------------------------
+    def envs(self) -> list[EnvInfo]:
+        """Every registered environment: goals, action meanings, observation layouts, methods."""
+        return [env_runtime(name).info for name in known_envs()]
+
+    def refresh(self) -> bool:
+        """Poll the store's change token and swap moved aliases to their new versions (loaded
+        first). True when a served alias moved; store errors are logged and give False."""
+        return self.cache.refresh()
+
+    def start_refresh_thread(self) -> None:
+        """Call `refresh()` every `refresh_interval_s` in a daemon thread (idempotent)."""
+        if self._thread is not None and self._thread.is_alive():
+            return
+        self._stop.clear()
+        self._thread = threading.Thread(
+            target=self._refresh_loop, name="coexist-engine-refresh", daemon=True
+        )
+        self._thread.start()
+
+    def _refresh_loop(self) -> None:
+        while not self._stop.wait(self.refresh_interval_s):
+            try:
+                self.refresh()
+            except Exception:  # never let the thread die: the server would stop reloading
+                log.exception("hot reload: unexpected error, will retry")
+
+    def stop(self) -> None:
+        """Stop the refresh thread (the engine still answers requests)."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=max(5.0, 2 * self.refresh_interval_s))
+            self._thread = None
+
+    def status(self) -> EngineStatus:
+        """Readiness: whether the store answers, what is loaded and which versions are served."""
+        error: str | None = None
+        try:
+            self.store.change_token()
+        except ModelStoreError as exc:
+            error = str(exc)
+        return EngineStatus(
+            store_reachable=error is None,
+            store_error=error,
+            models_loaded=self.cache.models_loaded(),
+            versions_served=self.cache.versions_served(),
+            change_token=self.cache.last_token,
+            refresh_thread_alive=self._thread is not None and self._thread.is_alive(),
+        )
+
+    def __enter__(self) -> InferenceEngine:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.stop()

@@ -1,0 +1,119 @@
+"""What goes into and comes out of the engine: plain frozen dataclasses (docs/architecture.md).
+
+| class          | what                                                                   |
+|----------------|------------------------------------------------------------------------|
+| `PartnerSpec`  | one partner: its index in the ego's observation layout and its goal    |
+|                | (one announced `goal`, or `goal_probs`, a distribution over goals)     |
+| `ActRequest`   | env, ego goal, observations (B, obs_dim), partners, method, temperature,|
+|                | seed, alias and pinned versions                                        |
+| `ModelUsed`    | one network a result was computed with (name, version, sha256, role)   |
+| `ActResult`    | one per observation row: probabilities, sampled and greedy action,     |
+|                | blend diagnostics, models used                                         |
+| `EnvInfo`      | one environment as `GET /v1/envs` describes it                         |
+| `EngineStatus` | readiness: store reachable, models loaded, versions served             |
+| `EngineStats`  | counters for metrics (cache hits and misses, loads, reloads ...)       |
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+Method = Literal["aail", "nail", "sl", "jl"]
+METHODS: tuple[Method, ...] = ("aail", "nail", "sl", "jl")
+Role = Literal["task", "impact", "joint"]
+Member = tuple[Role, str]  # one network a request needs: its role and the goal it serves
+DEFAULT_ALIAS = "production"
+DEFAULT_TEMPERATURE = 0.02  # used when neither the request nor the model's lineage gives one
+
+
+@dataclass(frozen=True)
+class PartnerSpec:
+    index: int  # the partner's position in the ego's observation layout (1..N-1)
+    goal: str | None = None  # the announced goal, or
+    goal_probs: Mapping[str, float] | None = None  # a distribution over goals (exactly one of two)
+
+
+@dataclass(frozen=True, eq=False)  # eq=False: `observations` is an array
+class ActRequest:
+    env: str
+    ego_goal: str
+    observations: np.ndarray  # (B, obs_dim): the ego's observations (B = 1 for /v1/act)
+    partners: tuple[PartnerSpec, ...] = ()
+    method: Method = "aail"
+    temperature: float | None = None  # default: the task (or joint) model's training α
+    seed: int | None = None  # seeds the sampled action(s); one stream over the B rows
+    alias: str = DEFAULT_ALIAS  # the alias every model is resolved by
+    versions: Mapping[str, int] = field(default_factory=dict)  # pinned versions by model name
+
+
+@dataclass(frozen=True)
+class ModelUsed:
+    role: Role
+    name: str
+    version: int
+    sha256: str
+    partner_index: int | None  # None for the task and joint networks
+    goal: str  # the goal the network serves (for a joint network: the ego's)
+
+
+@dataclass(frozen=True)
+class ActResult:
+    probs: list[float]
+    action: int  # sampled from `probs`
+    greedy_action: int  # arg max of `probs` (the first on ties)
+    method: str
+    task_entropy: float  # normalised entropy of the task policy (of the joint policy for jl)
+    task_weight: float  # w_t (1 for sl and jl)
+    partner_weights: list[float]  # one per partner, in `partners` order
+    models: list[ModelUsed]
+
+
+@dataclass(frozen=True)
+class EnvInfo:
+    name: str
+    goals: tuple[str, ...]
+    action_meanings: tuple[str, ...]
+    max_agents: int
+    obs_dims: dict[int, int]  # agent count -> observation length
+    observation_layouts: dict[int, list[str]]  # agent count -> one name per feature
+    state_layout: tuple[str, ...] | None  # one agent's row of a global state, None: no state input
+    pair_obs_dim: int
+    methods: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class EngineStatus:
+    store_reachable: bool
+    store_error: str | None  # why the store is not reachable
+    models_loaded: int  # networks in the weights cache
+    versions_served: dict[str, int]  # "name@alias" -> version, for every alias resolved so far
+    change_token: str | None  # the store change token the served versions reflect
+    refresh_thread_alive: bool
+
+
+@dataclass
+class EngineStats:
+    """Monotonic counters (read them, never reset). Increments from request threads are not
+    locked, so under heavy contention a count may be off by a few: fine for metrics."""
+
+    requests: int = 0  # act() calls that returned results
+    rows: int = 0  # observation rows answered
+    errors: int = 0  # act() calls that raised an EngineError
+    resolve_hits: int = 0  # name@alias served from the resolution cache
+    resolve_misses: int = 0
+    cache_hits: int = 0  # networks found in the weights cache
+    cache_misses: int = 0
+    stack_hits: int = 0  # stacked network groups found ready
+    stack_misses: int = 0
+    loads: int = 0  # networks loaded (and sha256-verified) from the store
+    load_failures: int = 0
+    refreshes: int = 0  # refresh() calls that saw a new store change token
+    reloads: int = 0  # aliases that moved and were swapped to their new version
+    refresh_errors: int = 0  # refresh() calls that failed (store down ...) and will be retried
+
+    def snapshot(self) -> EngineStats:
+        return EngineStats(**vars(self))

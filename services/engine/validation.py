@@ -1,0 +1,222 @@
+"""Checks of an `ActRequest`: every bad input becomes `InvalidRequest(field, message)`.
+
+| field                     | rule                                                                |
+|---------------------------|---------------------------------------------------------------------|
+| `env`                     | a registered environment                                            |
+| `ego_goal`                | a goal of that environment                                          |
+| `observations`            | shape (B, D), 1 <= B <= max_batch, D = domain.obs_dim(N) for some   |
+|                           | N in 1..max_agents (N is inferred from D)                           |
+| `observations[b]`         | finite, and finite in float32 (the networks' precision)             |
+| `partners[i].index`       | an integer in 1..N-1, no index twice                                |
+| `partners[i].goal`        | exactly one of `goal` and `goal_probs`; a goal of the env           |
+| `partners[i].goal_probs`  | known goals, finite probabilities >= 0 summing to 1 (within 1e-6)   |
+| `method`                  | one of aail, nail, sl, jl; jl needs >= 1 partner, each with a `goal`|
+| `temperature`             | None or a finite number > 0                                         |
+| `seed`                    | None or an integer >= 0                                             |
+| `alias`, `versions[name]` | a valid alias; pinned versions are integers >= 1                    |
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from model_store.errors import InvalidArgument
+from model_store.naming import validate_alias
+from services.engine.environments import EnvRuntime, env_runtime
+from services.engine.errors import InvalidRequest
+from services.engine.messages import METHODS, ActRequest, PartnerSpec
+
+PROB_SUM_TOL = 1e-6
+MAX_VERSION = 2**63 - 1  # the store keeps version numbers in a signed 64-bit column
+
+
+@dataclass(frozen=True)
+class CheckedPartner:
+    index: int  # position in the ego's observation layout
+    goals: tuple[str, ...]  # the goals with probability > 0 (one when announced)
+    probs: tuple[float, ...] | None  # their probabilities; None for an announced goal
+
+
+@dataclass(frozen=True)
+class CheckedRequest:
+    runtime: EnvRuntime
+    obs_BD: np.ndarray  # float32
+    n_agents: int
+    partners: tuple[CheckedPartner, ...]
+
+
+def _is_int(value: object) -> bool:
+    return isinstance(value, int | np.integer) and not isinstance(value, bool)
+
+
+def _is_real(value: object) -> bool:
+    return isinstance(value, int | float | np.integer | np.floating) and not isinstance(value, bool)
+
+
+def _known_goal(goal: object, runtime: EnvRuntime) -> bool:
+    return isinstance(goal, str) and goal in runtime.goals
+
+
+def check_observations(obs: object, runtime: EnvRuntime, max_batch: int) -> tuple[np.ndarray, int]:
+    """The observations as float32 (B, D) and the number of agents N they describe."""
+    if not isinstance(obs, np.ndarray) or obs.dtype.kind not in "fiu":
+        try:
+            obs = np.asarray(obs, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise InvalidRequest(
+                "observations", "expected a (B, obs_dim) array of numbers"
+            ) from None
+    assert isinstance(obs, np.ndarray)
+    if obs.ndim != 2:
+        raise InvalidRequest("observations", f"expected shape (B, obs_dim), got {obs.shape}")
+    batch, dim = obs.shape
+    if batch == 0:
+        raise InvalidRequest("observations", "empty batch: expected at least one observation")
+    if batch > max_batch:
+        raise InvalidRequest("observations", f"batch of {batch} exceeds the maximum {max_batch}")
+    n_agents = runtime.agents_by_obs_dim.get(dim)
+    if n_agents is None:
+        allowed = ", ".join(
+            f"{d} ({n} agent{'s' if n > 1 else ''})" for d, n in runtime.agents_by_obs_dim.items()
+        )
+        field = "observations[0]" if batch == 1 else "observations"
+        raise InvalidRequest(field, f"length {dim} fits no agent count; expected one of {allowed}")
+    with np.errstate(over="ignore"):
+        obs32 = obs.astype(np.float32)
+    if not np.isfinite(obs32).all():
+        row = int(np.argmin(np.isfinite(obs32).all(axis=1)))
+        what = "NaN or inf" if not np.isfinite(obs[row]).all() else "values beyond float32 range"
+        raise InvalidRequest(f"observations[{row}]", f"holds {what}")
+    return obs32, n_agents
+
+
+def _check_goal_probs(
+    probs: object, runtime: EnvRuntime, field: str
+) -> tuple[tuple[str, ...], tuple[float, ...]]:
+    """The goals with probability > 0 and their probabilities (renormalised to sum to 1)."""
+    if not isinstance(probs, Mapping) or not probs:
+        raise InvalidRequest(field, "expected a non-empty mapping of goal to probability")
+    goals, values = [], []
+    for goal, p in probs.items():
+        if not _known_goal(goal, runtime):
+            raise InvalidRequest(field, f"unknown goal {goal!r} for env {runtime.domain.name!r}")
+        if not _is_real(p) or not math.isfinite(p) or p < 0:
+            raise InvalidRequest(
+                field, f"probability of {goal!r} must be finite and >= 0, got {p!r}"
+            )
+        goals.append(goal)
+        values.append(float(p))
+    total = math.fsum(values)
+    if abs(total - 1.0) > PROB_SUM_TOL:
+        raise InvalidRequest(
+            field, f"probabilities sum to {total:.9g}, expected 1 (±{PROB_SUM_TOL:g})"
+        )
+    # renormalised exactly, so that a sum just inside the tolerance stays inside it downstream
+    kept = [(g, p / total) for g, p in zip(goals, values, strict=True) if p > 0]
+    return tuple(g for g, _ in kept), tuple(p for _, p in kept)
+
+
+def check_partners(
+    partners: object, runtime: EnvRuntime, n_agents: int
+) -> tuple[CheckedPartner, ...]:
+    if not isinstance(partners, tuple | list):
+        raise InvalidRequest("partners", "expected a list of partners")
+    checked: list[CheckedPartner] = []
+    seen: set[int] = set()
+    for i, partner in enumerate(partners):
+        field = f"partners[{i}]"
+        if not isinstance(partner, PartnerSpec):
+            raise InvalidRequest(field, "expected a PartnerSpec")
+        index = partner.index
+        if not _is_int(index):
+            raise InvalidRequest(f"{field}.index", f"expected an integer, got {index!r}")
+        if not 1 <= index <= n_agents - 1:
+            holds = f"the observation holds {n_agents} agent(s)"
+            expected = f"1..{n_agents - 1}" if n_agents > 1 else "no partner index (only the ego)"
+            raise InvalidRequest(
+                f"{field}.index", f"{index} out of range: {holds}, expected {expected}"
+            )
+        if index in seen:
+            raise InvalidRequest(f"{field}.index", f"partner index {index} given twice")
+        seen.add(int(index))
+        if (partner.goal is None) == (partner.goal_probs is None):
+            raise InvalidRequest(f"{field}.goal", "give exactly one of goal and goal_probs")
+        if partner.goal is not None:
+            if not _known_goal(partner.goal, runtime):
+                raise InvalidRequest(
+                    f"{field}.goal",
+                    f"unknown goal {partner.goal!r} for env {runtime.domain.name!r}",
+                )
+            checked.append(CheckedPartner(int(index), (partner.goal,), None))
+        else:
+            goals, probs = _check_goal_probs(partner.goal_probs, runtime, f"{field}.goal_probs")
+            checked.append(CheckedPartner(int(index), goals, probs))
+    return tuple(checked)
+
+
+def check_request(request: ActRequest, max_batch: int) -> CheckedRequest:
+    """Check every field of `request` (see the module docstring); raise `InvalidRequest`."""
+    if not isinstance(request, ActRequest):
+        raise InvalidRequest(None, f"expected an ActRequest, got {type(request).__name__}")
+    runtime = env_runtime(request.env)
+    if not _known_goal(request.ego_goal, runtime):
+        raise InvalidRequest(
+            "ego_goal", f"unknown goal {request.ego_goal!r} for env {runtime.domain.name!r}"
+        )
+    if not isinstance(request.method, str) or request.method not in METHODS:
+        raise InvalidRequest(
+            "method", f"unknown method {request.method!r}, expected one of {METHODS}"
+        )
+    obs_BD, n_agents = check_observations(request.observations, runtime, max_batch)
+    partners = check_partners(request.partners, runtime, n_agents)
+    if request.method == "jl":
+        if not partners:
+            raise InvalidRequest("partners", "method jl needs at least one partner")
+        for i, partner in enumerate(partners):
+            if partner.probs is not None:
+                raise InvalidRequest(
+                    f"partners[{i}].goal_probs",
+                    "method jl needs an announced goal (a joint network exists per goal combination)",
+                )
+    temperature = request.temperature
+    if temperature is not None and (
+        not _is_real(temperature) or not math.isfinite(temperature) or temperature <= 0
+    ):
+        raise InvalidRequest("temperature", f"expected a finite number > 0, got {temperature!r}")
+    seed = request.seed
+    if seed is not None and (not _is_int(seed) or seed < 0):
+        raise InvalidRequest("seed", f"expected an integer >= 0, got {seed!r}")
+    check_alias(request.alias)
+    check_versions(request.versions)
+    return CheckedRequest(runtime, obs_BD, n_agents, partners)
+
+
+_GOOD_ALIASES: set[str] = set()
+
+
+def check_alias(alias: object) -> None:
+    if isinstance(alias, str) and alias in _GOOD_ALIASES:
+        return
+    try:
+        validate_alias(alias)  # type: ignore[arg-type]
+    except InvalidArgument as exc:
+        raise InvalidRequest("alias", str(exc).removeprefix("alias: ")) from None
+    if len(_GOOD_ALIASES) < 1024:
+        _GOOD_ALIASES.add(alias)  # type: ignore[arg-type]
+
+
+def check_versions(versions: object) -> None:
+    if not isinstance(versions, Mapping):
+        raise InvalidRequest("versions", "expected a mapping of model name to version")
+    for name, version in versions.items():
+        if not isinstance(name, str):
+            raise InvalidRequest("versions", f"model names must be strings, got {name!r}")
+        if not _is_int(version) or not 1 <= version <= MAX_VERSION:
+            raise InvalidRequest(
+                f"versions[{name}]",
+                f"expected an integer >= 1 and <= {MAX_VERSION}, got {version!r}",
+            )

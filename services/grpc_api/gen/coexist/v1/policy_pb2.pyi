@@ -1,0 +1,239 @@
+from google.protobuf.internal import containers as _containers
+from google.protobuf import descriptor as _descriptor
+from google.protobuf import message as _message
+from collections.abc import Iterable as _Iterable, Mapping as _Mapping
+from typing import ClassVar as _ClassVar, Optional as _Optional, Union as _Union
+
+DESCRIPTOR: _descriptor.FileDescriptor
+
+class Vector(_message.Message):
+    __slots__ = ("values",)
+    VALUES_FIELD_NUMBER: _ClassVar[int]
+    values: _containers.RepeatedScalarFieldContainer[float]
+    def __init__(self, values: _Optional[_Iterable[float]] = ...) -> None: ...
+
+class State(_message.Message):
+    __slots__ = ("agents",)
+    AGENTS_FIELD_NUMBER: _ClassVar[int]
+    agents: _containers.RepeatedCompositeFieldContainer[Vector]
+    def __init__(self, agents: _Optional[_Iterable[_Union[Vector, _Mapping]]] = ...) -> None: ...
+
+class PartnerSpec(_message.Message):
+    __slots__ = ("index", "goal", "goal_probs")
+    class GoalProbsEntry(_message.Message):
+        __slots__ = ("key", "value")
+        KEY_FIELD_NUMBER: _ClassVar[int]
+        VALUE_FIELD_NUMBER: _ClassVar[int]
+        key: str
+        value: float
+        def __init__(self, key: _Optional[str] = ..., value: _Optional[float] = ...) -> None: ...
+    INDEX_FIELD_NUMBER: _ClassVar[int]
+    GOAL_FIELD_NUMBER: _ClassVar[int]
+    GOAL_PROBS_FIELD_NUMBER: _ClassVar[int]
+    index: int
+    goal: str
+    goal_probs: _containers.ScalarMap[str, float]
+    def __init__(self, index: _Optional[int] = ..., goal: _Optional[str] = ..., goal_probs: _Optional[_Mapping[str, float]] = ...) -> None: ...
+
+class ActRequest(_message.Message):
+    __slots__ = ("env", "ego_goal", "observation", "state", "ego_index", "partners", "method", "temperature", "seed", "alias", "versions")
+    class VersionsEntry(_message.Message):
+        __slots__ = ("key", "value")
+        KEY_FIELD_NUMBER: _ClassVar[int]
+        VALUE_FIELD_NUMBER: _ClassVar[int]
+        key: str
+        value: int
+        def __init__(self, key: _Optional[str] = ..., value: _Optional[int] = ...) -> None: ...
+    ENV_FIELD_NUMBER: _ClassVar[int]
+    EGO_GOAL_FIELD_NUMBER: _ClassVar[int]
+    OBSERVATION_FIELD_NUMBER: _ClassVar[int]
+    STATE_FIELD_NUMBER: _ClassVar[int]
+    EGO_INDEX_FIELD_NUMBER: _ClassVar[int]
+    PARTNERS_FIELD_NUMBER: _ClassVar[int]
+    METHOD_FIELD_NUMBER: _ClassVar[int]
+    TEMPERATURE_FIELD_NUMBER: _ClassVar[int]
+    SEED_FIELD_NUMBER: _ClassVar[int]
+    ALIAS_FIELD_NUMBER: _ClassVar[int]
+    VERSIONS_FIELD_NUMBER: _ClassVar[int]
+    env: str
+    ego_goal: str
+    observation: _containers.RepeatedScalarFieldContainer[float]
+    state: State
+    ego_index: int
+    partners: _containers.RepeatedCompositeFieldContainer[PartnerSpec]
+    method: str
+    temperature: float
+    seed: int
+    alias: str
+    versions: _containers.ScalarMap[str, int]
+    def __init__(self, env: _Optional[str] = ..., ego_goal: _Optional[str] = ..., observation: _Optional[_Iterable[float]] = ..., state: _Optional[_Union[State, _Mapping]] = ..., ego_index: _Optional[int] = ..., partners: _Optional[_Iterable[_Union[PartnerSpec, _Mapping]]] = ..., method: _Optional[str] = ..., temperature: _Optional[float] = ..., seed: _Optional[int] = ..., alias: _Optional[str] = ..., versions: _Optional[_Mapping[str, int]] = ...) -> None: ...
+
+class ActBatchRequest(_message.Message):
+    __slots__ = ("env", "ego_goal", "observations", "states", "ego_index", "partners", "method", "temperature", "seed", "alias", "versions")
+    class VersionsEntry(_message.Message):
+        __slots__ = ("key", "value")
+        KEY_FIELD_NUMBER: _ClassVar[int]
+        VALUE_FIELD_NUMBER: _ClassVar[int]
+        key: str
+        value: int
+        def __init__(self, key: _Optional[str] = ..., value: _Optional[int] = ...) -> None: ...
+    ENV_FIELD_NUMBER: _ClassVar[int]
+    EGO_GOAL_FIELD_NUMBER: _ClassVar[int]
+    OBSERVATIONS_FIELD_NUMBER: _ClassVar[int]
+    STATES_FIELD_NUMBER: _ClassVar[int]
+    EGO_INDEX_FIELD_NUMBER: _ClassVar[int]
+    PARTNERS_FIELD_NUMBER: _ClassVar[int]
+    METHOD_FIELD_NUMBER: _ClassVar[int]
+    TEMPERATURE_FIELD_NUMBER: _ClassVar[int]
+    SEED_FIELD_NUMBER: _ClassVar[int]
+    ALIAS_FIELD_NUMBER: _ClassVar[int]
+    VERSIONS_FIELD_NUMBER: _ClassVar[int]
+    env: str
+    ego_goal: str
+    observations: _containers.RepeatedCompositeFieldContainer[Vector]
+    states: _containers.RepeatedCompositeFieldContainer[State]
+    ego_index: int
+    partners: _containers.RepeatedCompositeFieldContainer[PartnerSpec]
+    method: str
+    temperature: float
+    seed: int
+    alias: str
+    versions: _containers.ScalarMap[str, int]
+    def __init__(self, env: _Optional[str] = ..., ego_goal: _Optional[str] = ..., observations: _Optional[_Iterable[_Union[Vector, _Mapping]]] = ..., states: _Optional[_Iterable[_Union[State, _Mapping]]] = ..., ego_index: _Optional[int] = ..., partners: _Optional[_Iterable[_Union[PartnerSpec, _Mapping]]] = ..., method: _Optional[str] = ..., temperature: _Optional[float] = ..., seed: _Optional[int] = ..., alias: _Optional[str] = ..., versions: _Optional[_Mapping[str, int]] = ...) -> None: ...
+
+class EpisodeSettings(_message.Message):
+    __slots__ = ("env", "ego_goal", "partners", "method", "temperature", "seed", "alias", "versions")
+    class VersionsEntry(_message.Message):
+        __slots__ = ("key", "value")
+        KEY_FIELD_NUMBER: _ClassVar[int]
+        VALUE_FIELD_NUMBER: _ClassVar[int]
+        key: str
+        value: int
+        def __init__(self, key: _Optional[str] = ..., value: _Optional[int] = ...) -> None: ...
+    ENV_FIELD_NUMBER: _ClassVar[int]
+    EGO_GOAL_FIELD_NUMBER: _ClassVar[int]
+    PARTNERS_FIELD_NUMBER: _ClassVar[int]
+    METHOD_FIELD_NUMBER: _ClassVar[int]
+    TEMPERATURE_FIELD_NUMBER: _ClassVar[int]
+    SEED_FIELD_NUMBER: _ClassVar[int]
+    ALIAS_FIELD_NUMBER: _ClassVar[int]
+    VERSIONS_FIELD_NUMBER: _ClassVar[int]
+    env: str
+    ego_goal: str
+    partners: _containers.RepeatedCompositeFieldContainer[PartnerSpec]
+    method: str
+    temperature: float
+    seed: int
+    alias: str
+    versions: _containers.ScalarMap[str, int]
+    def __init__(self, env: _Optional[str] = ..., ego_goal: _Optional[str] = ..., partners: _Optional[_Iterable[_Union[PartnerSpec, _Mapping]]] = ..., method: _Optional[str] = ..., temperature: _Optional[float] = ..., seed: _Optional[int] = ..., alias: _Optional[str] = ..., versions: _Optional[_Mapping[str, int]] = ...) -> None: ...
+
+class EpisodeStep(_message.Message):
+    __slots__ = ("settings", "observation", "state", "ego_index")
+    SETTINGS_FIELD_NUMBER: _ClassVar[int]
+    OBSERVATION_FIELD_NUMBER: _ClassVar[int]
+    STATE_FIELD_NUMBER: _ClassVar[int]
+    EGO_INDEX_FIELD_NUMBER: _ClassVar[int]
+    settings: EpisodeSettings
+    observation: _containers.RepeatedScalarFieldContainer[float]
+    state: State
+    ego_index: int
+    def __init__(self, settings: _Optional[_Union[EpisodeSettings, _Mapping]] = ..., observation: _Optional[_Iterable[float]] = ..., state: _Optional[_Union[State, _Mapping]] = ..., ego_index: _Optional[int] = ...) -> None: ...
+
+class PartnerWeight(_message.Message):
+    __slots__ = ("index", "weight")
+    INDEX_FIELD_NUMBER: _ClassVar[int]
+    WEIGHT_FIELD_NUMBER: _ClassVar[int]
+    index: int
+    weight: float
+    def __init__(self, index: _Optional[int] = ..., weight: _Optional[float] = ...) -> None: ...
+
+class Diagnostics(_message.Message):
+    __slots__ = ("task_entropy", "task_weight", "partner_weights")
+    TASK_ENTROPY_FIELD_NUMBER: _ClassVar[int]
+    TASK_WEIGHT_FIELD_NUMBER: _ClassVar[int]
+    PARTNER_WEIGHTS_FIELD_NUMBER: _ClassVar[int]
+    task_entropy: float
+    task_weight: float
+    partner_weights: _containers.RepeatedCompositeFieldContainer[PartnerWeight]
+    def __init__(self, task_entropy: _Optional[float] = ..., task_weight: _Optional[float] = ..., partner_weights: _Optional[_Iterable[_Union[PartnerWeight, _Mapping]]] = ...) -> None: ...
+
+class ModelUsed(_message.Message):
+    __slots__ = ("role", "name", "version", "sha256", "partner_index", "goal")
+    ROLE_FIELD_NUMBER: _ClassVar[int]
+    NAME_FIELD_NUMBER: _ClassVar[int]
+    VERSION_FIELD_NUMBER: _ClassVar[int]
+    SHA256_FIELD_NUMBER: _ClassVar[int]
+    PARTNER_INDEX_FIELD_NUMBER: _ClassVar[int]
+    GOAL_FIELD_NUMBER: _ClassVar[int]
+    role: str
+    name: str
+    version: int
+    sha256: str
+    partner_index: int
+    goal: str
+    def __init__(self, role: _Optional[str] = ..., name: _Optional[str] = ..., version: _Optional[int] = ..., sha256: _Optional[str] = ..., partner_index: _Optional[int] = ..., goal: _Optional[str] = ...) -> None: ...
+
+class ActResponse(_message.Message):
+    __slots__ = ("probs", "action", "greedy_action", "action_meaning", "method", "diagnostics", "models")
+    PROBS_FIELD_NUMBER: _ClassVar[int]
+    ACTION_FIELD_NUMBER: _ClassVar[int]
+    GREEDY_ACTION_FIELD_NUMBER: _ClassVar[int]
+    ACTION_MEANING_FIELD_NUMBER: _ClassVar[int]
+    METHOD_FIELD_NUMBER: _ClassVar[int]
+    DIAGNOSTICS_FIELD_NUMBER: _ClassVar[int]
+    MODELS_FIELD_NUMBER: _ClassVar[int]
+    probs: _containers.RepeatedScalarFieldContainer[float]
+    action: int
+    greedy_action: int
+    action_meaning: str
+    method: str
+    diagnostics: Diagnostics
+    models: _containers.RepeatedCompositeFieldContainer[ModelUsed]
+    def __init__(self, probs: _Optional[_Iterable[float]] = ..., action: _Optional[int] = ..., greedy_action: _Optional[int] = ..., action_meaning: _Optional[str] = ..., method: _Optional[str] = ..., diagnostics: _Optional[_Union[Diagnostics, _Mapping]] = ..., models: _Optional[_Iterable[_Union[ModelUsed, _Mapping]]] = ...) -> None: ...
+
+class ActBatchResponse(_message.Message):
+    __slots__ = ("results",)
+    RESULTS_FIELD_NUMBER: _ClassVar[int]
+    results: _containers.RepeatedCompositeFieldContainer[ActResponse]
+    def __init__(self, results: _Optional[_Iterable[_Union[ActResponse, _Mapping]]] = ...) -> None: ...
+
+class ListEnvsRequest(_message.Message):
+    __slots__ = ()
+    def __init__(self) -> None: ...
+
+class ObservationLayout(_message.Message):
+    __slots__ = ("n_agents", "obs_dim", "features")
+    N_AGENTS_FIELD_NUMBER: _ClassVar[int]
+    OBS_DIM_FIELD_NUMBER: _ClassVar[int]
+    FEATURES_FIELD_NUMBER: _ClassVar[int]
+    n_agents: int
+    obs_dim: int
+    features: _containers.RepeatedScalarFieldContainer[str]
+    def __init__(self, n_agents: _Optional[int] = ..., obs_dim: _Optional[int] = ..., features: _Optional[_Iterable[str]] = ...) -> None: ...
+
+class EnvInfo(_message.Message):
+    __slots__ = ("name", "goals", "action_meanings", "max_agents", "observation_layouts", "state_layout", "pair_obs_dim", "methods")
+    NAME_FIELD_NUMBER: _ClassVar[int]
+    GOALS_FIELD_NUMBER: _ClassVar[int]
+    ACTION_MEANINGS_FIELD_NUMBER: _ClassVar[int]
+    MAX_AGENTS_FIELD_NUMBER: _ClassVar[int]
+    OBSERVATION_LAYOUTS_FIELD_NUMBER: _ClassVar[int]
+    STATE_LAYOUT_FIELD_NUMBER: _ClassVar[int]
+    PAIR_OBS_DIM_FIELD_NUMBER: _ClassVar[int]
+    METHODS_FIELD_NUMBER: _ClassVar[int]
+    name: str
+    goals: _containers.RepeatedScalarFieldContainer[str]
+    action_meanings: _containers.RepeatedScalarFieldContainer[str]
+    max_agents: int
+    observation_layouts: _containers.RepeatedCompositeFieldContainer[ObservationLayout]
+    state_layout: _containers.RepeatedScalarFieldContainer[str]
+    pair_obs_dim: int
+    methods: _containers.RepeatedScalarFieldContainer[str]
+    def __init__(self, name: _Optional[str] = ..., goals: _Optional[_Iterable[str]] = ..., action_meanings: _Optional[_Iterable[str]] = ..., max_agents: _Optional[int] = ..., observation_layouts: _Optional[_Iterable[_Union[ObservationLayout, _Mapping]]] = ..., state_layout: _Optional[_Iterable[str]] = ..., pair_obs_dim: _Optional[int] = ..., methods: _Optional[_Iterable[str]] = ...) -> None: ...
+
+class ListEnvsResponse(_message.Message):
+    __slots__ = ("envs",)
+    ENVS_FIELD_NUMBER: _ClassVar[int]
+    envs: _containers.RepeatedCompositeFieldContainer[EnvInfo]
+    def __init__(self, envs: _Optional[_Iterable[_Union[EnvInfo, _Mapping]]] = ...) -> None: ...

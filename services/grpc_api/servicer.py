@@ -1,0 +1,94 @@
+"""`PolicyServicer`: the gRPC face of the inference engine. It only translates (`convert`) and
+maps errors (`errors`); the engine does the work, exactly as for the REST routes.
+
+| rpc        | engine call                           | notes                                    |
+|------------|---------------------------------------|------------------------------------------|
+| `Act`      | `engine.act` with one row             | `state` + `ego_index` -> observation     |
+| `ActBatch` | `engine.act` with B rows              | one vectorised pass                      |
+| `ListEnvs` | `engine.envs()`                       |                                          |
+| `Episode`  | `engine.act` per received step        | settings from the first message (or the  |
+|            |                                       | latest that carried them); seed + t      |
+
+On the sync server each open `Episode` stream holds one worker thread until the client closes it,
+so `max_workers` bounds the number of concurrent episodes plus in-flight unary calls.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from functools import partial
+
+import grpc
+
+from services.engine import ActRequest, ActResult, EngineError, InferenceEngine, InvalidRequest
+from services.grpc_api import convert
+from services.grpc_api.errors import (
+    StepError,
+    check_parsed,
+    translate_errors,
+    translate_stream_errors,
+)
+from services.grpc_api.gen.coexist.v1 import policy_pb2 as pb
+from services.grpc_api.gen.coexist.v1 import policy_pb2_grpc as pb_grpc
+
+
+class PolicyServicer(pb_grpc.PolicyServiceServicer):
+    """Implements `coexist.v1.PolicyService` over one shared `InferenceEngine`."""
+
+    def __init__(self, engine: InferenceEngine) -> None:
+        self.engine = engine
+
+    def _run(
+        self, message: convert.Rows, build: Callable[[], ActRequest], *, single: bool
+    ) -> tuple[ActRequest, list[ActResult]]:
+        """Build the engine request from `message` and act; errors blame the field the client
+        sent (`observation` or `state` for one row, `observations[b]` or `states[b]` for many)."""
+        from_state = convert.check_one_input(message)
+        try:
+            request = build()
+            return request, self.engine.act(request)
+        except EngineError as err:
+            raise convert.renamed_for_transport(err, single=single, from_state=from_state) from None
+
+    @translate_errors
+    def Act(self, request: pb.ActRequest, context: grpc.ServicerContext) -> pb.ActResponse:
+        act_request, results = self._run(
+            request, partial(convert.act_request, request), single=True
+        )
+        return convert.act_response(act_request, results[0])
+
+    @translate_errors
+    def ActBatch(
+        self, request: pb.ActBatchRequest, context: grpc.ServicerContext
+    ) -> pb.ActBatchResponse:
+        act_request, results = self._run(
+            request, partial(convert.act_batch_request, request), single=False
+        )
+        return convert.act_batch_response(act_request, results)
+
+    @translate_errors
+    def ListEnvs(
+        self, request: pb.ListEnvsRequest, context: grpc.ServicerContext
+    ) -> pb.ListEnvsResponse:
+        return pb.ListEnvsResponse(envs=[convert.env_info(e) for e in self.engine.envs()])
+
+    @translate_stream_errors
+    def Episode(
+        self, requests: Iterator[pb.EpisodeStep], context: grpc.ServicerContext
+    ) -> Iterator[pb.ActResponse]:
+        settings: pb.EpisodeSettings | None = None
+        for t, step in enumerate(requests):
+            try:
+                check_parsed(step)
+                if step.HasField("settings"):
+                    settings = step.settings
+                if settings is None:
+                    raise InvalidRequest(
+                        "settings", "the first message of an episode must carry the settings"
+                    )
+                build = partial(convert.episode_request, settings, step, t)
+                act_request, results = self._run(step, build, single=True)
+                response = convert.act_response(act_request, results[0])
+            except Exception as err:
+                raise StepError(t, err) from err
+            yield response

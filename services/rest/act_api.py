@@ -1,0 +1,177 @@
+"""The inference routes: `POST /v1/act`, `POST /v1/act:batch`, `GET /v1/envs`.
+
+    app.include_router(router)
+    app.state.engine = InferenceEngine(store)     # the routes read the engine from here
+    install_error_handlers(app)                   # services.rest.errors
+
+The handlers are `async def` and call the engine directly (no thread-pool hop: a forward takes
+microseconds); they only translate JSON to an `ActRequest` and the results back, written with
+orjson. Field names in errors follow the body: a single request's `observation` (or `state`), a
+batch's `observations[i]` (or `states[i]`). A `state` is turned into the ego's observation by the
+environment's perspective transform (`services.engine.observations_from_states`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+import orjson
+from fastapi import APIRouter, Request, Response
+
+from services.engine import (
+    ActRequest,
+    ActResult,
+    EngineError,
+    InferenceEngine,
+    InvalidRequest,
+    ModelUnavailable,
+    PartnerSpec,
+    observations_from_states,
+)
+from services.engine.environments import env_runtime
+from services.rest.errors import ACT_ERROR_RESPONSES
+from services.rest.schemas import (
+    ActBatchBody,
+    ActBatchResponse,
+    ActBody,
+    ActFields,
+    ActResponse,
+    EnvsResponse,
+)
+
+router = APIRouter(prefix="/v1", tags=["inference"])
+
+
+def _engine(request: Request) -> InferenceEngine:
+    engine: InferenceEngine | None = getattr(request.app.state, "engine", None)
+    if engine is None:
+        raise ModelUnavailable(None, "the inference engine is not running")
+    return engine
+
+
+def _json(body: Any) -> Response:
+    return Response(orjson.dumps(body), media_type="application/json")
+
+
+def _rename(field: str | None, source: str, single: bool) -> str | None:
+    """Engine field names -> body field names (`observations[0]` -> `observation`)."""
+    if field is None:
+        return None
+    for prefix in ("observations", "states", "state"):
+        if field == prefix or field.startswith(prefix + "["):
+            return source if single else source + field[len(prefix) :]
+    return field
+
+
+Encoder = Callable[[ActResult, list[dict[str, Any]]], dict[str, Any]]
+
+
+def _act(
+    engine: InferenceEngine, body: ActFields, rows: Any, states: Any, single: bool
+) -> tuple[list[ActResult], Encoder]:
+    """Run the engine on the body's observations or states; errors name the body's fields."""
+    obs_name, state_name = ("observation", "state") if single else ("observations", "states")
+    if (rows is None) == (states is None):
+        message = f"give exactly one of {obs_name} and {state_name} (with ego_index)"
+        raise InvalidRequest(obs_name, message)
+    source = obs_name if states is None else state_name
+    try:
+        if states is None:
+            if body.ego_index is not None:
+                raise InvalidRequest("ego_index", f"only used with {state_name}")
+            obs = np.asarray([rows] if single else rows, dtype=np.float64)
+        else:
+            if body.ego_index is None:
+                raise InvalidRequest("ego_index", f"required with {state_name}")
+            obs = observations_from_states(
+                body.env, [states] if single else states, body.ego_index, field=state_name
+            )
+        partners = tuple(PartnerSpec(p.index, p.goal, p.goal_probs) for p in body.partners)
+        request = ActRequest(
+            env=body.env, ego_goal=body.ego_goal, observations=obs, partners=partners,
+            method=body.method, temperature=body.temperature, seed=body.seed,
+            alias=body.alias, versions=body.versions,
+        )  # fmt: skip
+        results = engine.act(request)
+    except EngineError as exc:
+        raise exc.renamed(_rename(exc.field, source, single)) from None
+    except ValueError as exc:  # ragged rows: np.asarray refuses them
+        raise InvalidRequest(source, f"expected rows of equal length ({exc})") from None
+    return results, _encoder(body.env, partners)
+
+
+def _encoder(env: str, partners: Sequence[PartnerSpec]) -> Encoder:
+    meanings = env_runtime(env).info.action_meanings
+
+    def encode(result: ActResult, models: list[dict[str, Any]]) -> dict[str, Any]:
+        weights = [
+            {"index": p.index, "weight": w}
+            for p, w in zip(partners, result.partner_weights, strict=True)
+        ]
+        return {
+            "probs": result.probs,
+            "action": result.action,
+            "greedy_action": result.greedy_action,
+            "action_meaning": meanings[result.action],
+            "method": result.method,
+            "diagnostics": {
+                "task_entropy": result.task_entropy,
+                "task_weight": result.task_weight,
+                "partner_weights": weights,
+            },
+            "models": models,
+        }
+
+    return encode
+
+
+def _models(result: ActResult) -> list[dict[str, Any]]:
+    return [
+        {
+            "role": m.role, "name": m.name, "version": m.version, "sha256": m.sha256,
+            "partner_index": m.partner_index, "goal": m.goal,
+        }
+        for m in result.models
+    ]  # fmt: skip
+
+
+@router.post("/act", response_model=ActResponse, responses=ACT_ERROR_RESPONSES)
+async def act(body: ActBody, request: Request) -> Response:
+    """The blended action distribution for one ego observation (or global state + ego index)."""
+    results, encode = _act(_engine(request), body, body.observation, body.state, single=True)
+    return _json(encode(results[0], _models(results[0])))
+
+
+@router.post("/act:batch", response_model=ActBatchResponse, responses=ACT_ERROR_RESPONSES)
+async def act_batch(body: ActBatchBody, request: Request) -> Response:
+    """One result per observation (or state), evaluated in one vectorised pass."""
+    results, encode = _act(_engine(request), body, body.observations, body.states, single=False)
+    models = _models(results[0])  # the same networks serve every row
+    return _json({"results": [encode(r, models) for r in results]})
+
+
+@router.get("/envs", response_model=EnvsResponse)
+async def envs(request: Request) -> Response:
+    """Every environment: goals, action meanings, observation layouts, methods."""
+    return _json(
+        {
+            "envs": [
+                {
+                    "name": info.name,
+                    "goals": list(info.goals),
+                    "action_meanings": list(info.action_meanings),
+                    "max_agents": info.max_agents,
+                    "obs_dims": {str(n): d for n, d in info.obs_dims.items()},
+                    "observation_layouts": {
+                        str(n): layout for n, layout in info.observation_layouts.items()
+                    },
+                    "state_layout": None if info.state_layout is None else list(info.state_layout),
+                    "pair_obs_dim": info.pair_obs_dim,
+                    "methods": list(info.methods),
+                }
+                for info in _engine(request).envs()
+            ]
+        }
+    )

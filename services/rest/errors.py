@@ -1,0 +1,91 @@
+"""Engine errors and request-validation errors as JSON 4xx, in the registry's error shape.
+
+Every error body is `{"error": {"code": str, "message": str, "field": str | null}}` (the shape of
+`services.registry.errors`, whose `error_response` writes it); validation errors add `details`,
+one `{field, message}` per problem. Fields use the engine's naming: `partners[0].goal`,
+`observation`, `versions[particle/task/a2]`; malformed JSON is blamed on `body`.
+
+| error                              | status | code              |
+|------------------------------------|--------|-------------------|
+| `InvalidRequest`                   | 422    | invalid_request   |
+| request validation (types, JSON)   | 422    | invalid_request   |
+| `ModelNotFound`                    | 404    | model_not_found   |
+| `ModelUnavailable`                 | 503    | model_unavailable |
+| a body that is not UTF-8 (FastAPI) | 400    | (the app's HTTPException handler) |
+
+`install_error_handlers(app)` registers both handlers. Call it *after* the registry's
+`install_error_handlers`: the request-validation handler is app-wide and the later one wins
+(this one formats list positions as `[i]` and blames malformed JSON on `body`).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from typing import Any
+
+from fastapi import FastAPI, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+
+from services.engine.errors import EngineError, InvalidRequest, ModelNotFound, ModelUnavailable
+from services.registry.errors import ErrorResponse, error_response
+
+log = logging.getLogger(__name__)
+
+ENGINE_STATUS: tuple[tuple[type[EngineError], int], ...] = (
+    (InvalidRequest, 422),
+    (ModelNotFound, 404),
+    (ModelUnavailable, 503),
+    (EngineError, 422),
+)
+
+# For the `responses=` of routes: documents the error shape in OpenAPI.
+ACT_ERROR_RESPONSES: dict[int | str, dict[str, Any]] = {
+    400: {"model": ErrorResponse, "description": "the body cannot be decoded (not UTF-8)"},
+    404: {"model": ErrorResponse, "description": "no network for a goal, alias or version"},
+    422: {"model": ErrorResponse, "description": "invalid request; `field` names it"},
+    503: {"model": ErrorResponse, "description": "model store unavailable or model unusable"},
+}
+
+
+def engine_status(exc: EngineError) -> int:
+    return next(status for cls, status in ENGINE_STATUS if isinstance(exc, cls))
+
+
+def field_path(loc: Sequence[int | str]) -> str:
+    """("body", "partners", 0, "goal") -> "partners[0].goal"; ("body",) -> "body"."""
+    parts = list(loc[1:]) if len(loc) > 1 and loc[0] in ("body", "query", "path") else list(loc)
+    path = ""
+    for part in parts:
+        path += f"[{part}]" if isinstance(part, int) else (f".{part}" if path else str(part))
+    return path or "body"
+
+
+async def _engine_error(_request: Request, exc: Exception) -> JSONResponse:
+    assert isinstance(exc, EngineError)
+    status = engine_status(exc)
+    if status >= 500:
+        log.warning("inference engine error: %s", exc)
+    return error_response(status, exc.code, str(exc), exc.field)
+
+
+async def _validation_error(_request: Request, exc: Exception) -> JSONResponse:
+    assert isinstance(exc, RequestValidationError)
+    details = []
+    for error in exc.errors():
+        if error.get("type") == "json_invalid":
+            position = error.get("loc", ("body", "?"))[-1]
+            reason = error.get("ctx", {}).get("error", "invalid JSON")
+            details.append({"field": "body", "message": f"malformed JSON at {position}: {reason}"})
+        else:
+            details.append({"field": field_path(error.get("loc", ())), "message": error["msg"]})
+    first = details[0] if details else {"field": "body", "message": "invalid request"}
+    message = f"{first['field']}: {first['message']}"
+    return error_response(422, "invalid_request", message, first["field"], details=details)
+
+
+def install_error_handlers(app: FastAPI) -> None:
+    """Map `EngineError` and request-validation errors to the JSON error shape."""
+    app.add_exception_handler(EngineError, _engine_error)
+    app.add_exception_handler(RequestValidationError, _validation_error)

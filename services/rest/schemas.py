@@ -1,0 +1,129 @@
+"""Request and response bodies of the inference REST API (docs/architecture.md, "REST API").
+
+| body              | route                | what                                                |
+|-------------------|----------------------|-----------------------------------------------------|
+| `ActBody`         | POST /v1/act         | one ego observation (or global state + ego index)   |
+| `ActBatchBody`    | POST /v1/act:batch   | many observations (or states) with shared goals     |
+| `ActResponse`     | POST /v1/act         | probabilities, sampled/greedy action, diagnostics   |
+| `ActBatchResponse`| POST /v1/act:batch   | `{"results": [ActResponse, ...]}`, one per row      |
+| `EnvsResponse`    | GET /v1/envs         | every environment's goals, layouts, action meanings |
+
+The request models check only JSON types; the engine checks the values (lengths, goals, ranges)
+and names the bad field. The response models document the JSON (OpenAPI); the routes write it
+with orjson directly.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+MethodName = Literal["aail", "nail", "sl", "jl"]
+
+
+class PartnerIn(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    index: int = Field(
+        description="the partner's position in the ego's observation layout, 1..N-1 (with "
+        "`state` input: agent j is at j + 1 if j < ego_index, else at j)"
+    )
+    goal: str | None = Field(default=None, description="the partner's announced goal")
+    goal_probs: dict[str, float] | None = Field(
+        default=None,
+        description="instead of `goal`: a distribution over goals (sums to 1)",
+        examples=[{"b3": 0.7, "c": 0.3}],
+    )
+
+
+class ActFields(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    env: str = Field(description="environment name (see GET /v1/envs)", examples=["particle"])
+    ego_goal: str = Field(description="the ego agent's goal", examples=["a2"])
+    partners: list[PartnerIn] = Field(default_factory=list)
+    method: MethodName = Field(default="aail", description="blending method")
+    temperature: float | None = Field(
+        default=None, description="Boltzmann temperature > 0 (default: the model's training α)"
+    )
+    seed: int | None = Field(default=None, description="seeds the sampled action(s)")
+    alias: str = Field(default="production", description="alias every model is resolved by")
+    versions: dict[str, int] = Field(
+        default_factory=dict, description="pinned versions by model name (override the alias)"
+    )
+    ego_index: int | None = Field(
+        default=None, description="with `state`/`states`: the ego's row in the global state"
+    )
+
+
+class ActBody(ActFields):
+    observation: list[float] | None = Field(
+        default=None,
+        description="the ego's observation in the env's documented layout",
+        examples=[[0.1, 0.4, 0, 0, 0.7, 0.6, 0, 0]],
+    )
+    state: list[list[float]] | None = Field(
+        default=None, description="instead of `observation`: the global state, one row per agent"
+    )
+
+
+class ActBatchBody(ActFields):
+    observations: list[list[float]] | None = Field(
+        default=None, description="the ego's observations, one per row"
+    )
+    states: list[list[list[float]]] | None = Field(
+        default=None, description="instead of `observations`: global states"
+    )
+
+
+class PartnerWeight(BaseModel):
+    index: int
+    weight: float
+
+
+class Diagnostics(BaseModel):
+    task_entropy: float = Field(description="normalised entropy of the task policy")
+    task_weight: float = Field(description="w_t (eq. 9; 1 for sl and jl)")
+    partner_weights: list[PartnerWeight] = Field(description="normalised w_i per partner")
+
+
+class ModelUsedOut(BaseModel):
+    role: Literal["task", "impact", "joint"]
+    name: str
+    version: int
+    sha256: str
+    partner_index: int | None
+    goal: str
+
+
+class ActResponse(BaseModel):
+    probs: list[float]
+    action: int = Field(description="sampled from `probs`")
+    greedy_action: int
+    action_meaning: str = Field(description="meaning of `action`")
+    method: MethodName
+    diagnostics: Diagnostics
+    models: list[ModelUsedOut]
+
+
+class ActBatchResponse(BaseModel):
+    results: list[ActResponse]
+
+
+class EnvOut(BaseModel):
+    name: str
+    goals: list[str]
+    action_meanings: list[str]
+    max_agents: int
+    obs_dims: dict[str, int] = Field(description="agent count -> observation length")
+    observation_layouts: dict[str, list[str]] = Field(
+        description="agent count -> one name per observation feature"
+    )
+    state_layout: list[str] | None = Field(description="one agent's row of a global state")
+    pair_obs_dim: int
+    methods: list[MethodName]
+
+
+class EnvsResponse(BaseModel):
+    envs: list[EnvOut]

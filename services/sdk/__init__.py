@@ -1,0 +1,46 @@
+"""The coexist Python SDK: typed clients of the policy server over HTTP and gRPC, sync and async.
+
+| client                   | transport                 | target                    |
+|--------------------------|---------------------------|---------------------------|
+| `CoexistClient`          | REST, httpx (sync)        | `http://127.0.0.1:8000`   |
+| `AsyncCoexistClient`     | REST, httpx (async)       | `http://127.0.0.1:8000`   |
+| `GrpcCoexistClient`      | gRPC (sync)               | `127.0.0.1:50051`         |
+| `AsyncGrpcCoexistClient` | gRPC, grpc.aio            | `127.0.0.1:50051`         |
+
+Every client has `act(env, ego_goal, observation=None, *, state=None, ego_index=0, partners=None,
+method="aail", temperature=None, seed=None, alias="production", versions=None) -> Action`,
+`act_batch(...) -> list[Action]`, `envs() -> list[EnvInfo]`, `health() -> Health` and
+`episode(env, ego_goal, ...)` (a session whose `act(observation)` is one environment step).
+Partners: `{1: "b3"}`, `{1: {"b3": 0.7, "c": 0.3}}` or a list of PartnerSpec-like objects.
+Errors: `CoexistError(code, message, field)` and its subclasses `InvalidArgument`, `NotFound`,
+`Unavailable`.
+
+    from services.sdk import CoexistClient
+    with CoexistClient("http://127.0.0.1:8000") as client:
+        a = client.act("particle", "a2", [0.1, 0.4, 0, 0, 0.7, 0.6, 0, 0], partners={1: "b3"})
+        print(a.action_meaning, a.probs, a.diagnostics.task_weight)
+"""
+
+from services.sdk.errors import CoexistError, InvalidArgument, NotFound, Unavailable
+from services.sdk.grpc_aio_client import AsyncGrpcCoexistClient
+from services.sdk.grpc_client import GrpcCoexistClient
+from services.sdk.http_aio_client import AsyncCoexistClient
+from services.sdk.http_client import CoexistClient
+from services.sdk.types import Action, Diagnostics, EnvInfo, Health, ModelUsed, PartnerWeight
+
+__all__ = [
+    "Action",
+    "AsyncCoexistClient",
+    "AsyncGrpcCoexistClient",
+    "CoexistClient",
+    "CoexistError",
+    "Diagnostics",
+    "EnvInfo",
+    "GrpcCoexistClient",
+    "Health",
+    "InvalidArgument",
+    "ModelUsed",
+    "NotFound",
+    "PartnerWeight",
+    "Unavailable",
+]

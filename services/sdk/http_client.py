@@ -1,0 +1,208 @@
+"""HTTP client of the coexist REST API (httpx): `CoexistClient` (sync; `AsyncCoexistClient` in
+`http_aio_client`).
+
+    with CoexistClient("http://127.0.0.1:8000") as client:
+        a = client.act("particle", "a2", obs, partners={1: "b3"}, seed=7)
+        a.action, a.probs, a.diagnostics.task_weight
+
+| method                  | route                   | returns          |
+|-------------------------|-------------------------|------------------|
+| `act(...)`              | `POST /v1/act`          | `Action`         |
+| `act_batch(...)`        | `POST /v1/act:batch`    | `list[Action]`   |
+| `envs()`                | `GET /v1/envs`          | `list[EnvInfo]`  |
+| `health()`              | `/healthz`, `/readyz`   | `Health`         |
+| `episode(...)`          | `POST /v1/act` per step | an episode session |
+
+An episode session follows the gRPC `Episode` stream's rules over plain requests: the settings are
+given once, and step t samples with seed + t, so both transports give the same episode.
+Errors raise `services.sdk.errors` classes (`InvalidArgument`, `NotFound`, `Unavailable`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import httpx
+from numpy.typing import ArrayLike
+
+from services.sdk.bodies import Partners, act_batch_body, act_body, episode_settings, step_seed
+from services.sdk.errors import CoexistError, Unavailable, error_for_http
+from services.sdk.types import Action, EnvInfo, Health
+
+DEFAULT_URL = "http://127.0.0.1:8000"
+
+
+def checked_json(response: httpx.Response) -> Any:
+    """The response's JSON, or the SDK error its error body describes."""
+    if response.status_code < 400:
+        return response.json()
+    try:
+        error = response.json()["error"]
+        message, field = str(error["message"]), error.get("field")
+    except (ValueError, KeyError, TypeError):
+        message, field = f"HTTP {response.status_code}: {response.text[:500]}", None
+    raise error_for_http(response.status_code, message, field)
+
+
+def unavailable_error(err: httpx.TransportError) -> Unavailable:
+    return Unavailable("unavailable", f"{type(err).__name__}: {err}")
+
+
+def envs_from_json(data: Any) -> list[EnvInfo]:
+    items = data["envs"] if isinstance(data, dict) else data
+    return [EnvInfo.from_json(e) for e in items]
+
+
+class CoexistClient:
+    """Synchronous client of the REST API; see the module docstring."""
+
+    def __init__(
+        self,
+        base_url: str = DEFAULT_URL,
+        *,
+        timeout: float = 10.0,
+        headers: dict[str, str] | None = None,
+        transport: httpx.BaseTransport | None = None,
+    ) -> None:
+        self._http = httpx.Client(
+            base_url=base_url, timeout=timeout, headers=headers, transport=transport
+        )
+
+    def _request(self, method: str, path: str, body: Any = None) -> Any:
+        try:
+            response = self._http.request(method, path, json=body)
+        except httpx.TransportError as err:
+            raise unavailable_error(err) from err
+        return checked_json(response)
+
+    def act(
+        self,
+        env: str,
+        ego_goal: str,
+        observation: ArrayLike | None = None,
+        *,
+        state: ArrayLike | None = None,
+        ego_index: int = 0,
+        partners: Partners = None,
+        method: str = "aail",
+        temperature: float | None = None,
+        seed: int | None = None,
+        alias: str = "production",
+        versions: Mapping[str, int] | None = None,
+    ) -> Action:
+        """One action for one observation (or state + ego_index)."""
+        body = act_body(
+            env,
+            ego_goal,
+            observation,
+            state=state,
+            ego_index=ego_index,
+            partners=partners,
+            method=method,
+            temperature=temperature,
+            seed=seed,
+            alias=alias,
+            versions=versions,
+        )
+        return Action.from_json(self._request("POST", "/v1/act", body))
+
+    def act_batch(
+        self,
+        env: str,
+        ego_goal: str,
+        observations: ArrayLike | None = None,
+        *,
+        states: ArrayLike | None = None,
+        ego_index: int = 0,
+        partners: Partners = None,
+        method: str = "aail",
+        temperature: float | None = None,
+        seed: int | None = None,
+        alias: str = "production",
+        versions: Mapping[str, int] | None = None,
+    ) -> list[Action]:
+        """One action per observation (or per state), in order, from one vectorised request."""
+        body = act_batch_body(
+            env,
+            ego_goal,
+            observations,
+            states=states,
+            ego_index=ego_index,
+            partners=partners,
+            method=method,
+            temperature=temperature,
+            seed=seed,
+            alias=alias,
+            versions=versions,
+        )
+        data = self._request("POST", "/v1/act:batch", body)
+        return [Action.from_json(r) for r in data["results"]]
+
+    def envs(self) -> list[EnvInfo]:
+        return envs_from_json(self._request("GET", "/v1/envs"))
+
+    def health(self) -> Health:
+        """Liveness (`/healthz`) and readiness (`/readyz`; not ready on 503)."""
+        live = self._request("GET", "/healthz")
+        try:
+            ready, detail = True, self._request("GET", "/readyz")
+        except CoexistError as err:
+            ready, detail = False, {"code": err.code, "message": err.message}
+        return Health(live=bool(live), ready=ready, detail=detail or {})
+
+    def episode(
+        self,
+        env: str,
+        ego_goal: str,
+        *,
+        partners: Partners = None,
+        method: str = "aail",
+        temperature: float | None = None,
+        seed: int | None = None,
+        alias: str = "production",
+        versions: Mapping[str, int] | None = None,
+    ) -> HttpEpisode:
+        """A session for one episode: settings given once, then `session.act(obs)` per step."""
+        settings = episode_settings(
+            env, ego_goal, partners=partners, method=method, temperature=temperature,
+            seed=seed, alias=alias, versions=versions,
+        )  # fmt: skip
+        return HttpEpisode(self, settings)
+
+    def close(self) -> None:
+        self._http.close()
+
+    def __enter__(self) -> CoexistClient:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+
+class HttpEpisode:
+    """One episode over `POST /v1/act`: fixed settings, step t seeded with seed + t."""
+
+    def __init__(self, client: CoexistClient, settings: dict[str, Any]) -> None:
+        self._client = client
+        self._settings = settings
+        self.step = 0
+
+    def act(self, observation: Any = None, *, state: Any = None, ego_index: int = 0) -> Action:
+        s = self._settings
+        action = self._client.act(
+            s["env"], s["ego_goal"], observation, state=state, ego_index=ego_index,
+            partners=s["partners"], method=s["method"], temperature=s["temperature"],
+            seed=step_seed(s["seed"], self.step), alias=s["alias"], versions=s["versions"],
+        )  # fmt: skip
+        self.step += 1
+        return action
+
+    def close(self) -> None:
+        """Nothing to release (each step is its own request)."""
+
+    def __enter__(self) -> HttpEpisode:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()

@@ -1,0 +1,131 @@
+"""Client-side translation between the REST JSON bodies (`services.sdk.bodies`) and protobuf.
+
+| function              | from                        | to                                |
+|-----------------------|-----------------------------|-----------------------------------|
+| `act_request`         | `act_body(...)` dict        | `coexist.v1.ActRequest`           |
+| `act_batch_request`   | `act_batch_body(...)` dict  | `coexist.v1.ActBatchRequest`      |
+| `episode_step`        | settings and/or observation | `coexist.v1.EpisodeStep`          |
+| `action_from_proto`   | `coexist.v1.ActResponse`    | `services.sdk.types.Action`       |
+| `env_from_proto`      | `coexist.v1.EnvInfo`        | `services.sdk.types.EnvInfo`      |
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from services.grpc_api.gen.coexist.v1 import policy_pb2 as pb
+from services.sdk.errors import InvalidArgument
+from services.sdk.types import Action, Diagnostics, EnvInfo, ModelUsed, PartnerWeight
+
+_SETTINGS = ("env", "ego_goal", "method", "alias")
+
+
+def _settings_kwargs(body: dict[str, Any]) -> dict[str, Any]:
+    """Keyword arguments of the settings fields shared by ActRequest, ActBatchRequest and
+    EpisodeSettings (unset optionals are left out, so `HasField` tells them apart)."""
+    kwargs: dict[str, Any] = {k: body[k] for k in _SETTINGS}
+    partners = []
+    for k, spec in enumerate(body["partners"]):
+        try:
+            partner = pb.PartnerSpec(index=int(spec["index"]))
+            if spec.get("goal") is not None:
+                partner.goal = spec["goal"]
+            if spec.get("goal_probs") is not None:
+                partner.goal_probs.update(spec["goal_probs"])
+        except (TypeError, ValueError, KeyError) as err:
+            field = f"partners[{k}]"
+            raise InvalidArgument("invalid_argument", f"{field}: {err}", field) from None
+        partners.append(partner)
+    kwargs["partners"] = partners
+    kwargs["versions"] = body["versions"]
+    for key in ("temperature", "seed"):
+        if body[key] is not None:
+            kwargs[key] = body[key]
+    return kwargs
+
+
+def _build(message_class: Any, kwargs: dict[str, Any]) -> Any:
+    try:
+        return message_class(**kwargs)
+    except (TypeError, ValueError) as err:  # e.g. a seed beyond int64, a non-string goal
+        raise InvalidArgument("invalid_argument", f"request: {err}", "request") from None
+
+
+def _state(rows: list[list[float]]) -> pb.State:
+    return pb.State(agents=[pb.Vector(values=row) for row in rows])
+
+
+def _observation_kwargs(fields: dict[str, Any]) -> dict[str, Any]:
+    if "observation" in fields:
+        return {"observation": fields["observation"]}
+    return {"state": _state(fields["state"]), "ego_index": fields["ego_index"]}
+
+
+def act_request(body: dict[str, Any]) -> pb.ActRequest:
+    kwargs = _settings_kwargs(body)
+    kwargs.update(_observation_kwargs(body))
+    message: pb.ActRequest = _build(pb.ActRequest, kwargs)
+    return message
+
+
+def act_batch_request(body: dict[str, Any]) -> pb.ActBatchRequest:
+    kwargs = _settings_kwargs(body)
+    if "observations" in body:
+        kwargs["observations"] = [pb.Vector(values=row) for row in body["observations"]]
+    else:
+        kwargs["states"] = [_state(s) for s in body["states"]]
+        kwargs["ego_index"] = body["ego_index"]
+    message: pb.ActBatchRequest = _build(pb.ActBatchRequest, kwargs)
+    return message
+
+
+def episode_step(settings: dict[str, Any] | None, fields: dict[str, Any]) -> pb.EpisodeStep:
+    """One step; `settings` (an `episode_settings` dict) only on the first step."""
+    kwargs = _observation_kwargs(fields)
+    if settings is not None:
+        kwargs["settings"] = _build(pb.EpisodeSettings, _settings_kwargs(settings))
+    message: pb.EpisodeStep = _build(pb.EpisodeStep, kwargs)
+    return message
+
+
+def action_from_proto(response: pb.ActResponse) -> Action:
+    d = response.diagnostics
+    return Action(
+        probs=tuple(response.probs),
+        action=response.action,
+        greedy_action=response.greedy_action,
+        action_meaning=response.action_meaning,
+        method=response.method,
+        diagnostics=Diagnostics(
+            task_entropy=d.task_entropy,
+            task_weight=d.task_weight,
+            partner_weights=tuple(PartnerWeight(w.index, w.weight) for w in d.partner_weights),
+        ),
+        models=tuple(
+            ModelUsed(
+                role=m.role,
+                name=m.name,
+                version=m.version,
+                sha256=m.sha256,
+                partner_index=m.partner_index if m.HasField("partner_index") else None,
+                goal=m.goal or None,
+            )
+            for m in response.models
+        ),
+    )
+
+
+def env_from_proto(env: pb.EnvInfo) -> EnvInfo:
+    return EnvInfo(
+        name=env.name,
+        goals=tuple(env.goals),
+        action_meanings=tuple(env.action_meanings),
+        max_agents=env.max_agents,
+        obs_dims={layout.n_agents: layout.obs_dim for layout in env.observation_layouts},
+        observation_layouts={
+            layout.n_agents: tuple(layout.features) for layout in env.observation_layouts
+        },
+        state_layout=tuple(env.state_layout) or None,
+        pair_obs_dim=env.pair_obs_dim,
+        methods=tuple(env.methods),
+    )

@@ -1,0 +1,129 @@
+"""Typed results of the SDK: frozen dataclasses, the same whichever transport answered.
+
+| type            | what                                                                 |
+|-----------------|----------------------------------------------------------------------|
+| `Action`        | the blended action distribution for one observation                  |
+| `Diagnostics`   | task entropy, task weight w_t (eq. 9), partner weights w_i (eq. 10)  |
+| `PartnerWeight` | one partner's weight, by its index in the ego's observation layout   |
+| `ModelUsed`     | a model the answer was computed with (name, version, sha256, role)   |
+| `EnvInfo`       | an environment the server knows (goals, layout, action meanings)     |
+| `Health`        | liveness and readiness of a server                                   |
+
+`from_json` builds each from the REST API's JSON; the gRPC client builds them from protobuf.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+
+@dataclass(frozen=True)
+class PartnerWeight:
+    index: int
+    weight: float
+
+
+@dataclass(frozen=True)
+class Diagnostics:
+    task_entropy: float
+    task_weight: float
+    partner_weights: tuple[PartnerWeight, ...] = ()
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> Diagnostics:
+        return cls(
+            task_entropy=float(data["task_entropy"]),
+            task_weight=float(data["task_weight"]),
+            partner_weights=tuple(
+                PartnerWeight(int(w["index"]), float(w["weight"]))
+                for w in data.get("partner_weights", ())
+            ),
+        )
+
+
+@dataclass(frozen=True)
+class ModelUsed:
+    role: str  # "task", "impact" or "joint"
+    name: str
+    version: int
+    sha256: str
+    partner_index: int | None = None  # the partner an impact model stands for
+    goal: str | None = None
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> ModelUsed:
+        partner = data.get("partner_index")
+        return cls(
+            role=str(data["role"]),
+            name=str(data["name"]),
+            version=int(data["version"]),
+            sha256=str(data["sha256"]),
+            partner_index=None if partner is None else int(partner),
+            goal=data.get("goal"),
+        )
+
+
+@dataclass(frozen=True)
+class Action:
+    """The server's answer for one observation."""
+
+    probs: tuple[float, ...]  # one probability per action, summing to 1
+    action: int  # sampled from `probs` (seeded by the request's seed)
+    greedy_action: int  # argmax of `probs`
+    action_meaning: str  # the environment's name of `action`
+    method: str
+    diagnostics: Diagnostics
+    models: tuple[ModelUsed, ...] = ()
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> Action:
+        return cls(
+            probs=tuple(float(p) for p in data["probs"]),
+            action=int(data["action"]),
+            greedy_action=int(data["greedy_action"]),
+            action_meaning=str(data.get("action_meaning", "")),
+            method=str(data["method"]),
+            diagnostics=Diagnostics.from_json(data["diagnostics"]),
+            models=tuple(ModelUsed.from_json(m) for m in data.get("models", ())),
+        )
+
+
+@dataclass(frozen=True)
+class EnvInfo:
+    """An environment as `GET /v1/envs` / `ListEnvs` describes it."""
+
+    name: str
+    goals: tuple[str, ...]
+    action_meanings: tuple[str, ...]
+    max_agents: int
+    obs_dims: Mapping[int, int] = field(default_factory=dict)  # agent count -> observation length
+    observation_layouts: Mapping[int, tuple[str, ...]] = field(default_factory=dict)
+    state_layout: tuple[str, ...] | None = None  # one agent's state row; None: no state input
+    pair_obs_dim: int = 0
+    methods: tuple[str, ...] = ()
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> EnvInfo:
+        state_layout = data.get("state_layout")
+        return cls(
+            name=str(data["name"]),
+            goals=tuple(data.get("goals", ())),
+            action_meanings=tuple(data.get("action_meanings", ())),
+            max_agents=int(data.get("max_agents", 0)),
+            obs_dims={int(n): int(d) for n, d in data.get("obs_dims", {}).items()},
+            observation_layouts={
+                int(n): tuple(names) for n, names in data.get("observation_layouts", {}).items()
+            },
+            state_layout=None if state_layout is None else tuple(state_layout),
+            pair_obs_dim=int(data.get("pair_obs_dim", 0)),
+            methods=tuple(data.get("methods", ())),
+        )
+
+
+@dataclass(frozen=True)
+class Health:
+    live: bool  # the server answers
+    ready: bool  # models loaded and store reachable
+    detail: Mapping[str, Any] = field(default_factory=dict)
