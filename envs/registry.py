@@ -3,6 +3,7 @@
 | name       | domain               | env                                      |
 |------------|----------------------|------------------------------------------|
 | `particle` | `envs.particle.PARTICLE` | `envs.particle.ParticleCoexistenceEnv` |
+| `cooking`  | `envs.cooking.COOKING`   | `envs.cooking.CookingEnv` (goals = recipes) |
 
 To add an environment, add one entry to `_REGISTRY` (a domain and a factory taking the goals).
 """
@@ -15,6 +16,7 @@ from typing import Any, NamedTuple
 from pettingzoo import ParallelEnv
 
 from envs.base import Domain
+from envs.cooking import COOKING, make_cooking_env
 from envs.particle import PARTICLE, ParticleCoexistenceEnv
 
 
@@ -25,6 +27,7 @@ class _Entry(NamedTuple):
 
 _REGISTRY: dict[str, _Entry] = {
     "particle": _Entry(PARTICLE, ParticleCoexistenceEnv),
+    "cooking": _Entry(COOKING, make_cooking_env),
 }
 
 
