@@ -69,31 +69,22 @@ def _combos(env: str, combos: str) -> list[list[str]]:
 
 
 @contextmanager
-def _session(
-    store_url: str | None, run_dir: Path, resume: bool, **fingerprint: Any
-) -> Iterator[Any]:
-    """Open the store, the run record and a rich progress display for one command."""
+def progress_bars() -> Iterator[Any]:
+    """A rich progress display; yields a factory `(description, total) -> advance(done, total)`."""
     from rich.progress import (
         BarColumn,
         MofNCompleteColumn,
         Progress,
         TextColumn,
+        TimeElapsedColumn,
         TimeRemainingColumn,
     )
 
-    from model_store.defaults import open_store
-    from trainer.zoo import RunState
-    from trainer.zoo import fingerprint as make_fingerprint
-
-    store = open_store(store_url)
-    try:
-        run = RunState.open(run_dir, make_fingerprint(**fingerprint), resume)
-    except ValueError as err:
-        raise typer.BadParameter(str(err), param_hint="--resume") from None
     columns = (
         TextColumn("{task.description}"),
         BarColumn(),
         MofNCompleteColumn(),
+        TimeElapsedColumn(),
         TimeRemainingColumn(),
     )
     with Progress(*columns, transient=False) as bars:
@@ -107,8 +98,29 @@ def _session(
 
             return advance
 
-        yield store, run, progress
-    store.close()
+        yield progress
+
+
+@contextmanager
+def _session(
+    store_url: str | None, run_dir: Path, resume: bool, **fingerprint: Any
+) -> Iterator[Any]:
+    """Open the store, the run record and a rich progress display for one command."""
+    from model_store.defaults import open_store
+    from trainer.zoo import RunState
+    from trainer.zoo import fingerprint as make_fingerprint
+
+    store = open_store(store_url)
+    try:
+        run = RunState.open(run_dir, make_fingerprint(**fingerprint), resume)
+    except ValueError as err:
+        store.close()
+        raise typer.BadParameter(str(err), param_hint="--resume") from None
+    try:
+        with progress_bars() as progress:
+            yield store, run, progress
+    finally:
+        store.close()
 
 
 def _configs(steps: int | None) -> tuple[Any, Any, Any]:

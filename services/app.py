@@ -1,34 +1,52 @@
-"""The coexist HTTP application: `create_app()` builds it, uvicorn serves it.
+"""The coexist server application: REST (FastAPI) and, in the same process, gRPC.
 
     app = create_app()                                   # settings from COEXIST_* variables
     app = create_app(Settings(dev_mode=True), store=s)   # tests: explicit settings and store
 
-Routers: the model registry (`/v1/registry`, `services.registry`) and `/healthz`; other parts
-(the inference API) add theirs by passing `routers=` or by extending `ROUTERS`. The store is
-opened by the lifespan (from `settings.store_url`) unless one is given, in which case the caller
-owns and closes it. Creating the app refuses the default admin token outside dev mode.
+What the lifespan sets up, in order: the model store (from `settings.store_url` unless one is
+given), the inference engine with its hot-reload thread, and the gRPC server on
+`settings.grpc_port` (unless disabled). Several uvicorn workers can run this app side by side:
+uvicorn shares the HTTP socket, and gRPC binds its port with SO_REUSEPORT (grpcio's default on
+Linux), so the kernel spreads both kinds of connections over the workers. Nothing in a worker is
+state another worker needs: the store is the only shared state.
+
+Routes: `/v1/act`, `/v1/act:batch`, `/v1/envs` (services.rest), the registry under
+`/v1/registry` (services.registry), `/healthz` (liveness), `/readyz` (models loaded, store
+reachable), `/metrics` (Prometheus) and the OpenAPI docs at `/docs`.
 """
 
 from __future__ import annotations
 
+import logging
 from collections.abc import AsyncIterator, Sequence
 from contextlib import asynccontextmanager
+from typing import Any
 
-from fastapi import APIRouter, FastAPI
+from fastapi import APIRouter, FastAPI, Request
+from fastapi.responses import JSONResponse, Response
+from prometheus_client import CONTENT_TYPE_LATEST, CollectorRegistry, generate_latest
 
 from model_store.defaults import open_store
 from model_store.store import ModelStore
+from services.engine import InferenceEngine
+from services.metrics import EngineCollector, HttpMetrics
 from services.registry import router as registry_router
-from services.registry.errors import install_error_handlers
+from services.registry.errors import install_error_handlers as install_registry_errors
+from services.rest import install_error_handlers as install_act_errors
+from services.rest import router as act_router
 from services.settings import Settings, get_settings
+from services.warmup import warm_up
 
-ROUTERS: list[APIRouter] = [registry_router]
+log = logging.getLogger("coexist.server")
+
+ROUTERS: list[APIRouter] = [act_router, registry_router]
 
 
 def create_app(
     settings: Settings | None = None,
     store: ModelStore | None = None,
     *,
+    engine: InferenceEngine | None = None,
     routers: Sequence[APIRouter] = (),
 ) -> FastAPI:
     settings = settings or get_settings()
@@ -36,17 +54,47 @@ def create_app(
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
-        owned: ModelStore | None = None
+        owned_store: ModelStore | None = None
+        owned_engine: InferenceEngine | None = None
+        grpc_server: Any = None
         if app.state.store is None:
-            owned = open_store(
+            owned_store = open_store(
                 settings.resolved_store_url(), max_artifact_bytes=settings.max_artifact_bytes
             )
-            app.state.store = owned
+            app.state.store = owned_store
+        if app.state.engine is None:
+            owned_engine = InferenceEngine(
+                app.state.store,
+                cache_size=settings.cache_size,
+                refresh_interval_s=settings.refresh_interval_s,
+                max_batch=settings.max_batch,
+            )
+            warm_up(owned_engine, limit=settings.cache_size)
+            owned_engine.start_refresh_thread()
+            app.state.engine = owned_engine
+        if settings.grpc_enabled:
+            from services.grpc_api.server import build_grpc_server
+
+            grpc_server = build_grpc_server(
+                app.state.engine,
+                port=settings.grpc_port,
+                host=settings.host,
+                max_workers=settings.grpc_workers,
+                ready=lambda: _readiness(app.state.engine)[0],
+            )
+            grpc_server.start()
+            app.state.grpc_port = grpc_server.port
+            log.info("gRPC listening on %s:%d", settings.host, grpc_server.port)
         try:
             yield
         finally:
-            if owned is not None:
-                owned.close()
+            if grpc_server is not None:
+                grpc_server.stop(5.0).wait(6.0)  # in-flight calls finish first
+            if owned_engine is not None:
+                owned_engine.stop()
+                app.state.engine = None
+            if owned_store is not None:
+                owned_store.close()
                 app.state.store = None
 
     app = FastAPI(
@@ -57,13 +105,62 @@ def create_app(
     )
     app.state.settings = settings
     app.state.store = store
-    install_error_handlers(app)
+    app.state.engine = engine
+    app.state.grpc_port = None
+    # The registry's handlers first, then the inference API's (which also format request
+    # validation errors for every route): one JSON error shape everywhere.
+    install_registry_errors(app)
+    install_act_errors(app)
     for router in [*ROUTERS, *routers]:
         app.include_router(router)
 
+    registry = CollectorRegistry()
+    registry.register(EngineCollector(lambda: app.state.engine))
+    http_metrics = HttpMetrics(registry)
+    app.add_middleware(_AsgiWrapper, wrap=http_metrics.middleware)
+
     @app.get("/healthz", tags=["health"])
-    def healthz() -> dict[str, str]:
-        """Liveness: the process answers (does not touch the database)."""
+    async def healthz() -> dict[str, str]:
+        """Liveness: the process answers (touches neither the database nor the models)."""
         return {"status": "ok"}
 
+    @app.get("/readyz", tags=["health"])
+    async def readyz(request: Request) -> JSONResponse:
+        """Readiness: the store is reachable and production models can be served."""
+        ready, body = _readiness(request.app.state.engine)
+        return JSONResponse(body, status_code=200 if ready else 503)
+
+    @app.get("/metrics", tags=["health"])
+    async def metrics() -> Response:
+        """Prometheus metrics: request counts, latency histograms, cache hits, models served."""
+        return Response(generate_latest(registry), media_type=CONTENT_TYPE_LATEST)
+
     return app
+
+
+def _readiness(engine: InferenceEngine | None) -> tuple[bool, dict[str, Any]]:
+    """Ready = the store answers and at least one network is loaded (warm-up or traffic)."""
+    if engine is None:
+        return False, {"status": "starting", "store_reachable": False, "models_loaded": 0}
+    status = engine.status()
+    ready = status.store_reachable and status.models_loaded > 0
+    reason = "ready" if ready else "no models loaded (is the store empty?)"
+    body = {
+        "status": reason if status.store_reachable else "store unreachable",
+        "store_reachable": status.store_reachable,
+        "store_error": status.store_error,
+        "models_loaded": status.models_loaded,
+        "versions_served": status.versions_served,
+        "refresh_thread_alive": status.refresh_thread_alive,
+    }
+    return ready, body
+
+
+class _AsgiWrapper:
+    """Adapts a plain `wrap(app) -> app` function to Starlette's middleware signature."""
+
+    def __init__(self, app: Any, wrap: Any) -> None:
+        self.inner = wrap(app)
+
+    async def __call__(self, scope: Any, receive: Any, send: Any) -> None:
+        await self.inner(scope, receive, send)

@@ -11,7 +11,12 @@
 | `MAX_ARTIFACT_BYTES`          | 64 MiB             | upload size limit                |
 | `HOST`                        | `127.0.0.1`        | address to listen on             |
 | `HTTP_PORT`                   | 8000               | REST port                        |
-| `GRPC_PORT`                   | 50051              | gRPC port                        |
+| `GRPC_PORT`                   | 50051              | gRPC port (0: any free port)     |
+| `GRPC_ENABLED`                | true               | serve gRPC beside REST           |
+| `GRPC_WORKERS`                | 8                  | gRPC thread pool size            |
+| `REFRESH_INTERVAL_S`          | 2.0                | how often aliases are re-checked |
+| `CACHE_SIZE`                  | 256                | networks kept loaded (LRU)       |
+| `MAX_BATCH`                   | 4096               | rows allowed in one act:batch    |
 
 Reads are open unless a read token is set or `require_read_token` is true; then a request must
 carry the read token or the admin token (with `require_read_token` and no read token, only the
@@ -49,6 +54,11 @@ class Settings(BaseSettings):
     host: str = "127.0.0.1"
     http_port: int = Field(default=8000, ge=0, le=65535)
     grpc_port: int = Field(default=50051, ge=0, le=65535)
+    grpc_enabled: bool = True
+    grpc_workers: int = Field(default=8, ge=1, le=256)
+    refresh_interval_s: float = Field(default=2.0, gt=0, le=3600)
+    cache_size: int = Field(default=256, ge=1)
+    max_batch: int = Field(default=4096, ge=1)
 
     def resolved_store_url(self) -> str:
         """`store_url`, else `sqlite:///{data_dir}/models.db` (the directory is created)."""

@@ -1,0 +1,106 @@
+"""`coexist serve`: the inference server (REST + gRPC) over the model store.
+
+On a first run against an empty store it first trains the particle zoo (35 task + 35 impact
+networks, with progress bars; about ten minutes on 2 cores) and registers it, so the README's
+first command ends with a server that answers. `--no-bootstrap` skips that.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+
+def serve(
+    host: Annotated[str, typer.Option(help="Address to listen on.")] = "127.0.0.1",
+    http_port: Annotated[int, typer.Option(help="REST port.")] = 8000,
+    grpc_port: Annotated[int, typer.Option(help="gRPC port (0 disables gRPC).")] = 50051,
+    workers: Annotated[int, typer.Option(min=1, help="uvicorn worker processes.")] = 1,
+    store_url: Annotated[
+        str | None, typer.Option(help="Model store URL (default: SQLite in the data dir).")
+    ] = None,
+    bootstrap: Annotated[
+        bool, typer.Option(help="Train the particle zoo first if the store has none.")
+    ] = True,
+    bootstrap_steps: Annotated[
+        int | None, typer.Option(help="Training steps per batch for the bootstrap zoo.")
+    ] = None,
+) -> None:
+    """Serve blended action distributions over REST and gRPC."""
+    # One BLAS thread per process: at batch 1 threads only add latency, and under load
+    # oversubscribed BLAS threads made a batch of 256 fourteen times slower (PERF-NOTES).
+    for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(var, "1")
+    os.environ["COEXIST_HOST"] = host
+    os.environ["COEXIST_HTTP_PORT"] = str(http_port)
+    os.environ["COEXIST_GRPC_PORT"] = str(grpc_port)
+    os.environ["COEXIST_GRPC_ENABLED"] = "true" if grpc_port else "false"
+    if store_url:
+        os.environ["COEXIST_STORE_URL"] = store_url
+
+    import uvicorn
+
+    from services.settings import InsecureSettings, Settings
+
+    settings = Settings()
+    try:
+        settings.check_secure()
+    except InsecureSettings as err:
+        typer.echo(f"error: {err}", err=True)
+        raise typer.Exit(2) from None
+    if bootstrap:
+        _bootstrap(settings.resolved_store_url(), settings.data_dir, bootstrap_steps)
+    typer.echo(
+        f"serving REST on http://{host}:{http_port} (docs at /docs)"
+        + (f" and gRPC on {host}:{grpc_port}" if grpc_port else "")
+    )
+    uvicorn.run(
+        "services.app:create_app",
+        factory=True,
+        host=host,
+        port=http_port,
+        workers=workers,
+        loop="uvloop",
+        http="httptools",
+        log_level="info",
+        timeout_graceful_shutdown=10,
+    )
+
+
+def _bootstrap(store_url: str, data_dir: Path, steps: int | None) -> None:
+    """Train and register whatever part of the particle zoo the store lacks."""
+    from dataclasses import replace
+
+    from rich.console import Console
+
+    from cli.train import progress_bars
+    from envs.particle.goals import GOAL_IDS
+    from model_store.defaults import open_store
+    from trainer.config import ImpactConfig, TaskConfig
+    from trainer.report import print_summary
+    from trainer.zoo import RunState, goals_without, run_impacts, run_tasks
+
+    console = Console()
+    with open_store(store_url) as store:
+        tasks = goals_without(store, "particle", "task", GOAL_IDS, "latest")
+        impacts = goals_without(store, "particle", "impact", GOAL_IDS, "latest")
+        if not tasks and not impacts:
+            return
+        console.print(
+            f"[bold]first run:[/bold] training the particle zoo ({len(tasks)} task and "
+            f"{len(impacts)} impact networks) into {store_url}"
+        )
+        task_cfg, impact_cfg = TaskConfig(), ImpactConfig()
+        if steps is not None:
+            task_cfg = replace(task_cfg, total_steps=steps)
+            impact_cfg = replace(impact_cfg, total_steps=steps)
+        run = RunState.open(data_dir / "runs" / "bootstrap", "bootstrap", resume=True)
+        with progress_bars() as progress:
+            common = {"seed": 0, "run": run, "progress": progress, "goals_per_batch": 35}
+            batches = run_tasks(store, tasks, task_cfg, **common) if tasks else []
+            if impacts:
+                batches += run_impacts(store, impacts, impact_cfg, **common)
+        print_summary(batches, console)

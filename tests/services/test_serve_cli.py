@@ -1,0 +1,93 @@
+"""`coexist serve` as a user runs it: a real process, REST and gRPC, graceful stop; bootstrap."""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import httpx
+import pytest
+
+from model_store.sql import SqlModelStore
+from services.sdk import CoexistClient, GrpcCoexistClient
+
+OBS = [0.1, 0.4, 0.0, 0.0, 0.7, 0.6, 0.0, 0.0]
+
+
+def _free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+def _wait_ready(url: str, process: subprocess.Popen[bytes], timeout: float = 60.0) -> None:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        assert process.poll() is None, process.communicate()[0].decode()
+        try:
+            if httpx.get(f"{url}/readyz", timeout=1.0).status_code == 200:
+                return
+        except httpx.TransportError:
+            pass
+        time.sleep(0.2)
+    raise AssertionError("server did not become ready")
+
+
+def test_serve_answers_rest_and_grpc_then_stops_gracefully(
+    tiny_zoo_store: SqlModelStore, tmp_path: Path
+) -> None:
+    http_port, grpc_port = _free_port(), _free_port()
+    env = {**os.environ, "COEXIST_DEV_MODE": "1", "COEXIST_DATA_DIR": str(tmp_path)}
+    cmd = [sys.executable, "-m", "cli.main", "serve", "--no-bootstrap",
+           "--http-port", str(http_port), "--grpc-port", str(grpc_port),
+           "--store-url", tiny_zoo_store.url.render_as_string(hide_password=False)]  # fmt: skip
+    process = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    try:
+        url = f"http://127.0.0.1:{http_port}"
+        _wait_ready(url, process)
+        partners = {1: "b3"}
+        with CoexistClient(url) as rest, GrpcCoexistClient(f"127.0.0.1:{grpc_port}") as grpc:
+            a = rest.act("particle", "a2", OBS, partners=partners, seed=3)
+            b = grpc.act("particle", "a2", OBS, partners=partners, seed=3)
+        assert a.probs == pytest.approx(b.probs, abs=1e-12)
+        assert a.action == b.action and a.models == b.models
+    finally:
+        process.send_signal(signal.SIGTERM)
+        out, _ = process.communicate(timeout=30)
+    # uvicorn finishes in-flight work and the lifespan (gRPC stop, engine, store), then
+    # re-raises SIGTERM so the exit status says how the process ended
+    assert process.returncode in (0, -signal.SIGTERM), out.decode()
+    assert b"Application shutdown complete" in out
+
+
+def test_serve_refuses_the_default_token_outside_dev_mode(tmp_path: Path) -> None:
+    env = {k: v for k, v in os.environ.items() if not k.startswith("COEXIST_")}
+    env["COEXIST_DATA_DIR"] = str(tmp_path)
+    result = subprocess.run(
+        [sys.executable, "-m", "cli.main", "serve", "--no-bootstrap"],
+        env=env,
+        capture_output=True,
+        timeout=60,
+    )
+    assert result.returncode == 2
+    assert b"COEXIST_ADMIN_TOKEN" in result.stderr
+
+
+@pytest.mark.slow
+def test_bootstrap_trains_the_missing_zoo_once(tmp_path: Path) -> None:
+    from cli.serve import _bootstrap
+
+    url = f"sqlite:///{tmp_path / 'models.db'}"
+    _bootstrap(url, tmp_path, steps=60)
+    with SqlModelStore(url) as store:
+        names = [m.name for m in store.list_models(page_size=100).items]
+        assert len(names) == 70
+        assert store.resolve("particle/impact/c4@latest").lineage.parents
+    _bootstrap(url, tmp_path, steps=60)  # nothing missing: nothing trained again
+    with SqlModelStore(url) as store:
+        assert store.resolve("particle/task/a2@latest").version == 1
