@@ -1,14 +1,19 @@
 """Latency and throughput of `InferenceEngine.act` (no transport): batch 1 and batch 256.
 
-Run: `.venv/bin/python benchmarks/engine.py [--repeats 5] [--calls 2000] [--hidden 128,128]`
-(or `--store-url URL` to use a registered zoo that has the networks of the cases below).
+Run: `OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/engine.py [--repeats 5] [--calls 2000]`
+(`--hidden 128,128`; `--store-url URL` to use a registered zoo that has the networks below;
+`--compare OLD_CHECKOUT` to measure another checkout of the repository in the same run).
 
-| case            | request                                                                  |
-|-----------------|--------------------------------------------------------------------------|
-| sl, batch 1     | ego `a2` in a 5-agent world, 4 partners announced (ignored by SL), seeded |
-| aail, batch 1   | the same with AAIL: task net + 4 impact nets (`b3`, `c1`, `d4`, `e0`)     |
-| * batch 256     | 256 observations in one call; figure = actions (rows) per second          |
-| blend alone     | `policy.blend.blend("aail", ...)` on the batch-1 shapes, for comparison   |
+| case              | request                                                                 |
+|-------------------|-------------------------------------------------------------------------|
+| sl, batch 1       | ego `a2` in a 5-agent world, 4 partners announced (ignored by SL), seeded|
+| aail, batch 1     | the same with AAIL: task net + 4 impact nets (`b3`, `c1`, `d4`, `e0`)    |
+| aail unseeded     | the same without a seed (no generator to build per request)             |
+| blend alone       | `policy.blend.blend("aail", ...)` on the batch-1 shapes (the checked    |
+|                   | entry point; small inputs take the plain-Python path)                   |
+| blend vectorised  | `policy.blend.blend_vectorised`, the numpy path, same shapes            |
+| blend_row         | `policy.blend_fast.blend_row`, the unchecked row kernel the engine uses |
+| * batch 256       | 256 observations in one call; figure = actions (rows) per second        |
 
 BLAS threads: run with `OPENBLAS_NUM_THREADS=1` to measure what one server worker per core sees;
 with the default (one thread per core) batch-256 figures collapse whenever the cores are busy.
@@ -17,14 +22,22 @@ Networks get the trainer's default architecture (MLP 8-128-128-5) with random we
 temporary SQLite store; the caches are warmed before timing. Latency: per-call wall time,
 p50/p90 of `calls` calls; each case runs `repeats` times and the table shows the median over the
 repeats (and the min..max of the p50s).
+
+`--compare` runs this script under the other checkout (`PYTHONPATH`), alternating with this one
+repeat by repeat, so that both see the same machine load; the table then shows both p50s and
+their ratio. Cases the other checkout lacks are left blank.
 """
 
 from __future__ import annotations
 
 import argparse
 import functools
+import importlib
+import json
 import os
 import statistics
+import subprocess
+import sys
 import tempfile
 import time
 from collections.abc import Callable
@@ -39,10 +52,13 @@ from model_store.naming import impact_model_name, task_model_name
 from model_store.sql import SqlModelStore
 from model_store.store import ModelStore
 from model_store.testing import qnet_spec, qnet_weights
-from policy.blend import blend
 from services.engine import ActRequest, InferenceEngine, PartnerSpec
 
+# the module (`policy` re-exports the function `blend` under the same name)
+policy_blend = importlib.import_module("policy.blend")
 EGO, PARTNER_GOALS = "a2", ("b3", "c1", "d4", "e0")
+Runs = dict[str, list[list[float]]]  # case -> one list of per-call seconds per repeat
+ROWS = {"sl, batch 256": 256, "aail, batch 256": 256}
 
 
 def build_zoo(store: ModelStore, hidden: tuple[int, ...]) -> None:
@@ -71,72 +87,137 @@ def latencies(call: Callable[[], object], calls: int) -> list[float]:
     return times
 
 
-def request(method: str, batch: int) -> ActRequest:
+def request(method: str, batch: int, seed: int | None = 1) -> ActRequest:
     obs = np.random.default_rng(batch).random((batch, 20)).astype(np.float32)
     partners = tuple(PartnerSpec(i + 1, goal=g) for i, g in enumerate(PARTNER_GOALS))
-    return ActRequest("particle", EGO, obs, partners, method=method, seed=1)  # type: ignore[arg-type]
+    return ActRequest("particle", EGO, obs, partners, method=method, seed=seed)  # type: ignore[arg-type]
+
+
+def blend_cases() -> dict[str, Callable[[], object]]:
+    """The blend on the batch-1 shapes, through every entry point this checkout has."""
+    q_task = np.random.default_rng(0).normal(size=(1, 5))
+    q_impact = np.random.default_rng(1).normal(size=(1, 4, 5))
+    cases: dict[str, Callable[[], object]] = {
+        "blend alone": lambda: policy_blend.blend("aail", q_task, q_impact, 0.02)
+    }
+    if hasattr(policy_blend, "blend_vectorised"):
+        from policy.blend_fast import blend_row
+
+        row_task, row_impact = q_task[0].tolist(), q_impact[0].tolist()
+        vectorised = policy_blend.blend_vectorised
+        cases["blend vectorised"] = lambda: vectorised("aail", q_task, q_impact, 0.02)
+        cases["blend_row"] = lambda: blend_row("aail", row_task, row_impact, 0.02)
+    return cases
+
+
+def measure(store_url: str | None, hidden: tuple[int, ...], repeats: int, calls: int) -> Runs:
+    """Every case of the module docstring, `repeats` times."""
+    runs: Runs = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        url = store_url or f"sqlite:///{Path(tmp) / 'models.db'}"
+        with SqlModelStore(url) as store:
+            if not store_url:
+                build_zoo(store, hidden)
+            engine = InferenceEngine(store)
+            single: dict[str, Callable[[], object]] = {
+                "sl, batch 1": functools.partial(engine.act, request("sl", 1)),
+                "aail, batch 1": functools.partial(engine.act, request("aail", 1)),
+                "aail unseeded, batch 1": functools.partial(engine.act, request("aail", 1, None)),
+                **blend_cases(),
+            }
+            big: dict[str, Callable[[], object]] = {
+                "sl, batch 256": functools.partial(engine.act, request("sl", 256)),
+                "aail, batch 256": functools.partial(engine.act, request("aail", 256)),
+            }
+            for warm in [*single.values(), *big.values()]:
+                warm()  # the caches
+            for _ in range(repeats):
+                for name, call in single.items():
+                    runs.setdefault(name, []).append(latencies(call, calls))
+                for name, call in big.items():
+                    runs.setdefault(name, []).append(latencies(call, max(20, calls // 40)))
+    return runs
+
+
+def compare(old_tree: Path, args: argparse.Namespace) -> tuple[Runs, Runs]:
+    """(old, new) runs, one repeat at a time each, alternating."""
+    old: Runs = {}
+    new: Runs = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "runs.json"
+        for _ in range(args.repeats):
+            command = [sys.executable, __file__, "--repeats", "1", "--calls", str(args.calls)]
+            command += ["--hidden", args.hidden, "--json", str(out)]
+            command += ["--store-url", args.store_url] if args.store_url else []
+            env = {**os.environ, "PYTHONPATH": str(old_tree.resolve())}
+            subprocess.run(command, env=env, check=True)
+            for name, repeat in json.loads(out.read_text()).items():
+                old.setdefault(name, []).extend(repeat)
+            hidden = tuple(int(h) for h in args.hidden.split(","))
+            for name, repeat in measure(args.store_url, hidden, 1, args.calls).items():
+                new.setdefault(name, []).extend(repeat)
+    return old, new
+
+
+def p50s(runs: list[list[float]]) -> list[float]:
+    return [float(np.percentile(r, 50)) for r in runs]
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--calls", type=int, default=2000, help="calls per batch-1 repeat")
     parser.add_argument("--hidden", default="128,128", help="hidden sizes of the random zoo")
     parser.add_argument("--store-url", default=None, help="use this store instead")
+    parser.add_argument("--compare", type=Path, default=None, help="another checkout to time")
+    parser.add_argument("--json", type=Path, default=None, help="write the raw runs here")
     args = parser.parse_args()
     hidden = tuple(int(h) for h in args.hidden.split(","))
-
-    with tempfile.TemporaryDirectory() as tmp:
-        url = args.store_url or f"sqlite:///{Path(tmp) / 'models.db'}"
-        with SqlModelStore(url) as store:
-            if not args.store_url:
-                build_zoo(store, hidden)
-            engine = InferenceEngine(store)
-            threads = os.environ.get("OPENBLAS_NUM_THREADS", "default")
-            table = Table(
-                title=f"InferenceEngine.act, 1 ego + 4 partners, MLP 8-{args.hidden}-5, "
-                f"OPENBLAS_NUM_THREADS={threads}"
+    threads = os.environ.get("OPENBLAS_NUM_THREADS", "default")
+    title = (
+        f"InferenceEngine.act, 1 ego + 4 partners, MLP 8-{args.hidden}-5, "
+        f"OPENBLAS_NUM_THREADS={threads}"
+    )
+    if args.compare is not None:
+        old, new = compare(args.compare, args)
+        table = Table(title=f"{title}; before = {args.compare}, after = this checkout")
+        for column in ("case", "before p50 µs", "after p50 µs", "speed-up", "after actions/s"):
+            table.add_column(column, justify="left" if column == "case" else "right")
+        for name, new_runs in new.items():
+            after = statistics.median(p50s(new_runs))
+            before = statistics.median(p50s(old[name])) if name in old else None
+            table.add_row(
+                name,
+                f"{before * 1e6:,.0f}" if before else "",
+                f"{after * 1e6:,.0f}",
+                f"{before / after:.1f}x" if before else "",
+                f"{rate(new_runs, ROWS.get(name, 1)):,.0f}",
             )
-            for column in ("case", "p50 µs", "p90 µs", "actions/s", "p50 spread µs"):
-                table.add_column(column, justify="left" if column == "case" else "right")
-            for method in ("sl", "aail"):
-                one = request(method, 1)
-                engine.act(one)  # warm the caches
-                runs = [
-                    latencies(functools.partial(engine.act, one), args.calls)
-                    for _ in range(args.repeats)
-                ]
-                add_latency_row(table, f"{method}, batch 1", runs, rows=1)
-            qt = np.random.default_rng(0).normal(size=(1, 5))
-            qi = np.random.default_rng(1).normal(size=(1, 4, 5))
-            runs = [
-                latencies(lambda: blend("aail", qt, qi, 0.02), args.calls)
-                for _ in range(args.repeats)
-            ]
-            add_latency_row(table, "policy.blend aail alone, batch 1", runs, rows=1)
-            for method in ("sl", "aail"):
-                big = request(method, 256)
-                engine.act(big)
-                calls = max(20, args.calls // 40)
-                runs = [
-                    latencies(functools.partial(engine.act, big), calls)
-                    for _ in range(args.repeats)
-                ]
-                add_latency_row(table, f"{method}, batch 256", runs, rows=256)
+        Console().print(table)
+        return
+    runs = measure(args.store_url, hidden, args.repeats, args.calls)
+    if args.json is not None:
+        args.json.write_text(json.dumps(runs))
+        return
+    table = Table(title=title)
+    for column in ("case", "p50 µs", "p90 µs", "actions/s", "p50 spread µs"):
+        table.add_column(column, justify="left" if column == "case" else "right")
+    for name, case_runs in runs.items():
+        medians = p50s(case_runs)
+        p90 = statistics.median(float(np.percentile(r, 90)) for r in case_runs)
+        table.add_row(
+            name,
+            f"{statistics.median(medians) * 1e6:,.0f}",
+            f"{p90 * 1e6:,.0f}",
+            f"{rate(case_runs, ROWS.get(name, 1)):,.0f}",
+            f"{min(medians) * 1e6:,.0f}..{max(medians) * 1e6:,.0f}",
+        )
     Console().print(table)
 
 
-def add_latency_row(table: Table, label: str, runs: list[list[float]], rows: int) -> None:
-    p50s = [float(np.percentile(r, 50)) for r in runs]
-    p90s = [float(np.percentile(r, 90)) for r in runs]
-    rates = [rows * len(r) / sum(r) for r in runs]
-    table.add_row(
-        label,
-        f"{statistics.median(p50s) * 1e6:,.0f}",
-        f"{statistics.median(p90s) * 1e6:,.0f}",
-        f"{statistics.median(rates):,.0f}",
-        f"{min(p50s) * 1e6:,.0f}..{max(p50s) * 1e6:,.0f}",
-    )
+def rate(runs: list[list[float]], rows: int) -> float:
+    """Median over the repeats of rows answered per second of wall time."""
+    return statistics.median(rows * len(r) / sum(r) for r in runs)
 
 
 if __name__ == "__main__":

@@ -33,6 +33,13 @@ paragraph) into one impact Q-vector per partner: the expectation of the per-goal
 under the goal probabilities. Soft Q is linear in the reward for a fixed policy, so this is the
 Q of the expected impact reward; it is our choice (the paper only says the framework "allows to
 probabilistically combine policies").
+
+Two implementations of the same maths, which give the same bits: `blend` sends small inputs to
+the plain-Python rows of `policy.blend_fast`, where numpy's per-call overhead would dominate, and
+the rest to the vectorised numpy path (`blend_vectorised` always takes it). Measured with 5
+actions, `blend` costs ~20 µs of checks plus, per row, ~10 + 9 P µs for AAIL (P partners) and
+~10 µs for SL or NAIL, against ~200 µs (AAIL) or ~55 µs (SL, NAIL) vectorised for any small B;
+`_rows_are_faster` encodes that crossover.
 """
 
 from __future__ import annotations
@@ -50,13 +57,25 @@ from policy._validate import (
     require_actions,
     require_finite,
 )
+from policy.blend_fast import FLAT_STD_RTOL, RowBlend, blend_row
 from policy.maths import boltzmann, js_distance, normalized_entropy, task_weight
 
-__all__ = ["METHODS", "BlendMethod", "BlendResult", "blend", "mix_goal_beliefs", "standardise"]
+__all__ = [
+    "FLAT_STD_RTOL",
+    "METHODS",
+    "BlendMethod",
+    "BlendResult",
+    "blend",
+    "blend_vectorised",
+    "mix_goal_beliefs",
+    "standardise",
+]
 
 BlendMethod = Literal["sl", "nail", "aail"]
 METHODS: tuple[BlendMethod, ...] = ("sl", "nail", "aail")
-FLAT_STD_RTOL = 1e-12  # a Q-vector whose std is below this fraction of max |Q| is "flat"
+# the row-by-row path takes AAIL inputs with B (2 + P) <= 12, SL and NAIL inputs with B <= 2,
+# and never more than 64 actions (module docstring)
+FAST_AAIL_WORK, FAST_MAX_ROWS, FAST_MAX_ACTIONS = 12, 2, 64
 
 
 @dataclass(frozen=True)
@@ -144,10 +163,70 @@ def blend(
     partner_mask_BP: ArrayLike | None = None,
 ) -> BlendResult:
     """Blend the task and impact Q-vectors of each row with `method` ("sl", "nail", "aail")."""
+    q_task, q_impact, mask, alpha_B1 = _checked(
+        method, q_task_BA, q_impact_BPA, alpha, partner_mask_BP
+    )
+    if _rows_are_faster(method, q_impact.shape):
+        rows = zip(
+            q_task.tolist(), q_impact.tolist(), alpha_B1[:, 0].tolist(), mask.tolist(), strict=True
+        )
+        return _as_arrays([blend_row(method, *row) for row in rows], q_impact.shape[1])
+    return _vectorised(method, q_task, q_impact, mask, alpha_B1)
+
+
+def _rows_are_faster(method: BlendMethod, shape_BPA: tuple[int, ...]) -> bool:
+    n_rows, n_slots, n_actions = shape_BPA
+    if n_rows == 0 or n_actions > FAST_MAX_ACTIONS:
+        return False
+    if method == "aail":
+        return n_rows * (2 + n_slots) <= FAST_AAIL_WORK
+    return n_rows <= FAST_MAX_ROWS
+
+
+def blend_vectorised(
+    method: BlendMethod,
+    q_task_BA: ArrayLike,
+    q_impact_BPA: ArrayLike,
+    alpha: ArrayLike,
+    partner_mask_BP: ArrayLike | None = None,
+) -> BlendResult:
+    """`blend` on the vectorised numpy path whatever the size (the reference for the fast path)."""
+    checked = _checked(method, q_task_BA, q_impact_BPA, alpha, partner_mask_BP)
+    return _vectorised(method, *checked)
+
+
+def _checked(
+    method: BlendMethod,
+    q_task_BA: ArrayLike,
+    q_impact_BPA: ArrayLike,
+    alpha: ArrayLike,
+    partner_mask_BP: ArrayLike | None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     if method not in METHODS:
         raise ValueError(f"method: unknown blending method {method!r} (expected one of {METHODS})")
     q_task, q_impact, mask = _check_blend_inputs(q_task_BA, q_impact_BPA, partner_mask_BP)
-    alpha_B1 = alpha_array(alpha, q_task.shape[:1])
+    return q_task, q_impact, mask, alpha_array(alpha, q_task.shape[:1])
+
+
+def _as_arrays(rows: list[RowBlend], n_slots: int) -> BlendResult:
+    return BlendResult(
+        q_BA=np.array([r.q_A for r in rows], dtype=np.float64),
+        probs_BA=np.array([r.probs_A for r in rows], dtype=np.float64),
+        task_entropy_B=np.array([r.task_entropy for r in rows], dtype=np.float64),
+        task_weight_B=np.array([r.task_weight for r in rows], dtype=np.float64),
+        partner_weights_BP=np.array([r.partner_weights_P for r in rows], dtype=np.float64).reshape(
+            len(rows), n_slots
+        ),
+    )
+
+
+def _vectorised(
+    method: BlendMethod,
+    q_task: np.ndarray,
+    q_impact: np.ndarray,
+    mask: np.ndarray,
+    alpha_B1: np.ndarray,
+) -> BlendResult:
     n_active_B = mask.sum(axis=1)
     task_entropy = normalized_entropy(boltzmann(q_task, alpha_B1[:, 0]))
 

@@ -7,6 +7,7 @@ updates and target copies, for G networks at once.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Protocol
@@ -64,7 +65,12 @@ def train_soft_q(
     progress: ProgressFn | None = None,
     log_every: int = 100,
 ) -> tuple[StackedSoftQ, TrainingCurves]:
-    """Train G soft-Q networks on `rollout` for `config.total_steps` batched steps."""
+    """Train G soft-Q networks on `rollout` for `config.total_steps` batched steps.
+
+    Runs on `COEXIST_TORCH_THREADS` torch threads (default 1): the stacked networks already keep
+    a core busy, and a second thread competing with the simulator, a server or another training
+    process made updates up to twentyfold slower on 2 cores (benchmarks/training.py)."""
+    torch.set_num_threads(int(os.environ.get("COEXIST_TORCH_THREADS", "1")))
     torch.manual_seed(seed)
     generator = torch.Generator().manual_seed(seed)
     spec = QNetSpec(

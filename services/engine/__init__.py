@@ -15,6 +15,8 @@
 | `networks`     | LRU cache, loaded networks, stacked groups and their numpy forward     |
 | `model_cache`  | resolve `name@alias` / pinned versions, load, stack; hot reload        |
 | `assembly`     | member input rows from the views, impact Q per partner, sampling       |
+| `fastpath`     | the single-row act: row layouts, Python-float reduce, blend and sample |
+| `gathers`      | a row's network inputs as one proven gather of the observation         |
 | `engine`       | `InferenceEngine`: act, envs, refresh (thread), status, stats          |
 """
 

@@ -21,6 +21,7 @@ from __future__ import annotations
 import logging
 import threading
 from collections.abc import Mapping, Sequence
+from typing import cast
 
 from envs.base import Domain
 from model_store.entities import ModelVersion
@@ -82,6 +83,18 @@ class ModelCache:
                 table.put((name, alias), found)
         return found
 
+    def resolve_all(
+        self, needs: Sequence[tuple[str, str, str]], alias: str, pinned: Mapping[str, int]
+    ) -> list[ModelVersion]:
+        """`resolve` of each (name, field, why) in order. When every one is a cached alias
+        resolution, one table look-up serves them all (same counters and LRU order)."""
+        if not pinned:
+            found = self._resolved.get_all([(name, alias) for name, _, _ in needs])
+            if None not in found:
+                self.stats.resolve_hits += len(found)
+                return cast(list[ModelVersion], found)  # no None in it
+        return [self.resolve(name, alias, pinned, field, why) for name, field, why in needs]
+
     def _from_store(self, name: str, ref: str, field: str, why: str) -> ModelVersion:
         try:
             return self.store.resolve(ref)
@@ -132,7 +145,9 @@ class ModelCache:
                     f"{domain.n_actions} (and obs_dim {domain.pair_obs_dim} for task/impact)",
                 )
             nets.append(net)
-        group = build_group(nets)
+        # one row of observations feeds the task net K <= max_agents - 1 views (fastpath)
+        repeats = 1 if members[0][0] == "joint" else max(1, domain.max_agents - 1)
+        group = build_group(nets, first_repeats=repeats)
         self._stacks.put(key, group)
         return group
 

@@ -1,0 +1,180 @@
+"""The single-row path of `InferenceEngine.act`: one observation, method sl, nail or aail.
+
+At batch 1 numpy's per-call overhead, not arithmetic, sets the latency, so this path makes as
+few numpy calls as it can and does the rest on Python floats. Same inputs, semantics, errors,
+models and sampled stream as the general path (`assembly` + `policy.blend.blend`); the numbers
+agree up to float32 rounding (~1e-7 relative in Q): the forward runs R matrix-vector products
+instead of padded matrix products, and the task Q is averaged over its views in float64 (the
+general path averages in float32).
+
+| step     | what                                                                       |
+|----------|----------------------------------------------------------------------------|
+| layout   | which input row feeds which member, where each partner's Q-values lie, the |
+|          | models used, the input gather: built once per (env, agent count, members, |
+|          | partners) and kept on the stacked group (`StackedGroup.memo`, immutable)   |
+| inputs   | one `gathers.Gather` of the observation when the domain's views are        |
+|          | selections (proved on probes), else the domain's view functions            |
+| forward  | `networks.forward_rows` per partition: the task net on K one-row members,  |
+|          | each impact net on one (weights sliced, not copied)                        |
+| reduce   | task Q = mean of the K views; a goal distribution mixes its goals' Q-values |
+|          | by probability (`mix_goal_beliefs`' expectation, same order)               |
+| blend    | `policy.blend_fast.blend_row` (bit-identical to `policy.blend.blend`)      |
+| sample   | `assembly.sample_actions`' inverse CDF on floats, same uniform stream      |
+
+The path declines (returns None, the caller takes the general path) when a layout does not fit
+`forward_rows`: an impact network that serves two partner slots, or more task views than the
+group's `first_repeats`.
+"""
+
+from __future__ import annotations
+
+from bisect import bisect_right
+from collections.abc import Sequence
+from dataclasses import dataclass
+from itertools import accumulate
+
+import numpy as np
+
+from envs.base import Domain
+from policy.blend import BlendMethod
+from policy.blend_fast import blend_row
+from services.engine.assembly import models_used
+from services.engine.errors import InvalidRequest
+from services.engine.gathers import Builder, Gather, find_gather
+from services.engine.messages import DEFAULT_TEMPERATURE, ActRequest, ActResult, Member, ModelUsed
+from services.engine.networks import Partition, StackedGroup, forward_rows
+from services.engine.validation import CheckedRequest
+
+MEMO_MAX = 256  # layouts kept per stacked group (the memo is cleared when it grows past this)
+TASK_VIEWS = -1  # an input source: the K task views (otherwise a partner's position)
+
+
+@dataclass(frozen=True, eq=False)
+class PartInputs:
+    """How one partition's input rows are built from an observation row."""
+
+    part: Partition
+    task_rows: int  # rows of the partition's first member (K for the task net, else 1)
+    build: Builder  # obs (B, D) -> inputs (B, R, F) through the domain's view functions
+    gather: Gather | None  # the same as one gather, when `gathers.find_gather` proved it
+
+
+@dataclass(frozen=True, eq=False)
+class RowLayout:
+    parts: tuple[PartInputs, ...]
+    n_views: int  # K: the task net's input rows, output rows 0..K-1
+    partner_rows: tuple[tuple[int, ...], ...]  # per partner: the output row of each goal
+    models: tuple[ModelUsed, ...]
+
+
+def _builder(domain: Domain, n_agents: int, sources: list[int], indices: list[int]) -> Builder:
+    """obs (B, D) -> (B, R, F): per source, the K task views or a partner's impact view."""
+
+    def build(obs_BD: np.ndarray) -> np.ndarray:
+        blocks = [
+            domain.task_views(obs_BD, n_agents)
+            if source == TASK_VIEWS
+            else domain.impact_view(obs_BD, n_agents, indices[source])[:, None, :]
+            for source in sources
+        ]
+        return blocks[0] if len(blocks) == 1 else np.concatenate(blocks, axis=1)
+
+    return build
+
+
+def _layout(
+    checked: CheckedRequest, members: Sequence[Member], group: StackedGroup
+) -> RowLayout | None:
+    """The row layout, or None when it does not fit `forward_rows` (module docstring)."""
+    domain, n_agents = checked.runtime.domain, checked.n_agents
+    obs_dim = checked.obs_BD.shape[1]
+    n_views = domain.task_views(np.zeros((1, obs_dim), np.float32), n_agents).shape[1]
+    member_of = {goal: j for j, (role, goal) in enumerate(members) if role == "impact"}
+    source_of: dict[int, int] = {0: TASK_VIEWS}  # member -> the partner whose view it reads
+    for position, partner in enumerate(checked.partners if len(members) > 1 else ()):
+        for goal in partner.goals:
+            if member_of[goal] in source_of:
+                return None  # one impact net for two slots: the general path stacks it
+            source_of[member_of[goal]] = position
+    indices = [partner.index for partner in checked.partners]
+    parts, first_row, row = [], {}, 0  # output rows: the partitions' rows one after the other
+    for part in group.partitions:
+        task_rows = n_views if part.members[0] == 0 else 1
+        if task_rows > part.first_repeats:
+            return None
+        for j in part.members:
+            first_row[j] = row
+            row += task_rows if j == 0 else 1
+        build = _builder(domain, n_agents, [source_of[j] for j in part.members], indices)
+        parts.append(PartInputs(part, task_rows, build, find_gather(build, obs_dim)))
+    partner_rows = tuple(
+        tuple(first_row[member_of[goal]] for goal in partner.goals) if len(members) > 1 else ()
+        for partner in checked.partners
+    )
+    models = tuple(models_used(checked, members, group))
+    return RowLayout(tuple(parts), n_views, partner_rows, models)
+
+
+def act_row(
+    checked: CheckedRequest,
+    request: ActRequest,
+    members: Sequence[Member],
+    group: StackedGroup,
+    default_rng: np.random.Generator,
+) -> list[ActResult] | None:
+    """The one result of a single-row sl/nail/aail request, or None (module docstring)."""
+    partners = checked.partners
+    key = (
+        checked.runtime.domain.name,
+        checked.n_agents,
+        tuple(members),
+        tuple((p.index, p.goals) for p in partners),
+    )
+    layout = group.memo.get(key, False)
+    if layout is False:
+        layout = _layout(checked, members, group)
+        if len(group.memo) >= MEMO_MAX:
+            group.memo.clear()
+        group.memo[key] = layout
+    if layout is None:
+        return None
+    assert isinstance(layout, RowLayout)
+
+    q_rows: list[list[float]] = []
+    for inputs in layout.parts:
+        if inputs.gather is not None:
+            x_R1F = inputs.gather(checked.obs_BD[0])
+        else:
+            x_R1F = inputs.build(checked.obs_BD)[0][:, None, :]
+        q_R1A = forward_rows(inputs.part, x_R1F, inputs.task_rows)
+        if not np.isfinite(q_R1A).all():
+            raise InvalidRequest("observations", "values so large that the Q-values overflow")
+        q_rows += q_R1A[:, 0, :].tolist()
+    # the task Q averaged over the K views (one per other agent), in float64
+    n_views = layout.n_views
+    q_task = [sum(column) / n_views for column in zip(*q_rows[:n_views], strict=True)]
+    q_impact = []
+    for partner, rows in zip(partners, layout.partner_rows, strict=True):
+        if partner.probs is None:
+            q_impact += [q_rows[row] for row in rows]
+        elif rows:  # the expected impact Q under the goal distribution (§3.2)
+            mixed = [0.0] * len(q_task)
+            for p, row in zip(partner.probs, rows, strict=True):
+                mixed = [acc + p * q for acc, q in zip(mixed, q_rows[row], strict=True)]
+            q_impact.append(mixed)
+
+    method: BlendMethod = request.method  # type: ignore[assignment]  # sl, nail or aail here
+    temperature = request.temperature or group.nets[0].alpha or DEFAULT_TEMPERATURE
+    blended = blend_row(method, q_task, q_impact, temperature)
+    weights = blended.partner_weights_P if method != "sl" else [0.0] * len(checked.partners)
+    rng = default_rng if request.seed is None else np.random.default_rng(request.seed)
+    probs = blended.probs_A
+    # `assembly.sample_actions` on one row: the first action whose cumulative probability
+    # exceeds u (the cdf never decreases, so that is the count of entries <= u)
+    cdf = list(accumulate(probs))
+    action = min(bisect_right(cdf, rng.random() * cdf[-1]), len(probs) - 1)
+    greedy = probs.index(max(probs))
+    return [
+        ActResult(probs, action, greedy, method, blended.task_entropy, blended.task_weight, weights,
+                  list(layout.models))
+    ]  # fmt: skip
