@@ -1,4 +1,4 @@
-# The two commands of the README's quick start are `make demo` and `make test`.
+# The two commands of the README's quick start are `make serve` and `make test`.
 # Each sets up the virtual environment first (idempotent), so a fresh clone needs nothing else.
 PY ?= python3
 VENV ?= .venv
@@ -12,10 +12,16 @@ $(STAMP): pyproject.toml
 	$(BIN)/pip install --quiet --upgrade pip
 	# The CPU build of torch first, exactly: a bare `torch` requirement would pull CUDA wheels.
 	$(BIN)/pip install --quiet "torch==2.13.0"
-	$(BIN)/pip install --quiet -e ".[dev]"
+	# The ray extra too: the test suite trains through a real local Ray instance.
+	$(BIN)/pip install --quiet -e ".[dev,ray]"
 	touch $(STAMP)
 
 setup: $(STAMP)
+
+# The main job: the inference server on the embedded SQLite store (trains the zoo on first run).
+# Development mode allows the default registry admin token; set COEXIST_ADMIN_TOKEN in production.
+serve: $(STAMP)
+	COEXIST_DEV_MODE=1 $(BIN)/coexist serve
 
 demo: $(STAMP)
 	$(BIN)/coexist demo --out demo/particle.gif

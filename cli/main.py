@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import typer
 
-from cli import demo, models, run, serve, train
+from cli import demo, evaluate, models, run, serve, train
 
 app = typer.Typer(
     name="coexist",
@@ -26,6 +26,7 @@ def main() -> None:
 
 app.command("demo")(demo.demo)
 app.command("run")(run.run)
+app.command("eval")(evaluate.evaluate)
 app.command("serve")(serve.serve)
 app.add_typer(train.app, name="train")
 app.add_typer(models.app, name="models")

@@ -15,12 +15,19 @@ import typer
 
 
 def serve(
-    host: Annotated[str, typer.Option(help="Address to listen on.")] = "127.0.0.1",
-    http_port: Annotated[int, typer.Option(help="REST port.")] = 8000,
-    grpc_port: Annotated[int, typer.Option(help="gRPC port (0 disables gRPC).")] = 50051,
+    host: Annotated[str, typer.Option(envvar="COEXIST_HOST", help="Address to listen on.")] = (
+        "127.0.0.1"
+    ),
+    http_port: Annotated[int, typer.Option(envvar="COEXIST_HTTP_PORT", help="REST port.")] = 8000,
+    grpc_port: Annotated[
+        int, typer.Option(envvar="COEXIST_GRPC_PORT", help="gRPC port (0 disables gRPC).")
+    ] = 50051,
     workers: Annotated[int, typer.Option(min=1, help="uvicorn worker processes.")] = 1,
     store_url: Annotated[
-        str | None, typer.Option(help="Model store URL (default: SQLite in the data dir).")
+        str | None,
+        typer.Option(
+            envvar="COEXIST_STORE_URL", help="Model store URL (default: SQLite in the data dir)."
+        ),
     ] = None,
     bootstrap: Annotated[
         bool, typer.Option(help="Train the particle zoo first if the store has none.")
@@ -43,6 +50,7 @@ def serve(
 
     import uvicorn
 
+    from services.logging import log_config
     from services.settings import InsecureSettings, Settings
 
     settings = Settings()
@@ -65,8 +73,10 @@ def serve(
         workers=workers,
         loop="uvloop",
         http="httptools",
-        log_level="info",
-        timeout_graceful_shutdown=10,
+        log_config=log_config(settings.log_format, settings.log_level),
+        log_level=settings.log_level,
+        access_log=False,  # services.logging writes access lines, with request ids
+        timeout_graceful_shutdown=settings.shutdown_grace_s,  # in-flight requests finish
     )
 
 

@@ -4,10 +4,17 @@
     coexist train impact --env particle --goals all|...
     coexist train joint  --env particle --combos a2+b3,c+c4
     coexist train zoo    --env particle            # tasks, then impacts (and --combos for JL)
+    coexist train zoo    --env cooking --goals TomatoLettuceSalad,CarrotBanana
+    coexist train task   --env cooking --goals CarrotBanana --seed 1 --alias partners
 
 Every command shows a progress bar per batch of goals, prints a summary table at the end and
 registers each network (with `latest`, plus `production` when its quality gate passes).
 `--run-dir` keeps the record of finished batches: rerun with `--resume` after an interruption.
+
+`--backend ray [--ray-address auto|ray://host:port]` runs every batch as a Ray task instead (task
+batches first, then the impact and joint batches that need them); each task registers its
+networks itself, once, even when Ray retries it (`trainer.backends`). Use a PostgreSQL
+`--store-url` that every node reaches. The default `--backend local` never imports Ray.
 """
 
 from __future__ import annotations
@@ -15,6 +22,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import replace
+from enum import StrEnum
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -34,6 +42,22 @@ RunDirOpt = Annotated[Path, typer.Option(help="Where the run's record and plots 
 ResumeOpt = Annotated[bool, typer.Option(help="Skip batches this run directory already finished.")]
 CombosOpt = Annotated[
     str, typer.Option(help="JL combinations: ego+partner[+partner...], comma-separated.")
+]
+
+
+class Backend(StrEnum):
+    local = "local"
+    ray = "ray"
+
+
+BackendOpt = Annotated[
+    Backend, typer.Option(help="local: this process; ray: one Ray task per batch of goals.")
+]
+RayAddressOpt = Annotated[
+    str | None,
+    typer.Option(
+        help="Ray cluster: 'auto', 'ray://host:10001' (default: RAY_ADDRESS, else a local one)."
+    ),
 ]
 
 
@@ -59,6 +83,11 @@ def _goals(env: str, goals: str) -> list[str]:
 
 
 def _combos(env: str, combos: str) -> list[list[str]]:
+    if env == "cooking":
+        raise typer.BadParameter(
+            "the joint-learner baseline is trained for the particle world only",
+            param_hint="--combos",
+        )
     out = [_goals(env, ",".join(c.split("+"))) for c in combos.split(",") if c.strip()]
     for combo in out:
         if not 2 <= len(combo) <= 5:
@@ -123,10 +152,61 @@ def _session(
         store.close()
 
 
-def _configs(steps: int | None) -> tuple[Any, Any, Any]:
-    from trainer.config import ImpactConfig, JointConfig, TaskConfig
+def _on_ray(
+    store: Any,
+    run: Any,
+    progress: Any,
+    stages: list[Any],
+    *,
+    run_dir: Path,
+    resume: bool,
+    env: str,
+    address: str | None,
+    serve_alias: str = "production",
+) -> list[Any]:
+    """Run `stages` as Ray tasks (`trainer.backends`); outcomes for the summary and plots."""
+    from importlib.util import find_spec
 
-    task, impact, joint = TaskConfig(), ImpactConfig(), JointConfig()
+    if find_spec("ray") is None:
+        raise typer.BadParameter(
+            "Ray is not installed: pip install 'coexist[ray]'", param_hint="--backend"
+        )
+    from trainer.backends.ray_cluster import job_id_for, run_on_ray
+
+    if address and store.url.get_backend_name() == "sqlite":
+        typer.echo(
+            "warning: the store is a SQLite file, which Ray workers on other machines cannot "
+            "reach: use a PostgreSQL --store-url for a cluster",
+            err=True,
+        )
+    return run_on_ray(
+        store.url.render_as_string(hide_password=False),
+        stages,
+        run=run,
+        job_id=job_id_for(run_dir, resume),
+        env=env,
+        serve_alias=serve_alias,
+        address=address,
+        progress=progress,
+    )
+
+
+def _print_cooking_gates(batches: list[Any]) -> None:
+    from trainer.cooking_gates import print_cooking_gates
+
+    print_cooking_gates(batches)  # the summary table shows the particle gates' numbers only
+
+
+def _configs(steps: int | None, env: str = "particle") -> tuple[Any, Any, Any]:
+    """Task, impact and joint configurations of `env` (the kitchen has its own: sparse dishes)."""
+    from trainer.config import ImpactConfig, JointConfig, TaskConfig
+    from trainer.cooking_config import CookingImpactConfig, CookingTaskConfig
+
+    task: TaskConfig | CookingTaskConfig = TaskConfig()
+    impact: ImpactConfig | CookingImpactConfig = ImpactConfig()
+    joint = JointConfig()
+    if env == "cooking":
+        task, impact = CookingTaskConfig(), CookingImpactConfig()
     if steps is not None:
         task = replace(task, total_steps=steps)
         impact = replace(impact, total_steps=steps)
@@ -147,13 +227,15 @@ def task(
     alias: Annotated[
         str, typer.Option(help="Alias for networks that pass their gate (e.g. 'partners').")
     ] = "production",
+    backend: BackendOpt = Backend.local,
+    ray_address: RayAddressOpt = None,
 ) -> None:
     """Train one task network per goal (paper §3.1)."""
     from trainer.report import print_summary, write_curves
     from trainer.zoo import run_tasks
 
     goal_ids = _goals(env, goals)
-    config, _, _ = _configs(steps)
+    config, _, _ = _configs(steps, env)
     with _session(
         store_url,
         run_dir,
@@ -164,18 +246,26 @@ def task(
         config=config,
         alias=alias,
     ) as (store, run, progress):
-        batches = run_tasks(
-            store,
-            goal_ids,
-            config,
-            seed=seed,
-            goals_per_batch=goals_per_batch,
-            run=run,
-            progress=progress,
-            env=env,
-            serve_alias=alias,
-        )
+        if backend is Backend.ray:
+            from trainer.backends.jobs import task_stage
+
+            stage = task_stage(goal_ids, config, seed=seed, per_batch=goals_per_batch)
+            batches = _on_ray(store, run, progress, [stage], run_dir=run_dir, resume=resume,
+                              env=env, address=ray_address, serve_alias=alias)  # fmt: skip
+        else:
+            batches = run_tasks(
+                store,
+                goal_ids,
+                config,
+                seed=seed,
+                goals_per_batch=goals_per_batch,
+                run=run,
+                progress=progress,
+                env=env,
+                serve_alias=alias,
+            )
     print_summary(batches)
+    _print_cooking_gates(batches)
     write_curves(batches, run_dir)
 
 
@@ -189,27 +279,37 @@ def impact(
     store_url: StoreOpt = None,
     run_dir: RunDirOpt = Path("runs/impact"),
     resume: ResumeOpt = False,
+    backend: BackendOpt = Backend.local,
+    ray_address: RayAddressOpt = None,
 ) -> None:
     """Train one impact network per partner goal by self-play (paper §3.2); needs the task nets."""
     from trainer.report import print_summary, write_curves
     from trainer.zoo import run_impacts
 
     goal_ids = _goals(env, goals)
-    _, config, _ = _configs(steps)
+    _, config, _ = _configs(steps, env)
     with _session(
         store_url, run_dir, resume, kind="impact", goals=goal_ids, seed=seed, config=config
     ) as (store, run, progress):
-        batches = run_impacts(
-            store,
-            goal_ids,
-            config,
-            seed=seed,
-            goals_per_batch=goals_per_batch,
-            run=run,
-            progress=progress,
-            env=env,
-        )
+        if backend is Backend.ray:
+            from trainer.backends.jobs import impact_stage
+
+            stage = impact_stage(goal_ids, config, seed=seed, per_batch=goals_per_batch)
+            batches = _on_ray(store, run, progress, [stage], run_dir=run_dir, resume=resume,
+                              env=env, address=ray_address)  # fmt: skip
+        else:
+            batches = run_impacts(
+                store,
+                goal_ids,
+                config,
+                seed=seed,
+                goals_per_batch=goals_per_batch,
+                run=run,
+                progress=progress,
+                env=env,
+            )
     print_summary(batches)
+    _print_cooking_gates(batches)
     write_curves(batches, run_dir)
 
 
@@ -222,20 +322,30 @@ def joint(
     store_url: StoreOpt = None,
     run_dir: RunDirOpt = Path("runs/joint"),
     resume: ResumeOpt = False,
+    backend: BackendOpt = Backend.local,
+    ray_address: RayAddressOpt = None,
 ) -> None:
     """Train joint-learner (JL) baselines, one per goal combination; needs the task nets."""
     from trainer.report import print_summary, write_curves
     from trainer.zoo import run_joint
 
     combo_ids = _combos(env, combos)
-    _, _, config = _configs(steps)
+    _, _, config = _configs(steps, env)
     with _session(
         store_url, run_dir, resume, kind="joint", combos=combo_ids, seed=seed, config=config
     ) as (store, run, progress):
-        batches = run_joint(
-            store, combo_ids, config, seed=seed, run=run, progress=progress, env=env
-        )
+        if backend is Backend.ray:
+            from trainer.backends.jobs import joint_stage
+
+            stage = joint_stage(combo_ids, config, seed=seed)
+            batches = _on_ray(store, run, progress, [stage], run_dir=run_dir, resume=resume,
+                              env=env, address=ray_address)  # fmt: skip
+        else:
+            batches = run_joint(
+                store, combo_ids, config, seed=seed, run=run, progress=progress, env=env
+            )
     print_summary(batches)
+    _print_cooking_gates(batches)
     write_curves(batches, run_dir)
 
 
@@ -250,6 +360,8 @@ def zoo(
     store_url: StoreOpt = None,
     run_dir: RunDirOpt = Path("runs/zoo"),
     resume: ResumeOpt = False,
+    backend: BackendOpt = Backend.local,
+    ray_address: RayAddressOpt = None,
 ) -> None:
     """The whole pipeline in order: task networks, impact networks, then JL combinations."""
     from trainer.report import print_summary, write_curves
@@ -257,7 +369,7 @@ def zoo(
 
     goal_ids = _goals(env, goals)
     combo_ids = _combos(env, combos) if combos else []
-    task_cfg, impact_cfg, joint_cfg = _configs(steps)
+    task_cfg, impact_cfg, joint_cfg = _configs(steps, env)
     fp = dict(
         kind="zoo",
         goals=goal_ids,
@@ -266,12 +378,28 @@ def zoo(
         configs=[task_cfg, impact_cfg, joint_cfg],
     )
     with _session(store_url, run_dir, resume, **fp) as (store, run, progress):
-        common = dict(seed=seed, run=run, progress=progress, env=env)
-        batches = run_tasks(store, goal_ids, task_cfg, goals_per_batch=goals_per_batch, **common)
-        batches += run_impacts(
-            store, goal_ids, impact_cfg, goals_per_batch=goals_per_batch, **common
-        )
-        if combo_ids:
-            batches += run_joint(store, combo_ids, joint_cfg, **common)
+        if backend is Backend.ray:
+            from trainer.backends.jobs import impact_stage, joint_stage, task_stage
+
+            per_batch = goals_per_batch
+            stages = [
+                task_stage(goal_ids, task_cfg, seed=seed, per_batch=per_batch),
+                impact_stage(goal_ids, impact_cfg, seed=seed, per_batch=per_batch),
+            ]
+            if combo_ids:
+                stages.append(joint_stage(combo_ids, joint_cfg, seed=seed))
+            batches = _on_ray(store, run, progress, stages, run_dir=run_dir, resume=resume,
+                              env=env, address=ray_address)  # fmt: skip
+        else:
+            common = dict(seed=seed, run=run, progress=progress, env=env)
+            batches = run_tasks(
+                store, goal_ids, task_cfg, goals_per_batch=goals_per_batch, **common
+            )
+            batches += run_impacts(
+                store, goal_ids, impact_cfg, goals_per_batch=goals_per_batch, **common
+            )
+            if combo_ids:
+                batches += run_joint(store, combo_ids, joint_cfg, **common)
     print_summary(batches)
+    _print_cooking_gates(batches)
     write_curves(batches, run_dir)

@@ -12,7 +12,9 @@ state another worker needs: the store is the only shared state.
 
 Routes: `/v1/act`, `/v1/act:batch`, `/v1/envs` (services.rest), the registry under
 `/v1/registry` (services.registry), `/healthz` (liveness), `/readyz` (models loaded, store
-reachable), `/metrics` (Prometheus) and the OpenAPI docs at `/docs`.
+reachable), `/metrics` (Prometheus) and the OpenAPI docs at `/docs`. Every response carries
+`X-Request-ID` (the request's own, else a new one) and every log line written while serving it
+has the id (`services.logging`).
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ from prometheus_client import CONTENT_TYPE_LATEST, CollectorRegistry, generate_l
 from model_store.defaults import open_store
 from model_store.store import ModelStore
 from services.engine import InferenceEngine
+from services.logging import RequestIdMiddleware
 from services.metrics import EngineCollector, HttpMetrics
 from services.registry import router as registry_router
 from services.registry.errors import install_error_handlers as install_registry_errors
@@ -81,6 +84,7 @@ def create_app(
                 host=settings.host,
                 max_workers=settings.grpc_workers,
                 ready=lambda: _readiness(app.state.engine)[0],
+                reuse_port=True,  # uvicorn workers of one server share the gRPC port
             )
             grpc_server.start()
             app.state.grpc_port = grpc_server.port
@@ -89,7 +93,8 @@ def create_app(
             yield
         finally:
             if grpc_server is not None:
-                grpc_server.stop(5.0).wait(6.0)  # in-flight calls finish first
+                grace = settings.shutdown_grace_s  # in-flight calls finish first
+                grpc_server.stop(grace).wait(grace + 1.0)
             if owned_engine is not None:
                 owned_engine.stop()
                 app.state.engine = None
@@ -118,6 +123,7 @@ def create_app(
     registry.register(EngineCollector(lambda: app.state.engine))
     http_metrics = HttpMetrics(registry)
     app.add_middleware(_AsgiWrapper, wrap=http_metrics.middleware)
+    app.add_middleware(RequestIdMiddleware)  # outermost: the id is set before anything logs
 
     @app.get("/healthz", tags=["health"])
     async def healthz() -> dict[str, str]:

@@ -25,6 +25,7 @@ from prometheus_client.core import CounterMetricFamily, GaugeMetricFamily, Metri
 from prometheus_client.registry import Collector
 
 from services.engine import InferenceEngine
+from services.logging import route_template
 
 # Latency buckets from 50 µs to 1 s: single acts take well under a millisecond.
 LATENCY_BUCKETS = (5e-5, 1e-4, 2e-4, 5e-4, 1e-3, 2e-3, 5e-3, 1e-2, 2.5e-2, 0.1, 0.25, 1.0)
@@ -89,8 +90,7 @@ class HttpMetrics:
                 nonlocal status
                 if message["type"] == "http.response.start":
                     status = message["status"]
-                    route = scope.get("route")
-                    label = getattr(route, "path", "unmatched")
+                    label = route_template(scope) or "unmatched"
                     self.latency.labels(label).observe(time.perf_counter() - start)
                     self.requests.labels(label, scope["method"], str(status)).inc()
                 await send(message)

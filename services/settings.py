@@ -1,22 +1,36 @@
-"""Settings of the coexist servers: one pydantic-settings class, read from `COEXIST_*` variables.
+"""Settings of coexist, from `COEXIST_*` environment variables: the one table of them all.
 
-| variable (`COEXIST_` + field) | default            | meaning                          |
-|-------------------------------|--------------------|----------------------------------|
-| `STORE_URL`                   | SQLite in data_dir | model store database URL         |
-| `DATA_DIR`                    | `.coexist`         | where the SQLite file lives      |
-| `ADMIN_TOKEN`                 | `dev-token`        | bearer token for writes          |
-| `READ_TOKEN`                  | unset              | bearer token for reads           |
-| `REQUIRE_READ_TOKEN`          | false              | reads need a token               |
-| `DEV_MODE`                    | false              | allow the default admin token    |
-| `MAX_ARTIFACT_BYTES`          | 64 MiB             | upload size limit                |
-| `HOST`                        | `127.0.0.1`        | address to listen on             |
-| `HTTP_PORT`                   | 8000               | REST port                        |
-| `GRPC_PORT`                   | 50051              | gRPC port (0: any free port)     |
-| `GRPC_ENABLED`                | true               | serve gRPC beside REST           |
-| `GRPC_WORKERS`                | 8                  | gRPC thread pool size            |
-| `REFRESH_INTERVAL_S`          | 2.0                | how often aliases are re-checked |
-| `CACHE_SIZE`                  | 256                | networks kept loaded (LRU)       |
-| `MAX_BATCH`                   | 4096               | rows allowed in one act:batch    |
+The servers read one pydantic-settings class (`Settings`, the rows marked *server*); the CLI's
+store commands read the two store rows directly (`model_store.defaults`); the last rows are read
+by the test suite and by Ray.
+
+| variable                      | default            | read by       | meaning                                           |
+|-------------------------------|--------------------|---------------|---------------------------------------------------|
+| `COEXIST_STORE_URL`           | SQLite in data dir | server, CLI   | model store URL (`sqlite:///…`, `postgresql://…`) |
+| `COEXIST_DATA_DIR`            | `.coexist`         | server, CLI   | where the SQLite file (and bootstrap run) lives   |
+| `COEXIST_ADMIN_TOKEN`         | `dev-token`        | server        | bearer token for registry writes (refused at its  |
+|                               |                    |               | default unless `DEV_MODE`)                        |
+| `COEXIST_READ_TOKEN`          | unset              | server        | bearer token for reads                            |
+| `COEXIST_REQUIRE_READ_TOKEN`  | false              | server        | reads need a token                                |
+| `COEXIST_DEV_MODE`            | false              | server        | allow the default admin token                     |
+| `COEXIST_MAX_ARTIFACT_BYTES`  | 64 MiB             | server        | upload size limit                                 |
+| `COEXIST_HOST`                | `127.0.0.1`        | server        | address to listen on (`0.0.0.0` in a container)   |
+| `COEXIST_HTTP_PORT`           | 8000               | server        | REST port                                         |
+| `COEXIST_GRPC_PORT`           | 50051              | server        | gRPC port (0: any free port)                      |
+| `COEXIST_GRPC_ENABLED`        | true               | server        | serve gRPC beside REST                            |
+| `COEXIST_GRPC_WORKERS`        | 8                  | server        | gRPC thread pool size                             |
+| `COEXIST_REFRESH_INTERVAL_S`  | 2.0                | server        | how often aliases are re-checked (hot reload)     |
+| `COEXIST_CACHE_SIZE`          | 256                | server        | networks kept loaded (LRU)                        |
+| `COEXIST_MAX_BATCH`           | 4096               | server        | rows allowed in one act:batch                     |
+| `COEXIST_LOG_FORMAT`          | `text`             | server        | `json`: one JSON object per line (the images set  |
+|                               |                    |               | it); `text`: for a terminal (`services.logging`)  |
+| `COEXIST_LOG_LEVEL`           | `info`             | server        | `debug` (also probe access lines), `info`,        |
+|                               |                    |               | `warning`, `error`                                |
+| `COEXIST_SHUTDOWN_GRACE_S`    | 10                 | server        | on SIGTERM: how long in-flight HTTP requests and  |
+|                               |                    |               | gRPC calls may take to finish                     |
+| `COEXIST_TEST_PG_URL`         | `postgresql://postgres@127.0.0.1:5432/test` | tests | the PostgreSQL server of the tests   |
+| `COEXIST_REQUIRE_POSTGRES`    | unset              | tests         | PostgreSQL tests fail instead of skipping         |
+| `RAY_ADDRESS`                 | unset              | `--backend ray` | the Ray cluster when `--ray-address` is not given |
 
 Reads are open unless a read token is set or `require_read_token` is true; then a request must
 carry the read token or the admin token (with `require_read_token` and no read token, only the
@@ -28,8 +42,9 @@ from __future__ import annotations
 
 from functools import lru_cache
 from pathlib import Path
+from typing import Literal
 
-from pydantic import Field, SecretStr
+from pydantic import Field, SecretStr, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 from model_store.sql.sql_store import DEFAULT_MAX_ARTIFACT_BYTES
@@ -59,6 +74,14 @@ class Settings(BaseSettings):
     refresh_interval_s: float = Field(default=2.0, gt=0, le=3600)
     cache_size: int = Field(default=256, ge=1)
     max_batch: int = Field(default=4096, ge=1)
+    log_format: Literal["json", "text"] = "text"
+    log_level: Literal["debug", "info", "warning", "error"] = "info"
+    shutdown_grace_s: int = Field(default=10, ge=0, le=3600)
+
+    @field_validator("log_format", "log_level", mode="before")
+    @classmethod
+    def _lower_case(cls, value: object) -> object:
+        return value.lower() if isinstance(value, str) else value  # INFO and info alike
 
     def resolved_store_url(self) -> str:
         """`store_url`, else `sqlite:///{data_dir}/models.db` (the directory is created)."""

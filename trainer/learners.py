@@ -6,6 +6,9 @@
 - `train_joint`: the joint-learner baseline, one network per goal combination.
 
 Each returns a `TrainedBatch`: the stacked networks, their training curves and their gate results.
+Given a cooking configuration (`trainer.cooking_config`), `train_tasks` and `train_impacts` train
+in the kitchen instead (`trainer.cooking_learners`): the configuration names the world, so the
+zoo and the job backends need no environment-specific code.
 """
 
 from __future__ import annotations
@@ -17,6 +20,8 @@ from typing import Any, Literal
 from envs.particle.goals import GOAL_IDS, goal_index
 from policy.qnet import QNetSpec, StackedQNet
 from trainer.config import ImpactConfig, JointConfig, SoftQConfig, TaskConfig
+from trainer.cooking_config import CookingImpactConfig, CookingTaskConfig
+from trainer.cooking_gates import CookingImpactGate, CookingTaskGate
 from trainer.gates import ImpactGate, TaskGate, impact_gates, task_gates
 from trainer.loop import ProgressFn, TrainingCurves, train_soft_q
 from trainer.particle_rollouts import (
@@ -26,6 +31,9 @@ from trainer.particle_rollouts import (
 )
 
 Kind = Literal["task", "impact", "joint"]
+GateResults = (
+    list[TaskGate] | list[ImpactGate] | list[CookingTaskGate] | list[CookingImpactGate] | list[None]
+)
 
 
 @dataclass
@@ -39,7 +47,7 @@ class TrainedBatch:
     config: SoftQConfig
     seed: int
     curves: TrainingCurves
-    gates: list[TaskGate] | list[ImpactGate] | list[None] = field(default_factory=list)
+    gates: GateResults = field(default_factory=list)
 
     def gate_passed(self, g: int) -> bool | None:
         gate = self.gates[g] if self.gates else None
@@ -65,13 +73,17 @@ def _indices(goals: Sequence[str]) -> list[int]:
 
 def train_tasks(
     goals: Sequence[str],
-    config: TaskConfig,
+    config: TaskConfig | CookingTaskConfig,
     *,
     seed: int,
     progress: ProgressFn | None = None,
     evaluate: bool = True,
 ) -> TrainedBatch:
     """Task networks for `goals`, trained side by side in one batched world."""
+    if isinstance(config, CookingTaskConfig):
+        from trainer.cooking_learners import train_cooking_tasks
+
+        return train_cooking_tasks(goals, config, seed=seed, progress=progress, evaluate=evaluate)
     idx = _indices(goals)
     rollout = ParticleTaskRollout(idx, config, seed)
     learner, curves = train_soft_q(rollout, config, seed=seed, progress=progress)
@@ -84,13 +96,20 @@ def train_tasks(
 def train_impacts(
     partner_goals: Sequence[str],
     partner_task_nets: StackedQNet,
-    config: ImpactConfig,
+    config: ImpactConfig | CookingImpactConfig,
     *,
     seed: int,
     progress: ProgressFn | None = None,
     evaluate: bool = True,
 ) -> TrainedBatch:
     """Impact networks for `partner_goals`; member g of `partner_task_nets` is goal g's task net."""
+    if isinstance(config, CookingImpactConfig):
+        from trainer.cooking_learners import train_cooking_impacts
+
+        return train_cooking_impacts(
+            partner_goals, partner_task_nets, config, seed=seed, progress=progress,
+            evaluate=evaluate,
+        )  # fmt: skip
     idx = _indices(partner_goals)
     rollout = ParticleImpactRollout(idx, partner_task_nets, config, seed)
     learner, curves = train_soft_q(rollout, config, seed=seed, progress=progress)

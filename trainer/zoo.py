@@ -22,6 +22,7 @@ from model_store.naming import task_model_name
 from model_store.store import ModelStore
 from policy.qnet import QNetSpec, StackedQNet, tensors_from_safetensors
 from trainer.config import ImpactConfig, JointConfig, TaskConfig
+from trainer.cooking_config import CookingImpactConfig, CookingTaskConfig
 from trainer.learners import TrainedBatch, chunked, train_impacts, train_joint, train_tasks
 from trainer.loop import ProgressFn
 from trainer.publish import publish_batch
@@ -90,10 +91,17 @@ def fingerprint(**parts: object) -> str:
     return hashlib.sha256(blob).hexdigest()[:16]
 
 
+def check_config_env(config: object, env: str) -> None:
+    """A cooking configuration trains in the kitchen, any other in the particle world."""
+    cooking = isinstance(config, CookingTaskConfig | CookingImpactConfig)
+    if cooking != (env == "cooking"):
+        raise ValueError(f"config: a {type(config).__name__} does not train env {env!r}")
+
+
 def run_tasks(
     store: ModelStore,
     goals: Sequence[str],
-    config: TaskConfig,
+    config: TaskConfig | CookingTaskConfig,
     *,
     seed: int,
     goals_per_batch: int,
@@ -101,7 +109,11 @@ def run_tasks(
     progress: ProgressFactory,
     env: str = "particle",
     serve_alias: str = "production",
+    gate_retries: int = 1,
 ) -> list[TrainedBatch]:
+    """Task networks in batches; goals whose network failed its gate are trained again with a
+    fresh seed, up to `gate_retries` times (each retry registers a new version)."""
+    check_config_env(config, env)
     batches = []
     for i, chunk in enumerate(chunked(goals, goals_per_batch)):
         key = f"task:{','.join(chunk)}"
@@ -115,13 +127,26 @@ def run_tasks(
         )
         run.record(key, publish_batch(store, batch, env=env, serve_alias=serve_alias))
         batches.append(batch)
+    for attempt in range(1, gate_retries + 1):
+        key = f"task-retry-{attempt}"
+        failed = goals_without(store, env, "task", goals, serve_alias)
+        if key in run.done or not failed:
+            continue
+        batch = train_tasks(
+            failed,
+            config,
+            seed=seed + 7919 * attempt,  # a fresh seed per attempt, still deterministic
+            progress=progress(f"task retry {attempt}: {','.join(failed)}", config.total_steps),
+        )
+        run.record(key, publish_batch(store, batch, env=env, serve_alias=serve_alias))
+        batches.append(batch)
     return batches
 
 
 def run_impacts(
     store: ModelStore,
     goals: Sequence[str],
-    config: ImpactConfig,
+    config: ImpactConfig | CookingImpactConfig,
     *,
     seed: int,
     goals_per_batch: int,
@@ -129,6 +154,7 @@ def run_impacts(
     progress: ProgressFactory,
     env: str = "particle",
 ) -> list[TrainedBatch]:
+    check_config_env(config, env)
     batches = []
     for i, chunk in enumerate(chunked(goals, goals_per_batch)):
         key = f"impact:{','.join(chunk)}"

@@ -140,17 +140,21 @@ def build_grpc_server(
     max_workers: int = 8,
     ready: Callable[[], bool] | None = None,
     health_recheck_s: float = 1.0,
+    reuse_port: bool = False,
 ) -> GrpcServer:
     """A gRPC server (not started) bound to `host:port`; port 0 binds a free port (`.port`).
 
     `ready` decides health SERVING; by default the engine's store must be reachable.
     Each open Episode stream holds one of the `max_workers` threads until it ends.
+    `reuse_port` lets several processes bind the same port (SO_REUSEPORT: the kernel spreads
+    connections over them), as uvicorn workers of one server do; otherwise a port already in
+    use is an error.
     """
     if max_workers < 1:
         raise ValueError(f"max_workers: expected >= 1, got {max_workers}")
     server = grpc.server(
         futures.ThreadPoolExecutor(max_workers=max_workers, thread_name_prefix="coexist-grpc"),
-        options=[("grpc.so_reuseport", 0)],  # a port in use is an error, not shared
+        options=[("grpc.so_reuseport", 1 if reuse_port else 0)],
     )
     handlers = _policy_handlers(PolicyServicer(engine))
     server.add_generic_rpc_handlers((grpc.method_handlers_generic_handler(SERVICE_NAME, handlers),))

@@ -36,7 +36,9 @@ def test_server_answers_rest_and_grpc_and_reports_metrics(tiny_zoo_store: SqlMod
         bad = client.post("/v1/act", json={**body, "observation": OBS[:5]})
         assert bad.status_code == 422 and bad.json()["error"]["field"] == "observation"
 
+        assert client.get("/v1/registry/models").status_code == 200
         metrics = client.get("/metrics").text
+        assert 'route="/v1/registry/models",status="200"' in metrics
         assert (
             'coexist_http_requests_total{method="POST",route="/v1/act",status="200"} 1.0' in metrics
         )

@@ -34,7 +34,9 @@ def test_short_pipeline_registers_every_network_with_lineage(tmp_path: Path) -> 
     run = RunState.open(tmp_path / "run", "fp", resume=False)
     task_cfg = replace(TaskConfig(), **TINY)
     common: dict[str, Any] = dict(seed=3, run=run, progress=_no_progress)
-    tasks = run_tasks(store, ["a2", "b3", "c"], task_cfg, goals_per_batch=2, **common)
+    tasks = run_tasks(
+        store, ["a2", "b3", "c"], task_cfg, goals_per_batch=2, gate_retries=0, **common
+    )
     assert [b.goals for b in tasks] == [[("a2",), ("b3",)], [("c",)]]
     impacts = run_impacts(
         store, ["b3", "c"], replace(ImpactConfig(), **TINY), goals_per_batch=5, **common
@@ -65,7 +67,9 @@ def test_short_pipeline_registers_every_network_with_lineage(tmp_path: Path) -> 
     assert [v.name for v in versions] == ["particle/task/a2", "particle/task/b3"]
 
     # resuming the same run does nothing twice
-    again = run_tasks(store, ["a2", "b3", "c"], task_cfg, goals_per_batch=2, **common)
+    again = run_tasks(
+        store, ["a2", "b3", "c"], task_cfg, goals_per_batch=2, gate_retries=0, **common
+    )
     assert again == [] and store.resolve("particle/task/a2@latest").version == 1
     reopened = RunState.open(tmp_path / "run", "fp", resume=True)
     assert set(reopened.done) == set(run.done)
@@ -90,3 +94,26 @@ def test_one_task_network_reaches_its_gate() -> None:
     assert isinstance(gate, TaskGate)
     assert gate.success_rate >= 0.95, gate
     assert gate.passed, gate
+
+
+def test_goals_that_fail_their_gate_are_retrained_once_with_a_new_seed(tmp_path: Path) -> None:
+    store = SqlModelStore(f"sqlite:///{tmp_path / 'models.db'}")
+    run = RunState.open(tmp_path / "run", "fp", resume=False)
+    # 5 training steps cannot pass the gate: every goal fails, is retried once, and fails again
+    cfg = replace(TaskConfig(), **{**TINY, "total_steps": 5, "warmup_steps": 1})
+    batches = run_tasks(
+        store, ["a2", "b3"], cfg, seed=1, goals_per_batch=2, run=run,
+        progress=_no_progress, gate_retries=1,
+    )  # fmt: skip
+    assert [b.seed for b in batches] == [1, 1 + 7919]
+    assert [b.goals for b in batches] == [[("a2",), ("b3",)]] * 2
+    v2 = store.resolve("particle/task/b3@latest")
+    assert v2.version == 2 and v2.lineage.seed == 1 + 7919
+    assert "production" not in store.get_model("particle/task/b3").aliases
+    assert set(run.done) == {"task:a2,b3", "task-retry-1"}
+    again = run_tasks(
+        store, ["a2", "b3"], cfg, seed=1, goals_per_batch=2, run=run,
+        progress=_no_progress, gate_retries=1,
+    )  # fmt: skip
+    assert again == []  # resumed: neither the batch nor its retry runs twice
+    store.close()

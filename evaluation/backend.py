@@ -1,0 +1,123 @@
+"""Where the evaluation gets its action distributions: the inference engine in-process, or a
+running policy server through the SDK (HTTP or gRPC). Both answer the same `ActRequest`.
+
+| backend         | built from                                   | one call                         |
+|-----------------|----------------------------------------------|----------------------------------|
+| `EngineBackend` | an `InferenceEngine` over a model store       | `engine.act(request)`            |
+| `ServerBackend` | `CoexistClient` (http://...) or              | `client.act_batch(...)`          |
+|                 | `GrpcCoexistClient` (grpc://host:port)       |                                  |
+
+`probs(request)` returns the blended action distributions, shape (B, A), and the models the
+server reports it used (name, version, sha256). The evaluation samples actions itself from these
+probabilities (common random numbers, see `evaluation.rollout`), so the engine's own sampled
+`action` is not used and both backends give the same episodes up to float rounding.
+
+`has_models(request)` asks with a one-row request whether every network a request needs exists
+(used to run JL only where a joint network was trained).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import numpy as np
+
+from services.engine import ActRequest, InferenceEngine, ModelNotFound
+
+
+@dataclass(frozen=True, order=True)
+class ModelRecord:
+    """One network a result was computed with."""
+
+    name: str
+    version: int
+    sha256: str
+    role: str
+
+
+class PolicyBackend(Protocol):
+    description: str
+
+    def probs(self, request: ActRequest) -> tuple[np.ndarray, set[ModelRecord]]: ...
+
+    def has_models(self, request: ActRequest) -> bool: ...
+
+
+def _first_row(request: ActRequest) -> ActRequest:
+    return ActRequest(
+        env=request.env,
+        ego_goal=request.ego_goal,
+        observations=np.asarray(request.observations)[:1],
+        partners=request.partners,
+        method=request.method,
+        alias=request.alias,
+        versions=request.versions,
+    )
+
+
+class EngineBackend:
+    """The inference engine in-process: the code the REST and gRPC servers run."""
+
+    def __init__(self, engine: InferenceEngine, description: str = "in-process engine") -> None:
+        self.engine = engine
+        self.description = description
+
+    def probs(self, request: ActRequest) -> tuple[np.ndarray, set[ModelRecord]]:
+        results = self.engine.act(request)
+        probs_BA = np.asarray([r.probs for r in results], dtype=np.float64)
+        models = {ModelRecord(m.name, m.version, m.sha256, m.role) for m in results[0].models}
+        return probs_BA, models
+
+    def has_models(self, request: ActRequest) -> bool:
+        try:
+            self.engine.act(_first_row(request))
+        except ModelNotFound:
+            return False
+        return True
+
+
+class ServerBackend:
+    """A running policy server; `client` is an SDK client (`act_batch` over HTTP or gRPC)."""
+
+    def __init__(self, client: Any, description: str) -> None:
+        self.client = client
+        self.description = description
+
+    def _call(self, request: ActRequest) -> list[Any]:
+        actions: list[Any] = self.client.act_batch(
+            request.env,
+            request.ego_goal,
+            np.asarray(request.observations, dtype=np.float64).tolist(),
+            partners=list(request.partners),
+            method=request.method,
+            alias=request.alias,
+            versions=dict(request.versions) or None,
+        )
+        return actions
+
+    def probs(self, request: ActRequest) -> tuple[np.ndarray, set[ModelRecord]]:
+        actions = self._call(request)
+        probs_BA = np.asarray([a.probs for a in actions], dtype=np.float64)
+        models = {ModelRecord(m.name, m.version, m.sha256, m.role) for m in actions[0].models}
+        return probs_BA, models
+
+    def has_models(self, request: ActRequest) -> bool:
+        from services.sdk import NotFound
+
+        try:
+            self._call(_first_row(request))
+        except NotFound:
+            return False
+        return True
+
+
+def server_backend(url: str) -> ServerBackend:
+    """An SDK client for `url`: `grpc://host:port` speaks gRPC, anything else HTTP."""
+    if url.startswith("grpc://"):
+        from services.sdk import GrpcCoexistClient
+
+        return ServerBackend(GrpcCoexistClient(url, timeout=120.0), f"gRPC server {url}")
+    from services.sdk import CoexistClient
+
+    return ServerBackend(CoexistClient(url, timeout=120.0), f"HTTP server {url}")

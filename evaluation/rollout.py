@@ -1,0 +1,220 @@
+"""Vectorised paired episodes: every (scenario, method) cell of a run steps in one batched world.
+
+A *cell* is one scenario evaluated with one method for the controlled agent (agent 0). All cells
+of a run share one `BatchedParticleWorld` (so they need the same agent count); row r belongs to
+cell c = r // E_c and episode e. Per step there is one backend call per active cell (the ego's
+`method`, its partners announced by goal) and one per partner goal (`sl` with the partner
+population's alias; the rows of every cell and slot whose partner has that goal, each seen from
+that partner's perspective).
+
+| array             | shape        | meaning                                                  |
+|-------------------|--------------|----------------------------------------------------------|
+| `returns_EN`      | (E, N)       | sum of each agent's rewards over the episode             |
+| `success_EN`      | (E, N)       | inside its own target area at the episode's last step    |
+| `reached_EN`      | (E, N)       | inside its own target area after some step of the episode|
+| `length_E`        | (E,)         | steps taken                                              |
+| `solved_E`        | (E,)         | ended by the env's termination (all inside at one step)  |
+| `trajectory_TN4`  | (T + 1, N, 4)| states of the recorded episode, its start included       |
+
+Pairing and common random numbers: every method of a scenario starts from the same states, and
+agent i in episode e at step t samples its action by inverse CDF from the *same* uniform
+u[t, e, i] (drawn from `SeedSequence([seed, start_seed])`) whatever the method. Differences
+between methods are then differences of policy, not of sampling luck, which tightens the
+paired Wilcoxon tests. Finished episodes stop being sent to the backend.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from envs.particle.batched import BatchedParticleWorld
+from envs.particle.goals import goal_indices
+from envs.particle.scenarios import start_states
+from envs.particle.world import in_target
+from evaluation.backend import ModelRecord, PolicyBackend
+from evaluation.config import Scenario
+from services.engine import ActRequest, PartnerSpec
+
+ProgressFn = Callable[[int, int], None]  # (step, active rows)
+
+
+@dataclass(frozen=True)
+class Cell:
+    scenario: Scenario
+    method: str
+
+
+@dataclass
+class CellResult:
+    scenario: Scenario
+    method: str
+    returns_EN: np.ndarray
+    success_EN: np.ndarray
+    reached_EN: np.ndarray
+    length_E: np.ndarray
+    solved_E: np.ndarray
+    trajectory_TN4: np.ndarray
+
+    @property
+    def team_E(self) -> np.ndarray:
+        return self.returns_EN.sum(axis=1)
+
+
+@dataclass
+class RunOutput:
+    results: list[CellResult]
+    models: set[tuple[str, ModelRecord]] = field(default_factory=set)  # (alias, model)
+    backend_calls: int = 0
+
+
+def sample_actions(probs_BA: np.ndarray, u_B: np.ndarray) -> np.ndarray:
+    """Inverse-CDF sample per row: the first action whose cumulative probability exceeds u."""
+    cdf_BA = np.cumsum(probs_BA, axis=1)
+    below_BA = cdf_BA <= u_B[:, None] * cdf_BA[:, -1:]
+    return np.minimum(below_BA.sum(axis=1), probs_BA.shape[1] - 1)
+
+
+def uniforms(seed: int, scenario: Scenario, max_steps: int) -> np.ndarray:
+    """The common random numbers of a scenario, (T, E, N) (module docstring)."""
+    rng = np.random.default_rng(np.random.SeedSequence([seed, scenario.start_seed]))
+    return rng.random((max_steps, scenario.episodes, scenario.n_agents))
+
+
+class _Layout:
+    """Which rows of the batched world belong to which cell, and the per-row constants."""
+
+    def __init__(self, cells: Sequence[Cell], seed: int, max_steps: int) -> None:
+        n_agents = {c.scenario.n_agents for c in cells}
+        if len(n_agents) != 1:
+            raise ValueError(f"cells: expected one agent count per run, got {sorted(n_agents)}")
+        self.n_agents = n_agents.pop()
+        sizes = [c.scenario.episodes for c in cells]
+        bounds = np.cumsum([0, *sizes])
+        self.rows = [np.arange(bounds[k], bounds[k + 1]) for k in range(len(cells))]
+        self.n_rows = int(bounds[-1])
+        starts: dict[str, np.ndarray] = {}
+        noise: dict[str, np.ndarray] = {}
+        for c in cells:
+            s = c.scenario
+            if s.name not in starts:
+                starts[s.name] = start_states(s.start_seed, s.episodes, s.n_agents)
+                noise[s.name] = uniforms(seed, s, max_steps)
+        self.starts_BN4 = np.concatenate([starts[c.scenario.name] for c in cells])
+        self.goals_BN = np.concatenate(
+            [np.tile(goal_indices(c.scenario.goals), (c.scenario.episodes, 1)) for c in cells]
+        )
+        self.u_TBN = np.concatenate([noise[c.scenario.name] for c in cells], axis=1)
+        # partner goal -> [(cell index, slot)]: one backend call per partner goal and step
+        self.partner_slots: dict[str, list[tuple[int, int]]] = {}
+        for k, c in enumerate(cells):
+            for slot, goal in enumerate(c.scenario.partner_goals, start=1):
+                self.partner_slots.setdefault(goal, []).append((k, slot))
+
+
+def run_cells(
+    backend: PolicyBackend,
+    cells: Sequence[Cell],
+    *,
+    max_steps: int,
+    seed: int,
+    alias: str = "production",
+    partner_alias: str = "partners",
+    env: str = "particle",
+    record_episode: int = 0,
+    progress: ProgressFn | None = None,
+) -> RunOutput:
+    """Run every cell's episodes to the end (module docstring); results in cell order."""
+    if not cells:
+        raise ValueError("cells: expected at least one cell")
+    layout = _Layout(cells, seed, max_steps)
+    n_rows, n_agents = layout.n_rows, layout.n_agents
+    world = BatchedParticleWorld(layout.goals_BN, max_steps=max_steps)
+    obs_BND = world.reset(layout.starts_BN4)
+    returns_BN = np.zeros((n_rows, n_agents))
+    reached_BN = np.zeros((n_rows, n_agents), dtype=bool)
+    success_BN = np.zeros((n_rows, n_agents), dtype=bool)
+    length_B = np.zeros(n_rows, dtype=np.int64)
+    solved_B = np.zeros(n_rows, dtype=bool)
+    done_B = np.zeros(n_rows, dtype=bool)
+    record_rows = [rows[min(record_episode, len(rows) - 1)] for rows in layout.rows]
+    trajectories = [[layout.starts_BN4[r]] for r in record_rows]
+    out = RunOutput(results=[])
+    ego_partners = [
+        tuple(PartnerSpec(j, goal=g) for j, g in enumerate(c.scenario.partner_goals, start=1))
+        for c in cells
+    ]
+
+    def act(request: ActRequest) -> np.ndarray:
+        probs_BA, models = backend.probs(request)
+        out.models.update((request.alias, m) for m in models)
+        out.backend_calls += 1
+        return probs_BA
+
+    for t in range(max_steps):
+        active_B = ~done_B
+        if not active_B.any():
+            break
+        if progress is not None:
+            progress(t, int(active_B.sum()))
+        actions_BN = np.zeros((n_rows, n_agents), dtype=np.int64)
+        live = [rows[active_B[rows]] for rows in layout.rows]
+        for k, cell in enumerate(cells):
+            rows = live[k]
+            if rows.size == 0:
+                continue
+            request = ActRequest(
+                env=env,
+                ego_goal=cell.scenario.ego_goal,
+                observations=obs_BND[rows, 0],
+                partners=ego_partners[k],
+                method=cell.method,  # type: ignore[arg-type]
+                alias=alias,
+            )
+            actions_BN[rows, 0] = sample_actions(act(request), layout.u_TBN[t, rows, 0])
+        for goal, slots in layout.partner_slots.items():
+            picked = [(live[k], slot) for k, slot in slots if live[k].size]
+            if not picked:
+                continue
+            obs = np.concatenate([obs_BND[rows, slot] for rows, slot in picked])
+            request = ActRequest(
+                env=env, ego_goal=goal, observations=obs, method="sl", alias=partner_alias
+            )
+            probs_BA = act(request)
+            start = 0
+            for rows, slot in picked:
+                part = probs_BA[start : start + rows.size]
+                actions_BN[rows, slot] = sample_actions(part, layout.u_TBN[t, rows, slot])
+                start += rows.size
+        step = world.step(actions_BN)
+        inside_BN = in_target(world.state, layout.goals_BN)
+        returns_BN[active_B] += step.rewards_BN[active_B]
+        reached_BN |= inside_BN & active_B[:, None]
+        length_B[active_B] += 1
+        finished_B = active_B & (step.terminated_B | step.truncated_B)
+        success_BN[finished_B] = inside_BN[finished_B]
+        solved_B[finished_B] = step.terminated_B[finished_B]
+        done_B |= finished_B
+        state_BN4 = world.state
+        for k, r in enumerate(record_rows):
+            if active_B[r]:
+                trajectories[k].append(state_BN4[r])
+        obs_BND = step.next_obs_BND
+
+    for k, cell in enumerate(cells):
+        rows = layout.rows[k]
+        out.results.append(
+            CellResult(
+                scenario=cell.scenario,
+                method=cell.method,
+                returns_EN=returns_BN[rows],
+                success_EN=success_BN[rows],
+                reached_EN=reached_BN[rows],
+                length_E=length_B[rows],
+                solved_E=solved_B[rows],
+                trajectory_TN4=np.stack(trajectories[k]),
+            )
+        )
+    return out

@@ -1,0 +1,179 @@
+"""Markdown tables of the report, built from the results (never typed by hand).
+
+| function            | rows                                                              |
+|---------------------|-------------------------------------------------------------------|
+| `summary_table`     | one per method: returns ± SE, success rates, length               |
+| `tests_table`       | AAIL against each other method: paired mean difference ± SE and p |
+| `pair_means_table`  | the pair sample: per method mean ± SE over pairs                  |
+| `pair_tests_table`  | AAIL against each other method over pairs, with win shares        |
+| `scaling_table`     | networks each method needs for N = 2..5                           |
+| `training_table`    | what one network of each kind cost to train                       |
+| `models_table`      | every network the evaluation used: alias, name, version, sha256   |
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping, Sequence
+
+from evaluation.backend import ModelRecord
+from evaluation.config import METHOD_LABELS
+from evaluation.pairs import PairGroup
+from evaluation.scaling import KindTraining, networks_needed
+from evaluation.stats import MeanSE, MethodSummary, PairedTest
+
+
+def table(header: Sequence[str], rows: Iterable[Sequence[str]]) -> str:
+    lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
+    lines += ["| " + " | ".join(row) + " |" for row in rows]
+    return "\n".join(lines)
+
+
+def fmt_p(p: float) -> str:
+    return f"{p:.2g}" if p >= 1e-3 else f"{p:.1e}"
+
+
+def fmt_ms(value: MeanSE, digits: int = 2) -> str:
+    return f"{value.mean:.{digits}f} ± {value.se:.{digits}f}"
+
+
+def label(method: str) -> str:
+    return METHOD_LABELS.get(method, method)
+
+
+def summary_table(summaries: Sequence[MethodSummary]) -> str:
+    rows = [
+        (
+            label(s.method),
+            fmt_ms(s.ego),
+            fmt_ms(s.others),
+            fmt_ms(s.team),
+            f"{s.ego_success:.2f}",
+            f"{s.ego_reached:.2f}",
+            f"{s.partner_success:.2f}",
+            f"{s.solved:.2f}",
+            fmt_ms(s.length, 1),
+        )
+        for s in summaries
+    ]
+    header = (
+        "method",
+        "ego return",
+        "partners' return",
+        "team return",
+        "ego success",
+        "ego reached",
+        "partner success",
+        "solved",
+        "length",
+    )
+    return table(header, rows)
+
+
+def tests_table(tests: Sequence[PairedTest]) -> str:
+    """Rows: the other method; columns: measures (Δ = AAIL − other, mean ± SE, p)."""
+    measures = list(dict.fromkeys(t.measure for t in tests))
+    others = list(dict.fromkeys(t.other for t in tests))
+    cell = {(t.other, t.measure): t for t in tests}
+    rows = []
+    for other in others:
+        row = [f"{label(tests[0].method)} − {label(other)}"]
+        for m in measures:
+            t = cell[(other, m)]
+            row.append(f"{fmt_ms(t.diff)} (p = {fmt_p(t.p)})")
+        rows.append(row)
+    names = [f"{m} ({'McNemar' if m == 'ego success' else 'Wilcoxon'})" for m in measures]
+    return table(["paired difference", *names], rows)
+
+
+PAIR_MEASURES = ("ego", "others", "team", "ego_success", "length")
+
+
+def pair_means_table(group: PairGroup) -> str:
+    rows = [
+        [label(m), str(group.n_pairs[m])] + [fmt_ms(v[k]) for k in PAIR_MEASURES]
+        for m, v in group.means.items()
+    ]
+    header = [
+        "method",
+        "pairs",
+        "ego return",
+        "partner return",
+        "team return",
+        "ego success",
+        "length",
+    ]
+    return table(header, rows)
+
+
+def pair_tests_table(group: PairGroup) -> str:
+    rows = [
+        [
+            f"AAIL − {label(t.other)}",
+            t.measure,
+            str(t.n_pairs),
+            fmt_ms(t.diff),
+            fmt_p(t.p),
+            f"{t.better:.0%}",
+        ]
+        for t in group.tests
+    ]
+    header = [
+        "paired difference",
+        "measure",
+        "pairs",
+        "mean ± SE over pairs",
+        "p (Wilcoxon)",
+        "AAIL strictly better in",
+    ]
+    return table(header, rows)
+
+
+def scaling_table(n_goals: int = 35, agents: Sequence[int] = (2, 3, 4, 5)) -> str:
+    rows = []
+    for n in agents:
+        need = networks_needed(n_goals, n)
+        rows.append(
+            [str(n), f"{need['sl']:,}", f"{need['nail']:,}", f"{need['aail']:,}", f"{need['jl']:,}"]
+        )
+    return table(["agents N", "SL", "NAIL", "AAIL", "JL"], rows)
+
+
+def training_table(costs: Sequence[KindTraining]) -> str:
+    rows = []
+    for c in costs:
+        wall = "not measured"
+        if c.wall is not None:
+            wall = f"{c.wall.per_network_s:.1f} s ({c.wall.networks} networks in {c.wall.wall_s:.0f} s)"
+        rows.append(
+            [
+                c.kind,
+                str(c.versions),
+                c.hidden,
+                f"{c.steps:,.0f}",
+                f"{c.transitions:,.0f}",
+                f"{c.updates:,.0f}",
+                wall,
+            ]
+        )
+    header = [
+        "kind",
+        "versions in store",
+        "hidden",
+        "batched steps / network",
+        "env transitions / network",
+        "updates / network",
+        "wall time / network",
+    ]
+    return table(header, rows)
+
+
+def models_table(
+    models: Iterable[tuple[str, ModelRecord]], gates: Mapping[tuple[str, int], str]
+) -> str:
+    """Every network used; `gates` (from the store's lineage) may be empty (server runs)."""
+    rows = [
+        [alias, m.role, f"`{m.name}`", str(m.version), gates.get((m.name, m.version), "?"),
+         f"`{m.sha256}`"]
+        for alias, m in sorted(models, key=lambda am: (am[0], am[1].role, am[1].name))
+    ]  # fmt: skip
+    return table(["requested alias", "role", "name", "version", "gate", "sha256"], rows)

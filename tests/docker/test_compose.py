@@ -1,0 +1,258 @@
+"""docker/ tested without a Docker engine (none runs on this machine).
+
+- compose.yaml parses (PyYAML) into the topology: PostgreSQL with a health check, a one-shot
+  migration, the trainer job, two inference replicas, a load balancer for HTTP and gRPC;
+- every command the images run is a `coexist` command whose options the CLI accepts;
+- the Dockerfile: multi-stage, non-root, CPU torch by default, CUDA documented, health checks,
+  and its COPY list holds every package pyproject ships;
+- Envoy's config sends both listeners to the replicas' ports;
+- the same topology as plain processes, running what the images install (a wheel built from the
+  Dockerfile's COPY list, not this checkout): PostgreSQL (a fresh schema), the migration command,
+  the trainer command (`--help`: a real zoo takes tens of minutes; a tiny registered zoo stands
+  in for its result), two replicas from the compose command, the image's HEALTHCHECK against
+  one, and REST and gRPC requests through a round-robin TCP proxy standing in for Envoy (nginx
+  and Envoy are not installed here).
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import tomllib
+import zipfile
+from pathlib import Path
+from typing import Any
+
+import httpx
+import pytest
+import yaml
+from docker_files import (
+    DOCKER,
+    REPO,
+    RoundRobinProxy,
+    dockerfile_stages,
+    interpolate,
+    parse_coexist,
+    service_argv,
+)
+
+sys.path.insert(0, str(REPO / "tests" / "services"))  # the serve-process helpers
+from replica_cluster import (
+    ADMIN_TOKEN,
+    OBS,
+    act_body,
+    pg_schema_url,
+    running,
+    seed_zoo,
+    server_env,
+    start_server,
+)
+
+from services.sdk import GrpcCoexistClient
+
+COMPOSE = yaml.safe_load((DOCKER / "compose.yaml").read_text())
+SERVICES: dict[str, Any] = COMPOSE["services"]
+STAGES = dockerfile_stages()
+OUR_IMAGES = {name: s for name, s in SERVICES.items() if "build" in s}
+
+
+def _depends(service: str) -> dict[str, str]:
+    return {k: v["condition"] for k, v in SERVICES[service].get("depends_on", {}).items()}
+
+
+def test_compose_describes_the_topology() -> None:
+    assert set(SERVICES) == {"postgres", "migrate", "trainer", "inference", "lb"}
+    assert "pg_isready" in " ".join(SERVICES["postgres"]["healthcheck"]["test"])
+    assert _depends("migrate") == {"postgres": "service_healthy"}
+    assert SERVICES["migrate"]["restart"] == "no"  # one shot
+    assert _depends("trainer") == {"migrate": "service_completed_successfully"}
+    assert SERVICES["trainer"]["restart"] == "no"  # a job
+    assert _depends("inference") == {"trainer": "service_completed_successfully"}
+    assert SERVICES["inference"]["deploy"]["replicas"] == 2
+    assert "ports" not in SERVICES["inference"]  # reached through the load balancer only
+    assert _depends("lb") == {"inference": "service_healthy"}
+    published = {p.split(":")[-1] for p in SERVICES["lb"]["ports"]}
+    assert {"8000", "50051"} <= published
+    for volume in SERVICES["lb"]["volumes"]:
+        assert (DOCKER / volume.split(":")[0]).is_file()
+    for name, service in OUR_IMAGES.items():
+        assert service["build"]["dockerfile"] == "docker/Dockerfile", name
+        assert (DOCKER / service["build"]["context"]).resolve() == REPO
+        assert service["build"]["target"] in STAGES, name
+        assert "postgresql://" in service["environment"]["COEXIST_STORE_URL"], name
+    with pytest.raises(KeyError, match="COEXIST_ADMIN_TOKEN"):  # no default secret
+        interpolate(SERVICES["inference"]["environment"], {})
+
+
+LEAF_COMMANDS = {"migrate": "coexist models migrate", "trainer": "coexist train zoo",
+                 "inference": "coexist serve"}  # fmt: skip
+
+
+@pytest.mark.parametrize("name", sorted(OUR_IMAGES))
+def test_every_service_runs_a_command_the_cli_has(name: str) -> None:
+    argv = service_argv(SERVICES[name], STAGES)
+    context = parse_coexist(argv)  # raises on an unknown sub-command or option
+    assert context.info_name == LEAF_COMMANDS[name]
+    if name == "inference":  # listens on every interface, never trains on its own
+        assert context.params["host"] == "0.0.0.0" and context.params["bootstrap"] is False
+        assert (context.params["http_port"], context.params["grpc_port"]) == (8000, 50051)
+    if name == "trainer":  # resumable through the trainer-runs volume
+        assert context.params["resume"] is True
+        assert str(context.params["run_dir"]) in {v.split(":")[1] + "/zoo"
+                                                  for v in SERVICES["trainer"]["volumes"]}  # fmt: skip
+
+
+@pytest.mark.parametrize("target", ["server", "trainer"])
+def test_the_images_default_commands_are_cli_commands(target: str) -> None:
+    stage = STAGES[target]
+    assert stage.entrypoint == ["coexist"] and stage.cmd
+    context = parse_coexist([*stage.entrypoint, *stage.cmd])
+    assert context.info_name == {"server": "coexist serve", "trainer": "coexist train zoo"}[target]
+    with pytest.raises(AssertionError, match="no sub-command 'trian'"):  # the check can fail
+        parse_coexist(["coexist", "trian", "zoo"])
+    with pytest.raises(Exception, match="No such option"):
+        parse_coexist(["coexist", "train", "zoo", "--backend", "ray", "--workers", "2"])
+
+
+def test_the_dockerfile_builds_small_non_root_images() -> None:
+    assert {"build", "runtime", "server", "trainer"} <= set(STAGES)
+    assert STAGES["server"].base == "runtime" == STAGES["trainer"].base
+    assert STAGES["runtime"].base.startswith("python:")  # not the build stage: no pip caches
+    for target in ("server", "trainer"):
+        assert STAGES[target].user not in (None, "root", "0", "0:0")
+    assert STAGES["build"].args["TORCH_INDEX_URL"].endswith("/whl/cpu")
+    assert "whl/cu" in (DOCKER / "Dockerfile").read_text()  # the CUDA variant is documented
+    assert STAGES["server"].healthcheck and "/readyz" in STAGES["server"].healthcheck[-1]
+    assert STAGES["trainer"].healthcheck == ["NONE"]  # a job: its exit status is its health
+    shipped = tomllib.loads((REPO / "pyproject.toml").read_text())
+    packages = shipped["tool"]["setuptools"]["packages"]["find"]["include"]
+    copied = set(STAGES["build"].copies)
+    assert {p.rstrip("*") for p in packages} <= copied, "a package is missing from COPY"
+    assert {"pyproject.toml", shipped["project"]["readme"]} <= copied
+
+
+def test_envoy_sends_both_protocols_to_the_replicas() -> None:
+    envoy = yaml.safe_load((DOCKER / "envoy.yaml").read_text())
+    resources = envoy["static_resources"]
+    listeners = {
+        lst["address"]["socket_address"]["port_value"]: lst for lst in resources["listeners"]
+    }
+    assert set(listeners) == {8000, 50051}
+    clusters = {c["name"]: c for c in resources["clusters"]}
+    serve_argv = service_argv(SERVICES["inference"], STAGES)
+    ports = {"inference_http": serve_argv[serve_argv.index("--http-port") + 1],
+             "inference_grpc": serve_argv[serve_argv.index("--grpc-port") + 1]}  # fmt: skip
+    for port, listener in listeners.items():
+        manager = listener["filter_chains"][0]["filters"][0]["typed_config"]
+        routes = manager["route_config"]["virtual_hosts"][0]["routes"]
+        cluster = clusters[routes[0]["route"]["cluster"]]
+        endpoint = cluster["load_assignment"]["endpoints"][0]["lb_endpoints"][0]["endpoint"]
+        address = endpoint["address"]["socket_address"]
+        assert address["address"] == "inference" and cluster["type"] == "STRICT_DNS"
+        assert str(address["port_value"]) == ports[cluster["name"]]
+        assert str(port) == ports[cluster["name"]]  # the LB publishes the replicas' ports
+    assert "http2_protocol_options" in str(clusters["inference_grpc"])
+    assert clusters["inference_http"]["health_checks"][0]["http_health_check"]["path"] == "/readyz"
+    assert "grpc_health_check" in clusters["inference_grpc"]["health_checks"][0]
+
+
+def _service_env(service: str, base: dict[str, str], store_url: str) -> dict[str, str]:
+    """The image's and the compose file's COEXIST_* variables over `base`; the container-only
+    ones (data dir, listen address) and the store URL (no host `postgres` here) replaced."""
+    image = STAGES[SERVICES[service]["build"]["target"]].env
+    kept = {k: v for k, v in image.items()
+            if k.startswith("COEXIST_") and k not in ("COEXIST_DATA_DIR", "COEXIST_HOST")}  # fmt: skip
+    compose = interpolate(
+        SERVICES[service].get("environment", {}), {"COEXIST_ADMIN_TOKEN": ADMIN_TOKEN}
+    )
+    return {**base, **kept, **compose, "COEXIST_STORE_URL": store_url}
+
+
+def _install_like_the_image(tmp_path: Path) -> tuple[list[str], dict[str, str]]:
+    """Build coexist from the Dockerfile's COPY list into a wheel and unpack it; returns the
+    `coexist` launcher and the PYTHONPATH that make processes import it, not the checkout."""
+    import shutil
+
+    source = tmp_path / "src"
+    for item in STAGES["build"].copies:
+        src = REPO / item
+        if src.is_dir():
+            shutil.copytree(src, source / item, ignore=shutil.ignore_patterns("__pycache__"))
+        else:
+            source.mkdir(exist_ok=True)
+            shutil.copy(src, source / item)
+    wheels = tmp_path / "wheels"
+    subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation",
+                    "-q", str(source), "-w", str(wheels)], check=True, capture_output=True)  # fmt: skip
+    site = tmp_path / "site"
+    (wheel,) = wheels.glob("coexist-*.whl")
+    with zipfile.ZipFile(wheel) as archive:
+        archive.extractall(site)
+        points = next(n for n in archive.namelist() if n.endswith("entry_points.txt"))
+        entry = archive.read(points).decode()
+    module, _, attr = entry.split("coexist = ")[1].split()[0].partition(":")
+    launcher = [sys.executable, "-c", f"import sys; from {module} import {attr} as main; "
+                "sys.argv[0] = 'coexist'; main()"]  # fmt: skip
+    return launcher, {"PYTHONPATH": str(site)}
+
+
+@pytest.mark.postgres
+@pytest.mark.slow
+def test_the_topology_runs_as_plain_processes(tmp_path: Path) -> None:
+    launcher, path_env = _install_like_the_image(tmp_path)
+    run_dir = tmp_path / "cwd"
+    run_dir.mkdir()
+    with pg_schema_url() as store_url:  # postgres: up and healthy
+        base_env = server_env(store_url, tmp_path / "data", **path_env)
+        where = subprocess.run([*launcher[:2], "import cli; print(cli.__file__)"], env=base_env,
+                               cwd=run_dir, capture_output=True, text=True, check=True)  # fmt: skip
+        assert where.stdout.startswith(str(tmp_path / "site")), where.stdout
+
+        def run(service: str, *extra: str) -> subprocess.CompletedProcess[str]:
+            argv = service_argv(SERVICES[service], STAGES)
+            env = _service_env(service, base_env, store_url)
+            return subprocess.run([*launcher, *argv[1:], *extra], env=env, cwd=run_dir,
+                                  capture_output=True, text=True, timeout=120)  # fmt: skip
+
+        migrated = run("migrate")
+        assert migrated.returncode == 0 and "schema at" in migrated.stdout, migrated.stderr
+        trainer_help = run("trainer", "--help")
+        assert trainer_help.returncode == 0 and "--backend" in trainer_help.stdout
+        seed_zoo(store_url)  # what the trainer job leaves behind, in miniature
+
+        inference = service_argv(SERVICES["inference"], STAGES)[1:]
+        env = _service_env("inference", base_env, store_url)
+        replicas = [start_server(f"replica-{k}", env, tmp_path, inference, launcher=launcher,
+                                 cwd=run_dir) for k in range(2)]  # fmt: skip
+        with running(replicas):
+            health = list(STAGES["server"].healthcheck or [])
+            if health[0] == "python":  # the image's interpreter; here, this one
+                health[0] = sys.executable
+            for server in replicas:  # the image's HEALTHCHECK, as Docker would run it
+                port = server.http_url.rsplit(":", 1)[1]
+                probe = subprocess.run(health, env={**env, "COEXIST_HTTP_PORT": port})
+                assert probe.returncode == 0
+            dead = subprocess.run(health, env={**env, "COEXIST_HTTP_PORT": "1"},
+                                  capture_output=True)  # fmt: skip
+            assert dead.returncode != 0
+
+            http_backends = [("127.0.0.1", int(s.http_url.rsplit(":", 1)[1])) for s in replicas]
+            grpc_backends = [("127.0.0.1", int(s.grpc_target.rsplit(":", 1)[1])) for s in replicas]
+            with (
+                RoundRobinProxy(http_backends) as http_lb,
+                RoundRobinProxy(grpc_backends) as grpc_lb,
+            ):
+                for k in range(4):  # a new connection each: round robin over the replicas
+                    resp = httpx.post(f"http://127.0.0.1:{http_lb.port}/v1/act", json=act_body(),
+                                      headers={"X-Request-ID": f"through-lb-{k}"})  # fmt: skip
+                    assert resp.status_code == 200 and resp.json()["models"][0]["version"] == 1
+                own = [("grpc.use_local_subchannel_pool", 1)]  # no connection shared
+                for _ in range(2):
+                    with GrpcCoexistClient(f"127.0.0.1:{grpc_lb.port}", options=own) as client:
+                        action = client.act("particle", "a2", OBS, partners={1: "b3"}, seed=1)
+                        assert len(action.probs) == 5
+                assert http_lb.counts == [2, 2] and grpc_lb.counts == [1, 1]
+        for k, server in enumerate(replicas):
+            assert server.process.returncode in (0, -15)
+            answered = [line for line in server.logs() if '"through-lb-' in line]
+            assert len(answered) == 2, f"replica {k} answered {len(answered)} of 4 REST requests"

@@ -1,0 +1,178 @@
+"""Training work cut into self-contained batch jobs, for backends that run them elsewhere.
+
+A `BatchJob` is what `trainer.zoo`'s loops do for one batch of goals, made portable: it names
+its goals, its seed and its `RunState` key, and `train_batch(store_url, job, config, ...)` does the
+whole batch inside any process that can reach the store: load the registered task networks it
+depends on (impact, joint), train, and register the networks with `publish_once` (lineage as the
+local backend writes it, plus the job marker `config["job"]`). It returns a `BatchOutcome`: the
+registered refs, gates and curves for the summary table and plots; never weights (they travel
+through the store as safetensors only).
+
+| kind       | members of one job                   | seed (as in `trainer.zoo`) | run key            |
+|------------|--------------------------------------|----------------------------|--------------------|
+| task       | up to `goals_per_batch` goals        | seed + batch index         | `task:a2,b3`       |
+| task retry | the goals whose network failed its   | seed + 7919 x attempt      | `task-retry-1`     |
+|            | gate (none left: no job)             |                            |                    |
+| impact     | up to `goals_per_batch` goals        | seed + 1000 + batch index  | `impact:a2,b3`     |
+| joint      | every combination of one size        | seed + 2000 + size         | `joint:a2+b3;c+c4` |
+
+Stages run in order (tasks and their gate retries, then impacts, then joint): an impact job
+needs the task versions registered before it, exactly as in the local pipeline. Seeds, keys and
+the retry rule mirror `trainer.zoo`'s loops; the Ray tests compare the two registries.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any, cast
+
+from model_store.defaults import open_store
+from policy.qnet import StackedQNet
+from trainer.config import ImpactConfig, JointConfig, SoftQConfig, TaskConfig
+from trainer.learners import Kind, TrainedBatch, chunked, train_impacts, train_joint, train_tasks
+from trainer.loop import TrainingCurves
+from trainer.zoo import load_task_nets
+
+from .once import RegisteredHook, publish_once
+
+# Seeds of the stages: the same as trainer.zoo's loops.
+IMPACT_SEED_OFFSET = 1000
+JOINT_SEED_OFFSET = 2000
+TASK_RETRY_SEED_STEP = 7919
+
+
+@dataclass(frozen=True)
+class BatchJob:
+    """One batch: members are `(goal,)` for task/impact, `(ego, partner, ...)` for joint."""
+
+    kind: Kind
+    members: tuple[tuple[str, ...], ...]
+    seed: int
+    index: int  # position in its stage (orders the summary)
+    key: str  # what `RunState` records for it (the same as the local loops')
+
+
+@dataclass(frozen=True)
+class Stage:
+    """Jobs that may run at the same time, with their shared config. A task stage with
+    `gate_retries` then trains the goals that failed their gate again, one attempt at a time."""
+
+    jobs: tuple[BatchJob, ...]
+    config: SoftQConfig
+    gate_retries: int = 0
+    goals: tuple[str, ...] = ()
+    seed: int = 0
+
+
+def _members(goals: Sequence[str]) -> tuple[tuple[str, ...], ...]:
+    return tuple((g,) for g in goals)
+
+
+def task_stage(
+    goals: Sequence[str], config: TaskConfig, *, seed: int, per_batch: int, gate_retries: int = 1
+) -> Stage:
+    jobs = [
+        BatchJob("task", _members(chunk), seed + i, i, f"task:{','.join(chunk)}")
+        for i, chunk in enumerate(chunked(goals, per_batch))
+    ]
+    return Stage(tuple(jobs), config, gate_retries, tuple(goals), seed)
+
+
+def task_retry_job(stage: Stage, attempt: int, failed: Sequence[str]) -> BatchJob:
+    """Attempt `attempt` (1, 2 ...) at the goals of `stage` whose network failed its gate."""
+    seed = stage.seed + TASK_RETRY_SEED_STEP * attempt  # a fresh seed per attempt
+    index = len(stage.jobs) + attempt - 1
+    return BatchJob("task", _members(failed), seed, index, f"task-retry-{attempt}")
+
+
+def impact_stage(goals: Sequence[str], config: ImpactConfig, *, seed: int, per_batch: int) -> Stage:
+    chunks = chunked(goals, per_batch)
+    seeds = [seed + IMPACT_SEED_OFFSET + i for i in range(len(chunks))]
+    jobs = [
+        BatchJob("impact", _members(chunk), seeds[i], i, f"impact:{','.join(chunk)}")
+        for i, chunk in enumerate(chunks)
+    ]
+    return Stage(tuple(jobs), config)
+
+
+def joint_stage(combos: Sequence[Sequence[str]], config: JointConfig, *, seed: int) -> Stage:
+    """Combinations with the same number of agents train together (as `run_joint`)."""
+    by_size: dict[int, list[tuple[str, ...]]] = {}
+    for combo in combos:
+        by_size.setdefault(len(combo), []).append(tuple(combo))
+    jobs = []
+    for i, (size, group) in enumerate(sorted(by_size.items())):
+        key = "joint:" + ";".join("+".join(c) for c in group)
+        jobs.append(BatchJob("joint", tuple(group), seed + JOINT_SEED_OFFSET + size, i, key))
+    return Stage(tuple(jobs), config)
+
+
+@dataclass
+class BatchOutcome:
+    """What a finished job reports back: enough for `trainer.report`, no weights."""
+
+    kind: Kind
+    goals: list[tuple[str, ...]]
+    config: SoftQConfig
+    seed: int
+    curves: TrainingCurves
+    gates: list[Any] = field(default_factory=list)  # as `TrainedBatch.gates` (per world)
+    versions: list[str] = field(default_factory=list)  # registered refs "name/version"
+
+    def gate_passed(self, g: int) -> bool | None:
+        gate = self.gates[g] if self.gates else None
+        return None if gate is None else gate.passed
+
+    def curve_summary(self, g: int) -> dict[str, Any]:
+        return TrainedBatch.curve_summary(cast(Any, self), g)  # reads only `curves`
+
+
+def train_batch(
+    store_url: str,
+    job: BatchJob,
+    config: SoftQConfig,
+    *,
+    job_key: str,
+    env: str = "particle",
+    serve_alias: str = "production",
+    on_register: RegisteredHook | None = None,
+) -> BatchOutcome:
+    """Train `job` and register its networks once per `job_key` (module docstring)."""
+    goals = [m[0] for m in job.members]
+    with open_store(store_url) as store:
+        parents: dict[tuple[str, ...], list[str]] = {}
+        if job.kind == "task":
+            batch = train_tasks(goals, cast(TaskConfig, config), seed=job.seed)
+        elif job.kind == "impact":
+            partner_nets, task_versions = load_task_nets(store, env, goals)
+            parents = {(g,): [v.ref] for g, v in zip(goals, task_versions, strict=True)}
+            batch = train_impacts(goals, partner_nets, cast(ImpactConfig, config), seed=job.seed)
+        else:
+            slot_nets: list[StackedQNet] = []
+            parents = {m: [] for m in job.members}
+            for slot in range(1, len(job.members[0])):
+                nets, versions = load_task_nets(store, env, [m[slot] for m in job.members])
+                slot_nets.append(nets)
+                for member, v in zip(job.members, versions, strict=True):
+                    parents[member].append(v.ref)
+            batch = train_joint(job.members, slot_nets, cast(JointConfig, config), seed=job.seed)
+        registered = publish_once(
+            store,
+            store_url,
+            batch,
+            job_key=job_key,
+            env=env,
+            parents=parents,
+            serve_alias=serve_alias if job.kind == "task" else "production",
+            on_register=on_register,
+        )
+    return BatchOutcome(
+        batch.kind,
+        batch.goals,
+        batch.config,
+        batch.seed,
+        batch.curves,
+        batch.gates,
+        [v.ref for v in registered],
+    )

@@ -1,0 +1,109 @@
+"""Training configurations for the cooking world (paper §4.3-4.4): sparse dishes, long episodes.
+
+The soft-Q algorithm is the particle world's (Algorithm 1, `trainer.loop`); what changes is the
+reward's shape. A dish pays +20 once, after 20-50 scripted steps (`envs.cooking.scripted`), so:
+
+| field               | cooking | particle | why                                                   |
+|---------------------|---------|----------|-------------------------------------------------------|
+| gamma               | 0.98    | 0.9      | dishes are 25-60 steps away: γ^50 = 0.36 still carries the +20 back to the start (0.9^50 = 0.005 does not); 0.99 doubles the entropy offset α log5 / (1-γ) in every V |
+| alpha               | 0.05    | 0.02     | a wasted step costs ~20 γ^k (1 - γ²) ≈ 0.3-0.8 of Q: at α = 0.05 the policy is sharp on the way to a dish and near uniform where Q is still flat (exploration) |
+| sub_goal_reward     | 1.0     | -        | shaping (the env's `sub_goal_reward`): +1 per recipe step done for the first time; curves and gates report the unshaped reward |
+| scripted_start_prob | 0.5     | -        | half the restarts begin at a state of a scripted episode (start-state curriculum, `trainer.cooking_kitchens`). Without it: one sub-goal per ~300 steps, no dish in 4 000 batched steps. At 0.8 the salad learned in 20 000 steps but CarrotBanana failed from plain starts (it rarely saw the first steps) |
+| lr, target_every    | 1e-3, 100 | 3e-4, 250 | value must travel back ~50 steps: more frequent target copies and a larger step (3e-4 / 250 learned nothing in 4 000 steps) |
+| batch_size          | 256     | 128      | dish transitions are rare in the replay                |
+| envs_per_net        | 16      | 16       | the scripted other cook (~0.2 ms per kitchen and step) dominates the step time |
+| episode_steps       | 100     | 150      | ~2x the scripted cook's slowest dish                   |
+| total_steps         | 40 000  | 12 000   | CarrotBanana's training return levelled off after ~28 000 in a good run; seeds differ (one failed at 32 000) |
+| handover_delay_max  | 30      | -        | the helper's hand-over step; 60 left the CarrotBanana cook waiting most of the time |
+| linger_steps        | 8       | -        | a kitchen goes on 8 steps after the learner's dish, so the network sees the post-dish states (its Q flattens there, which lets AAIL hand control to the impact network) |
+
+No n-step returns: the shared loop stores one-step transitions (eq. 5); shaping and γ = 0.98
+carry the signal instead. Episodes end by a time limit or `linger_steps` after the dish; both are
+bootstrapped (the loop has no terminal mask), which is right here: the world goes on for the
+partner after the learner's dish, and the learner keeps acting in it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+from trainer.config import SoftQConfig
+
+
+@dataclass(frozen=True)
+class CookingConfig(SoftQConfig):
+    """Soft-Q hyperparameters and kitchen settings shared by the cooking learners."""
+
+    gamma: float = 0.98
+    """Discount factor γ (eq. 5); see the module table."""
+    alpha: float = 0.05
+    """Temperature α of the Boltzmann policy (eq. 2) and the soft value (eq. 3)."""
+    lr: float = 1e-3
+    """Adam learning rate."""
+    target_every: int = 100
+    """Hard copy of the online weights into the target network every this many updates."""
+    envs_per_net: int = 16
+    """Parallel kitchens per network."""
+    warmup_steps: int = 100
+    """Batched steps collected before the first update."""
+    episode_steps: int = 100
+    """Training episodes are cut after this many steps (bootstrapped)."""
+    batch_size: int = 256
+    """Minibatch size per network per update."""
+    total_steps: int = 40_000
+    """Batched environment steps per network."""
+    sub_goal_reward: float = 1.0
+    """Shaping reward per recipe step done for the first time (0 turns shaping off)."""
+    linger_steps: int = 8
+    """Steps a kitchen goes on after the learner's (or, for impact, the partner's) dish."""
+    random_starts: bool = True
+    """Start every agent on a random floor cell of its room (coverage); gates use them too."""
+    partner_random_prob: float = 0.2
+    """Share of random actions of a scripted partner (task training and gates)."""
+    handover_delay_max: int = 30
+    """A helper partner hands its ingredient over first from a step drawn from 0..this ..."""
+    handover_first_prob: float = 1.0
+    """... in this share of the episodes; in the others it serves its own dish first."""
+    scripted_start_prob: float = 0.5
+    """Share of restarts from a state of a scripted episode (start-state curriculum,
+    `trainer.cooking_kitchens`); 0 turns it off."""
+    pool_episodes: int = 32
+    """Scripted episodes recorded for the pool of scripted starts."""
+    pool_steps: int = 100
+    """Steps recorded per scripted episode (states after the focal cook's dish are dropped)."""
+    eval_episodes: int = 64
+    """Episodes per network in the quality gate."""
+    eval_steps: int = 200
+    """Steps per gate episode."""
+
+
+@dataclass(frozen=True)
+class CookingTaskConfig(CookingConfig):
+    """Task networks: one per recipe, on the learner's own (shaped) reward (paper §3.1)."""
+
+    completion_ratio: float = 0.8
+    """Gate: the network's dish completion rate must be at least this share of the scripted
+    cook's on the same kitchens (same starts, same partner)."""
+
+
+@dataclass(frozen=True)
+class CookingImpactConfig(CookingConfig):
+    """Impact networks: one per partner recipe, by self-play (paper §3.2, eqs. 6-7)."""
+
+    total_steps: int = 8_000
+    """Batched environment steps per network (the CarrotBanana gate passed after ~1 000)."""
+    handover_first_prob: float = 0.5
+    """Half the scripted starts come from episodes in which the helper (the learner's seat)
+    serves its own dish before it hands the carrot over: the states an AAIL cook reaches after
+    its dish (paper §4.4), which the impact network must know. (Task networks keep 1.0: with
+    0.5 or 0.75 the CarrotBanana network failed its gate after 32 000-48 000 steps.)"""
+    impact_reward: Literal["value_change", "value_change_plus_reward"] = "value_change_plus_reward"
+    """`value_change`: eq. 6 as printed, I = V(s') - V(s). `value_change_plus_reward` adds the
+    partner's reward of the step, I = r + V(s') - V(s): the change of the partner's expected
+    *episode* return R = Σ_t r_t, the quantity eq. 6 is derived from. It matters in a sparse world:
+    when the partner serves, V drops from ~20 to ~0 while r pays the 20, so eq. 6 as printed
+    punishes the ego for the very dish it helped to cook."""
+    no_harm_slack: float = 0.05
+    """Gate: the partner's completion rate with the impact-driven ego may be at most this much
+    below its rate beside a resting ego."""
