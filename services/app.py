@@ -31,6 +31,7 @@ from prometheus_client import CONTENT_TYPE_LATEST, CollectorRegistry, generate_l
 from model_store.defaults import open_store
 from model_store.store import ModelStore
 from services.engine import InferenceEngine
+from services.jobs_api import router as jobs_router
 from services.logging import RequestIdMiddleware
 from services.metrics import EngineCollector, HttpMetrics
 from services.registry import router as registry_router
@@ -42,7 +43,7 @@ from services.warmup import warm_up
 
 log = logging.getLogger("coexist.server")
 
-ROUTERS: list[APIRouter] = [act_router, registry_router]
+ROUTERS: list[APIRouter] = [act_router, registry_router, jobs_router]
 
 
 def create_app(

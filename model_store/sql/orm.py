@@ -9,6 +9,7 @@
 | model_versions    | (model, version)    | spec + lineage JSON, sha256, weights (deferred) |
 | model_aliases     | (model, alias)      | -> a version row of the same model              |
 | events            | change              | id = change_seq at commit; no foreign keys      |
+| training_jobs     | job of the job API  | owned by `trainer.jobs` (migration 0002)        |
 
 The weights live in the database (`LargeBinary`: BLOB / BYTEA) so that every replica that reaches
 the database can load them; the column is deferred so listing versions never reads them.
@@ -130,3 +131,22 @@ class EventRow(Base):
     version: Mapped[int | None] = mapped_column(Integer, nullable=True)
     alias: Mapped[str | None] = mapped_column(String(64), nullable=True)
     at: Mapped[datetime] = mapped_column(DateTime(timezone=True))
+
+
+class TrainingJobRow(Base):
+    """A training job of `trainer.jobs` (status: queued|running|succeeded|failed|interrupted)."""
+
+    __tablename__ = "training_jobs"
+
+    id: Mapped[str] = mapped_column(String(32), primary_key=True)
+    kind: Mapped[str] = mapped_column(String(16))
+    args: Mapped[dict[str, Any]] = mapped_column(JSON)
+    status: Mapped[str] = mapped_column(String(16), index=True)
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), index=True)
+    started_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
+    finished_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
+    heartbeat_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
+    exit_code: Mapped[int | None] = mapped_column(Integer, nullable=True)
+    attempts: Mapped[int] = mapped_column(Integer)
+    run_dir: Mapped[str] = mapped_column(Text)
+    log_tail: Mapped[str] = mapped_column(Text)

@@ -1,0 +1,127 @@
+"""The training job API: trigger `coexist train ...` remotely (`trainer.jobs`).
+
+| method | path                 | auth  | answers                                              |
+|--------|----------------------|-------|------------------------------------------------------|
+| POST   | `/v1/jobs`           | write | 202 `{id, status}`; 422 naming a bad field           |
+| GET    | `/v1/jobs`           | read  | `{jobs: [...]}`, newest first (`limit`, default 100) |
+| GET    | `/v1/jobs/{id}`      | read  | the job: kind, args, status, times, exit code        |
+| GET    | `/v1/jobs/{id}/logs` | read  | `{id, status, log}`: the last `tail` characters      |
+
+Jobs live in the model store's database (`training_jobs`), their run directories and logs under
+`<data_dir>/jobs/<id>`. The runner thread starts with the app when unfinished jobs are waiting
+(a restarted server resumes them, `--resume` skips finished batches) and otherwise on the first
+submit; it stops with the app, leaving a running job for the next start. Jobs need a SQL store.
+"""
+
+from __future__ import annotations
+
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+from fastapi import APIRouter, Depends, FastAPI, Query, Request
+from fastapi.responses import JSONResponse
+from pydantic import BaseModel, Field
+
+import services.registry  # noqa: F401  (first: importing services.deps first is a cycle)
+from model_store.errors import StoreUnavailable
+
+# isort: split
+from services.deps import ReadAuth, WriteAuth
+from trainer.jobs import JobRunner, JobSpec, JobTable
+from trainer.jobs.runner import read_log
+
+
+class JobRequest(BaseModel):
+    kind: Literal["task", "impact", "joint", "zoo"]
+    env: str = "particle"
+    goals: str = Field(default="all", description="'all' or comma-separated goal ids")
+    combos: str = Field(default="", description="JL combinations: 'a2+b3,c+c4'")
+    seed: int = Field(default=0, ge=0)
+    steps: int | None = Field(default=None, ge=1, description="env steps per batch")
+
+
+def _store_url(app: FastAPI) -> str:
+    """The store's URL for a subprocess in another directory (SQLite paths made absolute)."""
+    url = getattr(getattr(app.state, "store", None), "url", None)
+    if url is None:
+        raise StoreUnavailable("training jobs need a SQL model store (and it is not open)")
+    if url.get_backend_name() == "sqlite" and url.database:
+        url = url.set(database=str(Path(url.database).absolute()))
+    rendered: str = url.render_as_string(hide_password=False)
+    return rendered
+
+
+def _open(app: FastAPI) -> tuple[JobTable, JobRunner]:
+    jobs: tuple[JobTable, JobRunner] | None = getattr(app.state, "jobs", None)
+    if jobs is None:
+        url = _store_url(app)
+        table = JobTable(url)
+        jobs = table, JobRunner(table, store_url=url)
+        app.state.jobs = jobs
+    return jobs
+
+
+@asynccontextmanager
+async def _lifespan(app: FastAPI) -> AsyncIterator[None]:
+    """Resume unfinished jobs at start-up; stop the runner (not the jobs) at shutdown."""
+    if getattr(app.state, "store", None) is not None and hasattr(app.state.store, "url"):
+        table, runner = _open(app)
+        if table.has_unfinished():
+            runner.start()
+    try:
+        yield
+    finally:
+        jobs = getattr(app.state, "jobs", None)
+        if jobs is not None:
+            jobs[1].stop()
+            jobs[0].close()
+            app.state.jobs = None
+
+
+router = APIRouter(prefix="/v1/jobs", tags=["jobs"], lifespan=_lifespan)
+
+
+def _table(request: Request) -> JobTable:
+    return _open(request.app)[0]
+
+
+TableDep = Annotated[JobTable, Depends(_table)]
+
+
+@router.post("", status_code=202)
+def submit(body: JobRequest, request: Request, _auth: WriteAuth) -> JSONResponse:
+    """Queue a training job; it runs when the jobs before it have finished."""
+    spec = JobSpec(**body.model_dump()).validate()
+    table, runner = _open(request.app)
+    run_root = (request.app.state.settings.data_dir / "jobs").absolute()
+    job = table.submit(spec, str(run_root))
+    runner.start()
+    runner.wake()
+    return JSONResponse({"id": job.id, "status": job.status.value}, status_code=202)
+
+
+@router.get("")
+def list_jobs(
+    table: TableDep, _auth: ReadAuth, limit: Annotated[int, Query(ge=1, le=1000)] = 100
+) -> dict[str, Any]:
+    return {"jobs": [job.to_json() for job in table.list_jobs(limit)]}
+
+
+@router.get("/{job_id}")
+def get_job(job_id: str, table: TableDep, _auth: ReadAuth) -> dict[str, Any]:
+    return table.get(job_id).to_json()
+
+
+@router.get("/{job_id}/logs")
+def get_logs(
+    job_id: str,
+    table: TableDep,
+    _auth: ReadAuth,
+    tail: Annotated[int, Query(ge=1, le=1_000_000)] = 64_000,
+) -> dict[str, Any]:
+    """The log file when this machine has it, else the tail the row kept when the job ended."""
+    job = table.get(job_id)
+    text = read_log(job.run_dir, tail) or job.log_tail[-tail:]
+    return {"id": job.id, "status": job.status.value, "log": text}

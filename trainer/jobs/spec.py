@@ -1,0 +1,101 @@
+"""What a training job trains, validated the way `coexist train` validates it.
+
+| kind     | uses            | rules                                                         |
+|----------|-----------------|---------------------------------------------------------------|
+| `task`   | env, goals      | goals: 'all' or comma-separated goal ids of `env`             |
+| `impact` | env, goals      | the same                                                      |
+| `joint`  | env, combos     | particle world only; combos 'a2+b3,c+c4', 2..5 goals each     |
+| `zoo`    | env, goals, combos (optional) | tasks, impacts, then JL combinations            |
+
+Every kind also takes `seed` (>= 0) and `steps` (None: the config's default). Errors are
+`InvalidArgument` naming the field, which the API answers with 422.
+"""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+from model_store.errors import InvalidArgument
+
+JOB_KINDS = ("task", "impact", "joint", "zoo")
+
+
+@dataclass(frozen=True)
+class JobSpec:
+    kind: str
+    env: str = "particle"
+    goals: str = "all"
+    combos: str = ""
+    seed: int = 0
+    steps: int | None = None
+
+    def validate(self) -> JobSpec:
+        """Check every field (see the module docstring); return self."""
+        from envs.base import check_goal
+        from envs.registry import get_domain
+
+        if self.kind not in JOB_KINDS:
+            raise InvalidArgument(
+                f"kind: expected one of {JOB_KINDS}, got {self.kind!r}", field="kind"
+            )
+        try:
+            domain = get_domain(self.env)
+        except ValueError as err:
+            raise InvalidArgument(f"env: {err}", field="env") from None
+        if self.seed < 0:
+            raise InvalidArgument(f"seed: expected >= 0, got {self.seed}", field="seed")
+        if self.steps is not None and self.steps < 1:
+            raise InvalidArgument(f"steps: expected >= 1, got {self.steps}", field="steps")
+        if self.goals != "all":
+            chosen = [g.strip() for g in self.goals.split(",") if g.strip()]
+            if not chosen:
+                raise InvalidArgument("goals: expected 'all' or goal ids", field="goals")
+            for goal in chosen:
+                _check(check_goal, domain, goal, "goals")
+        if self.combos and self.kind in ("task", "impact"):
+            raise InvalidArgument(f"combos: a {self.kind} job takes no combos", field="combos")
+        if self.kind == "joint" and not self.combos:
+            raise InvalidArgument("combos: a joint job needs at least one", field="combos")
+        if self.combos:
+            if self.env == "cooking":
+                raise InvalidArgument(
+                    "combos: the joint-learner baseline is trained for the particle world only",
+                    field="combos",
+                )
+            for combo in (c for c in self.combos.split(",") if c.strip()):
+                goals = [g.strip() for g in combo.split("+")]
+                if not 2 <= len(goals) <= 5:
+                    raise InvalidArgument(f"combos: {combo}: expected 2 to 5 goals", field="combos")
+                for goal in goals:
+                    _check(check_goal, domain, goal, "combos")
+        return self
+
+    def to_json(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @classmethod
+    def from_json(cls, data: dict[str, Any]) -> JobSpec:
+        return cls(**data)
+
+
+def _check(check_goal: Any, domain: Any, goal: str, field: str) -> None:
+    try:
+        check_goal(domain, goal, field)
+    except ValueError as err:
+        raise InvalidArgument(str(err), field=field) from None
+
+
+def train_command(spec: JobSpec, store_url: str, run_dir: Path) -> list[str]:
+    """`python -m cli.main train <kind> ... --resume`: always resumable from `run_dir`."""
+    cmd = [sys.executable, "-m", "cli.main", "train", spec.kind, "--env", spec.env]
+    if spec.kind != "joint":
+        cmd += ["--goals", spec.goals]
+    if spec.combos:
+        cmd += ["--combos", spec.combos]
+    cmd += ["--seed", str(spec.seed)]
+    if spec.steps is not None:
+        cmd += ["--steps", str(spec.steps)]
+    return [*cmd, "--store-url", store_url, "--run-dir", str(run_dir), "--resume"]

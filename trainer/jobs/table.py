@@ -1,0 +1,192 @@
+"""The `training_jobs` table (migration 0002): the whole state of a job lives in its row.
+
+| status        | meaning                                                                |
+|---------------|------------------------------------------------------------------------|
+| `queued`      | waiting for a runner (new, or recovered after its runner died)         |
+| `running`     | a runner's subprocess trains it; `heartbeat_at` is refreshed meanwhile |
+| `succeeded`   | the subprocess exited 0                                                |
+| `failed`      | it exited non-zero (`exit_code`, `log_tail`)                           |
+| `interrupted` | its runner died `max_attempts` times while it ran: not retried again   |
+
+Claiming is one conditional UPDATE (`WHERE status = 'queued'`), so two server processes over one
+database never run the same job. A `running` row whose heartbeat is older than `stale_after_s`
+belongs to a dead process: `recover` puts it back in the queue (its run directory records the
+finished batches, so the retry trains only what is left).
+"""
+
+from __future__ import annotations
+
+import uuid
+from dataclasses import dataclass
+from datetime import UTC, datetime, timedelta
+from enum import StrEnum
+from typing import Any
+
+from sqlalchemy import Engine, or_, select, update
+from sqlalchemy.orm import Session, sessionmaker
+
+from model_store.errors import NotFound
+from model_store.sql.engine import BEGIN_MODE_OPTION, create_store_engine
+from model_store.sql.migrate import ensure_schema
+from model_store.sql.orm import TrainingJobRow
+from trainer.jobs.spec import JobSpec
+
+LOG_TAIL_CHARS = 8_000  # what the row keeps of a finished job's log
+
+
+class JobStatus(StrEnum):
+    queued = "queued"
+    running = "running"
+    succeeded = "succeeded"
+    failed = "failed"
+    interrupted = "interrupted"
+
+
+@dataclass(frozen=True)
+class Job:
+    id: str
+    spec: JobSpec
+    status: JobStatus
+    created_at: datetime
+    started_at: datetime | None
+    finished_at: datetime | None
+    exit_code: int | None
+    attempts: int
+    run_dir: str
+    log_tail: str
+
+    def to_json(self) -> dict[str, Any]:
+        def iso(t: datetime | None) -> str | None:
+            return None if t is None else _aware(t).isoformat()
+
+        return {
+            "id": self.id,
+            "kind": self.spec.kind,
+            "args": self.spec.to_json(),
+            "status": self.status.value,
+            "created_at": iso(self.created_at),
+            "started_at": iso(self.started_at),
+            "finished_at": iso(self.finished_at),
+            "exit_code": self.exit_code,
+            "attempts": self.attempts,
+            "run_dir": self.run_dir,
+        }
+
+
+class JobTable:
+    """Rows of `training_jobs` in the database at `url` (the model store's)."""
+
+    def __init__(self, url: str, *, max_attempts: int = 3, stale_after_s: float = 30.0) -> None:
+        self.engine: Engine = create_store_engine(url)
+        ensure_schema(self.engine)
+        self.max_attempts, self.stale_after_s = max_attempts, stale_after_s
+        writer = self.engine.execution_options(**{BEGIN_MODE_OPTION: "IMMEDIATE"})
+        self._read = sessionmaker(self.engine, expire_on_commit=False)
+        self._write = sessionmaker(writer, expire_on_commit=False)
+
+    def close(self) -> None:
+        self.engine.dispose()
+
+    def submit(self, spec: JobSpec, run_root: str) -> Job:
+        job_id = uuid.uuid4().hex
+        row = TrainingJobRow(
+            id=job_id, kind=spec.kind, args=spec.to_json(), status=JobStatus.queued.value,
+            created_at=_now(), attempts=0, run_dir=f"{run_root}/{job_id}", log_tail="",
+        )  # fmt: skip
+        with self._write() as s, s.begin():
+            s.add(row)
+        return self.get(job_id)
+
+    def get(self, job_id: str) -> Job:
+        with self._read() as s, s.begin():
+            row = s.get(TrainingJobRow, job_id)
+            if row is None:
+                raise NotFound(f"job {job_id!r} not found")
+            return _job(row)
+
+    def has_unfinished(self) -> bool:
+        unfinished = (JobStatus.queued.value, JobStatus.running.value)
+        query = select(TrainingJobRow.id).where(TrainingJobRow.status.in_(unfinished)).limit(1)
+        with self._read() as s, s.begin():
+            return s.scalar(query) is not None
+
+    def list_jobs(self, limit: int = 100) -> list[Job]:
+        query = select(TrainingJobRow).order_by(TrainingJobRow.created_at.desc()).limit(limit)
+        with self._read() as s, s.begin():
+            return [_job(r) for r in s.scalars(query)]
+
+    def claim_next(self) -> Job | None:
+        """Mark the oldest queued job running (attempts + 1) and return it; None if none."""
+        oldest = select(TrainingJobRow.id).where(TrainingJobRow.status == JobStatus.queued.value)
+        with self._read() as s, s.begin():  # a read first: an empty queue takes no write lock
+            job_id = s.scalar(oldest.order_by(TrainingJobRow.created_at).limit(1))
+        if job_id is None:
+            return None
+        with self._write() as s, s.begin():
+            now = _now()
+            claimed = _set(s, job_id, JobStatus.queued, status=JobStatus.running.value,
+                           started_at=now, heartbeat_at=now,
+                           attempts=TrainingJobRow.attempts + 1)  # fmt: skip
+        return self.get(job_id) if claimed else None
+
+    def heartbeat(self, job_id: str) -> None:
+        with self._write() as s, s.begin():
+            _set(s, job_id, JobStatus.running, heartbeat_at=_now())
+
+    def finish(self, job_id: str, exit_code: int, log_tail: str) -> None:
+        status = JobStatus.succeeded if exit_code == 0 else JobStatus.failed
+        with self._write() as s, s.begin():
+            _set(s, job_id, JobStatus.running, status=status.value, exit_code=exit_code,
+                 finished_at=_now(), log_tail=log_tail[-LOG_TAIL_CHARS:])  # fmt: skip
+
+    def release(self, job_id: str) -> None:
+        """This process stops while the job runs: leave it for the next one (stale at once)."""
+        with self._write() as s, s.begin():
+            _set(s, job_id, JobStatus.running, heartbeat_at=None)
+
+    def recover(self) -> list[str]:
+        """Requeue `running` jobs of dead processes (or give up after `max_attempts`)."""
+        stale = _now() - timedelta(seconds=self.stale_after_s)
+        dead = select(TrainingJobRow).where(
+            TrainingJobRow.status == JobStatus.running.value,
+            or_(TrainingJobRow.heartbeat_at.is_(None), TrainingJobRow.heartbeat_at < stale),
+        )
+        with self._read() as s, s.begin():
+            if s.scalar(dead.limit(1)) is None:
+                return []
+        requeued = []
+        with self._write() as s, s.begin():
+            for row in s.scalars(dead):
+                if row.attempts >= self.max_attempts:
+                    row.status, row.finished_at = JobStatus.interrupted.value, _now()
+                else:
+                    row.status = JobStatus.queued.value
+                    requeued.append(row.id)
+        return requeued
+
+
+def _set(session: Session, job_id: str, expected: JobStatus, **values: Any) -> bool:
+    """UPDATE the row only while it is still in status `expected`; True when it was."""
+    query = (
+        update(TrainingJobRow)
+        .where(TrainingJobRow.id == job_id, TrainingJobRow.status == expected.value)
+        .values(**values)
+    )
+    return bool(session.execute(query).rowcount)  # type: ignore[attr-defined]
+
+
+def _job(row: TrainingJobRow) -> Job:
+    return Job(
+        id=row.id, spec=JobSpec.from_json(row.args), status=JobStatus(row.status),
+        created_at=row.created_at, started_at=row.started_at, finished_at=row.finished_at,
+        exit_code=row.exit_code, attempts=row.attempts, run_dir=row.run_dir,
+        log_tail=row.log_tail,
+    )  # fmt: skip
+
+
+def _now() -> datetime:
+    return datetime.now(UTC)
+
+
+def _aware(t: datetime) -> datetime:
+    return t if t.tzinfo else t.replace(tzinfo=UTC)  # SQLite returns naive UTC times
