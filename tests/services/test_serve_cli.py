@@ -38,13 +38,16 @@ def _wait_ready(url: str, process: subprocess.Popen[bytes], timeout: float = 60.
     raise AssertionError("server did not become ready")
 
 
+@pytest.mark.parametrize("workers", [1, 2])
 def test_serve_answers_rest_and_grpc_then_stops_gracefully(
-    tiny_zoo_store: SqlModelStore, tmp_path: Path
+    tiny_zoo_store: SqlModelStore, tmp_path: Path, workers: int
 ) -> None:
+    """With two uvicorn workers both bind the gRPC port too (SO_REUSEPORT)."""
     http_port, grpc_port = _free_port(), _free_port()
     env = {**os.environ, "COEXIST_DEV_MODE": "1", "COEXIST_DATA_DIR": str(tmp_path)}
     cmd = [sys.executable, "-m", "cli.main", "serve", "--no-bootstrap",
            "--http-port", str(http_port), "--grpc-port", str(grpc_port),
+           "--workers", str(workers),
            "--store-url", tiny_zoo_store.url.render_as_string(hide_password=False)]  # fmt: skip
     process = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     try:
@@ -53,7 +56,9 @@ def test_serve_answers_rest_and_grpc_then_stops_gracefully(
         partners = {1: "b3"}
         with CoexistClient(url) as rest, GrpcCoexistClient(f"127.0.0.1:{grpc_port}") as grpc:
             a = rest.act("particle", "a2", OBS, partners=partners, seed=3)
-            b = grpc.act("particle", "a2", OBS, partners=partners, seed=3)
+            answers = [grpc.act("particle", "a2", OBS, partners=partners, seed=3) for _ in range(4)]
+            b = answers[0]
+        assert all(x.probs == b.probs for x in answers)
         assert a.probs == pytest.approx(b.probs, abs=1e-12)
         assert a.action == b.action and a.models == b.models
     finally:
