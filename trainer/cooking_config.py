@@ -12,10 +12,10 @@ reward's shape. A dish pays +20 once, after 20-50 scripted steps (`envs.cooking.
 | lr, target_every    | 1e-3, 100 | 3e-4, 250 | value must travel back ~50 steps: more frequent target copies and a larger step (3e-4 / 250 learned nothing in 4 000 steps) |
 | batch_size          | 256     | 128      | dish transitions are rare in the replay                |
 | envs_per_net        | 16      | 16       | the scripted other cook (~0.2 ms per kitchen and step) dominates the step time |
-| episode_steps       | 100     | 150      | ~2x the scripted cook's slowest dish                   |
-| total_steps         | 40 000  | 12 000   | CarrotBanana's training return levelled off after ~28 000 in a good run; seeds differ (one failed at 32 000) |
+| episode_steps       | 120     | 150      | the slowest dish (~60 steps) plus `linger_steps`       |
+| total_steps         | 48 000  | 12 000   | CarrotBanana's training return levelled off after ~28 000 in a good run; seeds differ (gate retries catch a failed one) |
 | handover_delay_max  | 30      | -        | the helper's hand-over step; 60 left the CarrotBanana cook waiting most of the time |
-| linger_steps        | 8       | -        | a kitchen goes on 8 steps after the learner's dish, so the network sees the post-dish states (its Q flattens there, which lets AAIL hand control to the impact network) |
+| linger_steps        | 30 (task), 8 (impact) | - | a kitchen goes on after the learner's dish, so the task network sees post-dish states (its Q flattens there, which lets AAIL hand control to the impact network, eq. 9) |
 
 No n-step returns: the shared loop stores one-step transitions (eq. 5); shaping and γ = 0.98
 carry the signal instead. Episodes end by a time limit or `linger_steps` after the dish; both are
@@ -47,11 +47,11 @@ class CookingConfig(SoftQConfig):
     """Parallel kitchens per network."""
     warmup_steps: int = 100
     """Batched steps collected before the first update."""
-    episode_steps: int = 100
+    episode_steps: int = 120
     """Training episodes are cut after this many steps (bootstrapped)."""
     batch_size: int = 256
     """Minibatch size per network per update."""
-    total_steps: int = 40_000
+    total_steps: int = 48_000
     """Batched environment steps per network."""
     sub_goal_reward: float = 1.0
     """Shaping reward per recipe step done for the first time (0 turns shaping off)."""
@@ -82,6 +82,12 @@ class CookingConfig(SoftQConfig):
 class CookingTaskConfig(CookingConfig):
     """Task networks: one per recipe, on the learner's own (shaped) reward (paper §3.1)."""
 
+    linger_steps: int = 30
+    """Steps a kitchen goes on after the learner's dish. The true soft Q there is flat (no reward
+    is left to earn), and AAIL relies on it: a flat task policy hands control to the impact
+    network (eq. 9). With 8 steps the salad network stayed confident in post-dish states it had
+    rarely seen (e.g. holding the carrot: "put it back", p = 1) and AAIL never handed the carrot
+    over; the impact network alone, from the same states, did in 40 of 40 episodes."""
     completion_ratio: float = 0.8
     """Gate: the network's dish completion rate must be at least this share of the scripted
     cook's on the same kitchens (same starts, same partner)."""
