@@ -33,8 +33,9 @@ from dataclasses import dataclass
 from typing import Any, ClassVar, Literal
 
 import numpy as np
-import safetensors.torch
 import torch
+from safetensors.torch import load as load_safetensors_bytes
+from safetensors.torch import save as save_safetensors_bytes
 from torch import nn
 
 __all__ = [
@@ -175,7 +176,7 @@ def weights_to_safetensors(net: QNetwork) -> bytes:
         name: t.detach().to(device="cpu", dtype=net.spec.torch_dtype).contiguous()
         for name, t in net.state_dict().items()
     }
-    return safetensors.torch.save(tensors)
+    return save_safetensors_bytes(tensors)
 
 
 def _check_tensor_names_and_shapes(
@@ -199,7 +200,7 @@ def tensors_from_safetensors(spec: QNetSpec, data: bytes) -> dict[str, np.ndarra
     if not isinstance(data, bytes | bytearray | memoryview):
         raise ValueError(f"weights: expected bytes, got {type(data).__name__}")
     try:
-        tensors = safetensors.torch.load(bytes(data))
+        tensors = load_safetensors_bytes(bytes(data))
     except Exception as exc:  # the parser raises several exception types for bad files
         raise ValueError(f"weights: not a readable safetensors file ({exc})") from None
     _check_tensor_names_and_shapes(spec, {n: tuple(t.shape) for n, t in tensors.items()}, "weights")
