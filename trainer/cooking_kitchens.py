@@ -207,7 +207,7 @@ class _Pool(NamedTuple):
 
 def _scripted_pool(kitchens: Kitchens, config: CookingConfig) -> _Pool:
     """Record `pool_episodes` x `pool_steps` states of both cooks scripted (module docstring).
-    States after the focal cook's dish are left out (its dish is served: nothing to learn)."""
+    States after the focal cook's dish are left out (the learner meets those by lingering)."""
     recorder = Kitchens(
         kitchens.recipe,
         config.pool_episodes,
