@@ -21,6 +21,8 @@ into the thread pool of sync handlers), returns it in the response's `X-Request-
 writes one access line per request when the response is complete: at INFO, or DEBUG for the
 probes `/healthz`, `/readyz` and `/metrics` (a load balancer polls them every few seconds).
 `route` is the path template (`/v1/registry/models/{name}/-/versions`), `path` the raw path.
+gRPC calls get the same treatment from `services.grpc_api.request_ids` (id in the call's
+`x-request-id` metadata, echoed as initial metadata, access lines with `method` "GRPC").
 """
 
 from __future__ import annotations
@@ -38,7 +40,7 @@ REQUEST_ID_HEADER = "x-request-id"
 ACCESS_LOGGER = "coexist.access"
 PROBE_PATHS = frozenset({"/healthz", "/readyz", "/metrics"})
 ACCESS_FIELDS = ("method", "route", "path", "status", "duration_ms")
-_VALID_ID = re.compile(r"[A-Za-z0-9._:-]{1,128}")
+VALID_REQUEST_ID = re.compile(r"[A-Za-z0-9._:-]{1,128}")
 
 LogFormat = Literal["json", "text"]
 request_id_var: ContextVar[str | None] = ContextVar("coexist_request_id", default=None)
@@ -128,7 +130,7 @@ def _request_id_from(scope: dict[str, Any]) -> str:
     for key, value in scope.get("headers", ()):
         if key == REQUEST_ID_HEADER.encode():
             candidate = value.decode("latin-1")
-            if _VALID_ID.fullmatch(candidate):
+            if VALID_REQUEST_ID.fullmatch(candidate):
                 return candidate
             break
     return uuid.uuid4().hex

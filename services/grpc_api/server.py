@@ -8,6 +8,10 @@ kind of machine, /work/shared/PERF-NOTES.md), serving
 |                                  | "" and for `coexist.v1.PolicyService`                    |
 | `grpc.reflection.v1alpha...`     | server reflection (grpcurl, grpc_cli list and describe)  |
 
+Every call goes through `request_ids.RequestIdInterceptor`: the caller's `x-request-id` (or a
+new one) is on every log line written while serving it, comes back as initial metadata, and
+each call ends with one access line, as HTTP requests do (`services.logging`).
+
     server = build_grpc_server(engine, port=0)     # port 0: the OS picks; see server.port
     server.start(); ...; server.stop(grace=5.0)    # health -> NOT_SERVING, then drain
 
@@ -35,6 +39,7 @@ from grpc_reflection.v1alpha import reflection
 from services.engine import InferenceEngine
 from services.grpc_api.errors import parse_or_malformed
 from services.grpc_api.gen.coexist.v1 import policy_pb2 as pb
+from services.grpc_api.request_ids import RequestIdInterceptor
 from services.grpc_api.servicer import PolicyServicer
 
 log = logging.getLogger(__name__)
@@ -155,6 +160,7 @@ def build_grpc_server(
     server = grpc.server(
         futures.ThreadPoolExecutor(max_workers=max_workers, thread_name_prefix="coexist-grpc"),
         options=[("grpc.so_reuseport", 1 if reuse_port else 0)],
+        interceptors=(RequestIdInterceptor(),),  # request ids + access lines, as over HTTP
     )
     handlers = _policy_handlers(PolicyServicer(engine))
     server.add_generic_rpc_handlers((grpc.method_handlers_generic_handler(SERVICE_NAME, handlers),))
