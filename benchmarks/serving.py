@@ -1,0 +1,338 @@
+"""Serving load test: REST (wrk) and gRPC (h2load) against the server's own no-op floor.
+
+Run: `.venv/bin/python benchmarks/serving.py [--duration 5] [--log-level warning] [--json OUT]`
+(needs `wrk` and `h2load`: `apt-get install wrk nghttp2-client`).
+
+The server is the real one, `coexist serve` (uvicorn with uvloop + httptools, one worker, gRPC
+in the same process on grpcio's sync server with 8 threads), pinned to CPU 0; the load
+generators are C programs pinned to CPU 1: `wrk` for HTTP/1.1 and `h2load` for gRPC (gRPC is
+HTTP/2: h2load posts the length-prefixed protobuf with `content-type: application/grpc`). Each
+case warms up for 1 s, then runs for `--duration` seconds on persistent connections.
+
+| case     | REST                         | gRPC                                    | per call       |
+|----------|------------------------------|-----------------------------------------|----------------|
+| no-op    | `GET /healthz`               | `grpc.health.v1.Health/Check`           | nothing: floor |
+| act      | `POST /v1/act`               | `coexist.v1.PolicyService/Act`          | AAIL, 1 ego +  |
+|          |                              |                                         | 4 partners     |
+| batch    | `POST /v1/act:batch`, 256    | `PolicyService/ActBatch`, 256 rows      | the same x 256 |
+
+Targets (issue 5), per transport: act p50 at c=1 <= 2x the no-op p50; act throughput at c=32
+>= 40 % of the no-op's; batch actions/s >= 30x the single-request rate (both at c=1).
+Every payload is checked once for a correct answer before it is timed; a run with any non-2xx
+HTTP answer or failed gRPC stream is reported as failed. The store is a temporary SQLite file
+with the FIVE_AGENTS networks (task a2; impact a0, b2, c4, e1) at the served size (hidden
+128-128, random weights). The access log is at `--log-level` (default warning: at info every
+act writes an access line while the no-op floor's probe lines are debug, which would tilt the
+comparison; `--log-level info` measures that cost).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import shutil
+import socket
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import httpx
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from envs.particle.scenarios import FIVE_AGENTS  # noqa: E402
+
+EGO, PARTNERS = FIVE_AGENTS
+BATCH = 256
+SERVER_CPU, LOAD_CPU = "0", "1"
+ACT = "/coexist.v1.PolicyService/Act"
+ACT_BATCH = "/coexist.v1.PolicyService/ActBatch"
+HEALTH = "/grpc.health.v1.Health/Check"
+
+
+def build_store(url: str) -> None:
+    """Register the FIVE_AGENTS networks (served size, random weights) at `url`."""
+    import torch
+
+    from model_store import Lineage, impact_model_name, open_store, task_model_name
+    from policy.qnet import QNetSpec, QNetwork, weights_to_safetensors
+
+    spec = QNetSpec(obs_dim=8, n_actions=5, hidden=(128, 128))
+    names = [(task_model_name("particle", EGO), "task", EGO)]
+    names += [(impact_model_name("particle", g), "impact", g) for g in PARTNERS]
+    with open_store(url) as store:
+        for seed, (name, kind, goal) in enumerate(names):
+            torch.manual_seed(seed)
+            store.create_model(name, env="particle", kind=kind, goals=[goal], obs_dim=8,
+                               n_actions=5, exist_ok=True)  # fmt: skip
+            store.register_version(
+                name, spec=spec.to_json(), weights=weights_to_safetensors(QNetwork(spec)),
+                lineage=Lineage(config={"alpha": 0.02}, seed=seed), aliases=("production",),
+            )  # fmt: skip
+
+
+def observations(rows: int) -> np.ndarray:
+    rng = np.random.default_rng(0)
+    obs_BD = rng.uniform(-1, 1, (rows, 4 * (1 + len(PARTNERS))))
+    obs_BD[:, 2::4] *= 0.3  # velocities within the speed cap
+    obs_BD[:, 3::4] *= 0.3
+    return obs_BD
+
+
+def rest_bodies() -> dict[str, bytes]:
+    partners = [{"index": i + 1, "goal": g} for i, g in enumerate(PARTNERS)]
+    common = {"env": "particle", "ego_goal": EGO, "partners": partners, "method": "aail"}
+    act = {**common, "observation": observations(1)[0].tolist()}
+    batch = {**common, "observations": observations(BATCH).tolist()}
+    return {"act": json.dumps(act).encode(), "batch": json.dumps(batch).encode()}
+
+
+def grpc_bodies() -> dict[str, bytes]:
+    """Length-prefixed (uncompressed) protobuf messages, as they travel in a gRPC stream."""
+    from grpc_health.v1 import health_pb2
+
+    from services.grpc_api.gen.coexist.v1 import policy_pb2 as pb
+
+    partners = [pb.PartnerSpec(index=i + 1, goal=g) for i, g in enumerate(PARTNERS)]
+    act = pb.ActRequest(env="particle", ego_goal=EGO, observation=observations(1)[0],
+                        partners=partners, method="aail")  # fmt: skip
+    rows = [pb.Vector(values=row) for row in observations(BATCH)]
+    batch = pb.ActBatchRequest(env="particle", ego_goal=EGO, observations=rows,
+                               partners=partners, method="aail")  # fmt: skip
+    messages = {"noop": health_pb2.HealthCheckRequest(), "act": act, "batch": batch}
+
+    def frame(data: bytes) -> bytes:
+        return b"\x00" + len(data).to_bytes(4, "big") + data
+
+    return {name: frame(m.SerializeToString()) for name, m in messages.items()}
+
+
+def free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+def start_server(url: str, http_port: int, grpc_port: int, log_level: str) -> subprocess.Popen:
+    env = {**os.environ, "COEXIST_DEV_MODE": "1", "COEXIST_LOG_LEVEL": log_level}
+    command = ["taskset", "-c", SERVER_CPU, str(ROOT / ".venv/bin/coexist"), "serve",
+               "--no-bootstrap", "--host", "127.0.0.1", "--http-port", str(http_port),
+               "--grpc-port", str(grpc_port), "--store-url", url]  # fmt: skip
+    server = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL)
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline:
+        if server.poll() is not None:
+            raise SystemExit(f"the server exited with {server.returncode}")
+        try:
+            if httpx.get(f"http://127.0.0.1:{http_port}/readyz", timeout=1).status_code == 200:
+                return server
+        except httpx.HTTPError:
+            pass
+        time.sleep(0.3)
+    server.kill()
+    raise SystemExit("the server did not become ready within 120 s")
+
+
+def check_payloads(http_port: int, grpc_port: int, rest: dict[str, bytes]) -> None:
+    """One correct answer per payload before anything is timed."""
+    import grpc
+
+    from services.grpc_api.gen.coexist.v1 import policy_pb2 as pb
+    from services.grpc_api.gen.coexist.v1 import policy_pb2_grpc as pb_grpc
+
+    base = f"http://127.0.0.1:{http_port}"
+    for path, body, rows in (("/v1/act", rest["act"], 1), ("/v1/act:batch", rest["batch"], BATCH)):
+        reply = httpx.post(base + path, content=body, headers={"content-type": "application/json"})
+        reply.raise_for_status()
+        got = reply.json()
+        got_rows = 1 if rows == 1 else len(got["results"])
+        assert got_rows == rows, f"{path}: {got_rows} results"
+    with grpc.insecure_channel(f"127.0.0.1:{grpc_port}") as channel:
+        stub = pb_grpc.PolicyServiceStub(channel)
+        bodies = grpc_bodies()
+        act = pb.ActRequest.FromString(bodies["act"][5:])
+        batch = pb.ActBatchRequest.FromString(bodies["batch"][5:])
+        assert len(stub.Act(act).probs) == 5
+        assert len(stub.ActBatch(batch).results) == BATCH
+
+
+@dataclass
+class Case:
+    transport: str
+    case: str
+    concurrency: int
+    requests: int
+    seconds: float
+    p50_ms: float
+    rows: int  # observations per request
+    failed: int
+
+    @property
+    def rps(self) -> float:
+        return self.requests / self.seconds
+
+    @property
+    def actions_per_s(self) -> float:
+        return self.rps * self.rows
+
+
+UNIT_MS = {"us": 1e-3, "ms": 1.0, "s": 1000.0}
+
+
+def run_wrk(url: str, body: bytes | None, concurrency: int, duration: float, tmp: Path) -> Case:
+    script = tmp / "wrk.lua"
+    if body is None:
+        script.write_text("wrk.method = 'GET'\n")
+    else:
+        (tmp / "body.json").write_bytes(body)
+        script.write_text(
+            "wrk.method = 'POST'\n"
+            "wrk.headers['Content-Type'] = 'application/json'\n"
+            f"local f = io.open('{tmp / 'body.json'}', 'rb'); wrk.body = f:read('*a'); f:close()\n"
+        )
+    base = ["taskset", "-c", LOAD_CPU, "wrk", "-t1", f"-c{concurrency}", "--timeout", "10s",
+            "-s", str(script)]  # fmt: skip
+    subprocess.run([*base, "-d1s", url], check=True, capture_output=True)  # warm-up
+    out = subprocess.run(
+        [*base, f"-d{round(duration)}s", "--latency", url],
+        check=True,
+        capture_output=True,
+        text=True,
+    ).stdout
+    requests, seconds, p50_ms, failed = parse_wrk(out)
+    return Case("REST", "", concurrency, requests, seconds, p50_ms, 1, failed)
+
+
+def parse_wrk(out: str) -> tuple[int, float, float, int]:
+    """(requests, seconds, p50 ms, failed) from `wrk --latency` output; failed counts non-2xx
+    answers and socket errors (connect, read, write, timeout)."""
+    took = re.search(r"(\d+) requests in ([\d.]+)(ms|s|m),", out)
+    p50 = re.search(r"50%\s+([\d.]+)(us|ms|s)", out)
+    if took is None or p50 is None:
+        raise ValueError(f"unexpected wrk output:\n{out}")
+    seconds = float(took.group(2)) * {"ms": 1e-3, "s": 1.0, "m": 60.0}[took.group(3)]
+    failed = re.search(r"Non-2xx or 3xx responses: (\d+)", out)
+    errors = re.search(r"Socket errors: .*", out)
+    n_failed = int(failed.group(1)) if failed else 0
+    if errors:
+        n_failed += sum(int(n) for n in re.findall(r"\d+", errors.group(0)))
+    return int(took.group(1)), seconds, float(p50.group(1)) * UNIT_MS[p50.group(2)], n_failed
+
+
+def run_h2load(url: str, body: bytes, concurrency: int, duration: float, tmp: Path) -> Case:
+    data, log = tmp / "body.grpc", tmp / "h2load.log"
+    data.write_bytes(body)
+    log.unlink(missing_ok=True)
+    command = ["taskset", "-c", LOAD_CPU, "h2load", "-t1", f"-c{concurrency}", "-m1",
+               "-H", "content-type: application/grpc", "-H", "te: trailers", "-d", str(data),
+               "--warm-up-time", "1", "-D", str(round(duration)), "--log-file", str(log), url]  # fmt: skip
+    out = subprocess.run(command, check=True, capture_output=True, text=True).stdout
+    requests, seconds, p50_ms, failed = parse_h2load(out, log.read_text())
+    return Case("gRPC", "", concurrency, requests, seconds, p50_ms, 1, failed)
+
+
+def parse_h2load(out: str, log_text: str) -> tuple[int, float, float, int]:
+    """(requests, seconds, p50 ms, failed) from h2load's output and its `--log-file` (one line
+    per request: start time, status, microseconds to the end of the response)."""
+    found = re.search(r"finished in ([\d.]+)(ms|s), ([\d.]+) req/s", out)
+    status = re.search(r"requests: \d+ total, \d+ started, (\d+) done, (\d+) succeeded, "
+                       r"(\d+) failed, (\d+) errored", out)  # fmt: skip
+    micros = [int(line.split("\t")[2]) for line in log_text.splitlines() if line.strip()]
+    if found is None or status is None or not micros:
+        raise ValueError(f"unexpected h2load output:\n{out}")
+    seconds = float(found.group(1)) * (1e-3 if found.group(2) == "ms" else 1.0)
+    failed = int(status.group(3)) + int(status.group(4))
+    return int(status.group(2)), seconds, statistics.median(micros) / 1000.0, failed
+
+
+def measure(http_port: int, grpc_port: int, duration: float) -> list[Case]:
+    rest, grpc_b = rest_bodies(), grpc_bodies()
+    http, h2 = f"http://127.0.0.1:{http_port}", f"http://127.0.0.1:{grpc_port}"
+    plan = [  # (transport, case, rows, runner)
+        ("REST", "no-op", 1, lambda c, t: run_wrk(http + "/healthz", None, c, duration, t)),
+        ("REST", "act", 1, lambda c, t: run_wrk(http + "/v1/act", rest["act"], c, duration, t)),
+        ("REST", "batch", BATCH,
+         lambda c, t: run_wrk(http + "/v1/act:batch", rest["batch"], c, duration, t)),
+        ("gRPC", "no-op", 1, lambda c, t: run_h2load(h2 + HEALTH, grpc_b["noop"], c, duration, t)),
+        ("gRPC", "act", 1, lambda c, t: run_h2load(h2 + ACT, grpc_b["act"], c, duration, t)),
+        ("gRPC", "batch", BATCH,
+         lambda c, t: run_h2load(h2 + ACT_BATCH, grpc_b["batch"], c, duration, t)),
+    ]  # fmt: skip
+    cases = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for transport, case, rows, runner in plan:
+            for concurrency in (1, 32):
+                result = runner(concurrency, Path(tmp))
+                result.transport, result.case, result.rows = transport, case, rows
+                print(f"  {transport:4} {case:6} c={concurrency:<2} p50 {result.p50_ms:7.3f} ms "
+                      f"{result.rps:9,.0f} req/s  failed {result.failed}", flush=True)  # fmt: skip
+                cases.append(result)
+    return cases
+
+
+def verdicts(cases: list[Case]) -> list[tuple[str, float, float, bool]]:
+    """(target, measured ratio, required, met) per transport."""
+    get = {(c.transport, c.case, c.concurrency): c for c in cases}
+    rows = []
+    for t in ("REST", "gRPC"):
+        latency = get[t, "act", 1].p50_ms / get[t, "no-op", 1].p50_ms
+        rows.append((f"{t}: act p50 / no-op p50 (c=1)", latency, 2.0, latency <= 2.0))
+        share = get[t, "act", 32].rps / get[t, "no-op", 32].rps
+        rows.append((f"{t}: act req/s / no-op req/s (c=32)", share, 0.4, share >= 0.4))
+        batch = get[t, "batch", 1].actions_per_s / get[t, "act", 1].rps
+        rows.append((f"{t}: batch actions/s / act req/s (c=1)", batch, 30.0, batch >= 30.0))
+    return rows
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--duration", type=float, default=5.0)
+    parser.add_argument("--log-level", default="warning", choices=("info", "warning"))
+    parser.add_argument("--json", type=Path, help="also write the figures here")
+    args = parser.parse_args()
+    for tool in ("wrk", "h2load", "taskset"):
+        if shutil.which(tool) is None:
+            raise SystemExit(f"{tool} not found: apt-get install wrk nghttp2-client util-linux")
+    with tempfile.TemporaryDirectory() as tmp:
+        url = f"sqlite:///{tmp}/models.db"
+        build_store(url)
+        http_port, grpc_port = free_port(), free_port()
+        server = start_server(url, http_port, grpc_port, args.log_level)
+        try:
+            check_payloads(http_port, grpc_port, rest_bodies())
+            print(f"server on CPU {SERVER_CPU}, load generators on CPU {LOAD_CPU}, "
+                  f"{args.duration:g} s per case, log level {args.log_level}")  # fmt: skip
+            cases = measure(http_port, grpc_port, args.duration)
+        finally:
+            server.terminate()
+            server.wait(timeout=30)
+    print("\n| transport | case | c | p50 ms | req/s | actions/s | failed |")
+    print("|---|---|---|---|---|---|---|")
+    for c in cases:
+        print(f"| {c.transport} | {c.case} | {c.concurrency} | {c.p50_ms:.3f} | {c.rps:,.0f} | "
+              f"{c.actions_per_s:,.0f} | {c.failed} |")  # fmt: skip
+    print("\n| target | measured | required | met |\n|---|---|---|---|")
+    results = verdicts(cases)
+    for name, value, required, met in results:
+        sign = "<=" if "p50" in name else ">="
+        print(f"| {name} | {value:.2f} | {sign} {required:g} | {'yes' if met else 'NO'} |")
+    if args.json:
+        args.json.write_text(json.dumps({
+            "cases": [{**asdict(c), "rps": c.rps, "actions_per_s": c.actions_per_s} for c in cases],
+            "targets": [{"target": n, "measured": v, "required": r, "met": m}
+                        for n, v, r, m in results],
+        }, indent=2))  # fmt: skip
+    if any(c.failed for c in cases):
+        raise SystemExit("some requests failed: the figures above are not valid")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,99 @@
+"""benchmarks/serving.py: its parsers of wrk / h2load output, its verdicts, its payloads, and one
+short real run when wrk and h2load are installed (the figures themselves are not asserted)."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+import serving  # noqa: E402
+
+WRK_OUT = """Running 3s test @ http://127.0.0.1:8000/v1/act
+  1 threads and 32 connections
+  Latency Distribution
+     50%  312.00us
+     75%  400.00us
+  9000 requests in 3.01s, 2.73MB read
+  Socket errors: connect 0, read 1, write 0, timeout 2
+  Non-2xx or 3xx responses: 4
+Requests/sec:   2990.03
+"""
+
+H2LOAD_OUT = """finished in 3.00s, 1212.00 req/s, 340KB/s
+requests: 3636 total, 3637 started, 3636 done, 3630 succeeded, 5 failed, 1 errored, 0 timeout
+"""
+
+
+def test_wrk_output_is_parsed_with_units_and_failures() -> None:
+    requests, seconds, p50_ms, failed = serving.parse_wrk(WRK_OUT)
+    assert (requests, seconds, failed) == (9000, 3.01, 3 + 4)
+    assert p50_ms == pytest.approx(0.312)
+    assert serving.parse_wrk(WRK_OUT.replace("312.00us", "1.50ms"))[2] == pytest.approx(1.5)
+
+
+def test_h2load_output_and_log_give_the_median_latency() -> None:
+    log = "".join(f"1700000000{i}\t200\t{us}\n" for i, us in enumerate([100, 900, 300]))
+    requests, seconds, p50_ms, failed = serving.parse_h2load(H2LOAD_OUT, log)
+    assert (requests, seconds, failed) == (3630, 3.0, 6)
+    assert p50_ms == pytest.approx(0.3)
+
+
+def test_unexpected_output_is_an_error_not_a_zero() -> None:
+    with pytest.raises(ValueError, match="wrk"):
+        serving.parse_wrk("connection refused")
+    with pytest.raises(ValueError, match="h2load"):
+        serving.parse_h2load(H2LOAD_OUT, "")
+
+
+def _case(transport: str, case: str, c: int, requests: int, p50: float, rows: int = 1):
+    return serving.Case(transport, case, c, requests, 1.0, p50, rows, 0)
+
+
+def test_verdicts_compare_each_transport_with_its_own_floor() -> None:
+    cases = []
+    for t, slow in (("REST", 1.0), ("gRPC", 3.0)):
+        cases += [_case(t, "no-op", 1, 5000, 0.2), _case(t, "no-op", 32, 10000, 3.0),
+                  _case(t, "act", 1, 3000, 0.2 * slow * 1.5), _case(t, "act", 32, 3000, 9.0),
+                  _case(t, "batch", 1, 400, 2.5, rows=256)]  # fmt: skip
+    got = {name: (round(value, 2), met) for name, value, _, met in serving.verdicts(cases)}
+    assert got["REST: act p50 / no-op p50 (c=1)"] == (1.5, True)
+    assert got["gRPC: act p50 / no-op p50 (c=1)"] == (4.5, False)
+    assert got["REST: act req/s / no-op req/s (c=32)"] == (0.3, False)
+    assert got["REST: batch actions/s / act req/s (c=1)"] == (34.13, True)
+
+
+def test_payloads_are_the_five_agent_scenario() -> None:
+    act = json.loads(serving.rest_bodies()["act"])
+    assert act["ego_goal"] == serving.EGO and len(act["partners"]) == 4
+    assert len(act["observation"]) == 20
+    batch = json.loads(serving.rest_bodies()["batch"])
+    assert len(batch["observations"]) == serving.BATCH
+    framed = serving.grpc_bodies()["act"]
+    assert framed[0] == 0 and int.from_bytes(framed[1:5], "big") == len(framed) - 5
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(
+    shutil.which("wrk") is None
+    or shutil.which("h2load") is None
+    or shutil.which("taskset") is None,
+    reason="wrk / h2load not installed (apt-get install wrk nghttp2-client)",
+)
+def test_a_short_real_run_answers_every_request(tmp_path: Path) -> None:
+    out = tmp_path / "serving.json"
+    subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks/serving.py"), "--duration", "1",
+         "--json", str(out)],
+        check=True, timeout=300, cwd=ROOT,
+    )  # fmt: skip
+    figures = json.loads(out.read_text())
+    assert len(figures["cases"]) == 12 and len(figures["targets"]) == 6
+    assert all(c["failed"] == 0 and c["requests"] > 0 for c in figures["cases"])
