@@ -8,6 +8,8 @@ No I/O and no state: every function maps arrays to arrays. The paper's equations
 |             | Jensen-Shannon distance (eq. 10), task weight (eq. 9)            |        |
 | `blend`     | SL / NAIL / AAIL blending of task and impact Q (eq. 8), goal     | numpy  |
 |             | beliefs mixed into one impact Q per partner                      |        |
+| `belief`    | goal belief from observed actions: prior, Boltzmann likelihoods  | numpy  |
+|             | (eq. 2), update with forgetting and floor, blend distribution    |        |
 | `torch_ops` | soft value, Boltzmann policy and sampling in torch (trainer)     | torch  |
 | `qnet`      | `QNetSpec` (JSON architecture spec), `QNetwork`, `StackedQNet`,  | torch  |
 |             | safetensors I/O, numpy stacked forward for serving               |        |
@@ -20,6 +22,14 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
+from policy.belief import (
+    BeliefConfig,
+    blend_goal_probs,
+    boltzmann_log_likelihoods,
+    initial_log_belief,
+    prior_log_probs,
+    update_log_belief,
+)
 from policy.blend import METHODS, BlendMethod, BlendResult, blend, mix_goal_beliefs
 from policy.maths import boltzmann, js_distance, normalized_entropy, soft_value, task_weight
 
@@ -53,18 +63,23 @@ _LAZY = {
 # the torch-based names (see _LAZY) are imported on first access
 __all__ = [
     "METHODS",
+    "BeliefConfig",
     "BlendMethod",
     "BlendResult",
     "QNetSpec",
     "QNetwork",
     "StackedQNet",
     "blend",
+    "blend_goal_probs",
     "boltzmann",
+    "boltzmann_log_likelihoods",
     "boltzmann_t",
+    "initial_log_belief",
     "js_distance",
     "mix_goal_beliefs",
     "normalized_entropy",
     "numpy_stacked_forward",
+    "prior_log_probs",
     "qnet_from_safetensors",
     "sample_boltzmann_t",
     "soft_value",
@@ -72,6 +87,7 @@ __all__ = [
     "stack_numpy",
     "task_weight",
     "tensors_from_safetensors",
+    "update_log_belief",
     "weights_to_safetensors",
 ]
 

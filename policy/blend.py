@@ -58,7 +58,7 @@ from policy._validate import (
     require_finite,
 )
 from policy.blend_fast import FLAT_STD_RTOL, RowBlend, blend_row
-from policy.maths import boltzmann, js_distance, normalized_entropy
+from policy.maths import boltzmann, js_distance, normalized_entropy, task_weight
 
 __all__ = [
     "FLAT_STD_RTOL",
@@ -138,19 +138,12 @@ def _aail(
     mask: np.ndarray,
     alpha_B1: np.ndarray,
     pi_task: np.ndarray,
-    task_entropy: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Blended Q, task weight and normalised partner weights of eqs. 8-10 (`pi_task` and its
-    normalised entropy come from the caller, which needs them anyway)."""
+    """Blended Q, task weight and normalised partner weights of eqs. 8-10 (`pi_task` comes
+    from the caller, which needs it anyway)."""
     n_active_B = mask.sum(axis=1)
     pi_impact = boltzmann(q_impact, alpha_B1)
-    n_actions = q_task.shape[-1]
-    # eq. 9 (`task_weight`'s formula on the entropy already at hand): |A|^H is the effective
-    # number of actions of the task policy
-    if n_actions == 1:  # one action: nothing to weigh, the task decides (as `task_weight`)
-        w_task = np.ones(q_task.shape[0])
-    else:
-        w_task = 1.0 - np.power(float(n_actions), task_entropy) / n_actions
+    w_task = task_weight(pi_task)  # eq. 9 (from pi_task itself: blend_row's bits)
     w_task = np.where(n_active_B > 0, w_task, 1.0)  # nothing to blend in: the task alone
     w_partner = np.where(mask, js_distance(pi_task[:, None, :], pi_impact), 0.0)  # eq. 10
     total = w_partner.sum(axis=1, keepdims=True)
@@ -251,7 +244,7 @@ def _vectorised(
         w_task = 1.0 / (1.0 + n_active_B)
         w_partner = mask / np.maximum(n_active_B, 1)[:, None]
     else:
-        q, w_task, w_partner = _aail(q_task, q_impact, mask, alpha_B1, pi_task, task_entropy)
+        q, w_task, w_partner = _aail(q_task, q_impact, mask, alpha_B1, pi_task)
 
     return BlendResult(
         q_BA=q,

@@ -16,6 +16,18 @@ its task reward (its own distance to its target area); the influence term depend
 others are, which the ego cannot change. The task policy therefore barely depends on the other
 agent, and a phantom that never moves cannot make it depend on the ego's action either. The centre
 lies well inside the positions seen in training.
+
+`recover_action` gives a partner's action between two consecutive observations (sessions that
+infer goals from what partners do, when a client sends states rather than actions). The dynamics
+are deterministic and an agent's step depends only on its own state and action, so the partner's
+next `[x, y, vx, vy]` is predicted under each of the 5 actions with `world.step_state` and the
+nearest prediction (Euclidean, all four features) wins. Two actions can predict the *same* next
+state: pushing into a wall the agent rests against (the position is clipped and the velocity
+component zeroed, exactly as at rest), or a state faster than `MAX_SPEED` (not reachable by the
+dynamics, but a client may send one), where rest and a push along or against the motion are all
+capped to the same velocity. Such ties (predictions within `SAME_PREDICTION_ATOL`: the two
+computations may round differently) go to the lowest action index, rest before a push. With a
+real robot's measured states the nearest prediction is a best guess, not a proof.
 """
 
 from __future__ import annotations
@@ -24,8 +36,10 @@ import numpy as np
 
 from envs.particle.batched import MAX_AGENTS
 from envs.particle.goals import GOAL_IDS
-from envs.particle.world import ACTION_MEANINGS, STATE_DIM
+from envs.particle.world import ACTION_MEANINGS, N_ACTIONS, STATE_DIM, step_state
 
+ALL_ACTIONS_A1 = np.arange(N_ACTIONS)[:, None]
+SAME_PREDICTION_ATOL = 1e-9  # `recover_action`: predictions closer than this are one state
 PHANTOM_4 = np.array([0.5, 0.5, 0.0, 0.0], dtype=np.float32)
 _FEATURES = ("x", "y", "vx", "vy")
 
@@ -92,6 +106,23 @@ class ParticleDomain:
         blocks_BN4 = self._blocks(obs_BD, n_agents)
         self._check_partner(n_agents, partner)
         return np.concatenate([blocks_BN4[:, partner], blocks_BN4[:, 0]], axis=-1)
+
+    def recover_action(
+        self, prev_obs_D: np.ndarray, obs_D: np.ndarray, n_agents: int, partner: int
+    ) -> int:
+        """The partner's action between two consecutive ego observations: the action whose
+        predicted next state is nearest the observed one, ties to the lowest index (module
+        docstring)."""
+        self._check_partner(n_agents, partner)
+        before_4 = self._blocks(np.asarray(prev_obs_D)[None], n_agents)[0, partner]
+        after_4 = self._blocks(np.asarray(obs_D)[None], n_agents)[0, partner]
+        states_A14 = np.broadcast_to(np.asarray(before_4, dtype=np.float64), (N_ACTIONS, 1, 4))
+        predicted_A4 = step_state(states_A14, ALL_ACTIONS_A1)[:, 0, :]
+        gaps_A = np.sum((predicted_A4 - np.asarray(after_4, dtype=np.float64)) ** 2, axis=1)
+        nearest_4 = predicted_A4[int(np.argmin(gaps_A))]
+        # equal predictions differ by rounding only (~1e-16), distinct ones by far more
+        same_A = np.abs(predicted_A4 - nearest_4).max(axis=1) <= SAME_PREDICTION_ATOL
+        return int(np.argmax(same_A))  # the lowest action predicting the nearest next state
 
 
 PARTICLE = ParticleDomain()

@@ -17,6 +17,8 @@
 | `assembly`     | member input rows from the views, impact Q per partner, sampling       |
 | `fastpath`     | the single-row act: row layouts, Python-float reduce, blend and sample |
 | `gathers`      | a row's network inputs as one proven gather of the observation         |
+| `goal_inference`| every goal's task net on the partners' views (log-likelihoods, one pass)|
+|                | and partners' actions recovered from consecutive observations           |
 | `engine`       | `InferenceEngine`: act, envs, refresh (thread), status, stats          |
 """
 

@@ -15,6 +15,7 @@ One engine per server process, shared by the REST and gRPC transports.
 |          | K views) and one impact Q per partner; jl: the joint Q alone  |                |
 | sample   | inverse CDF per row from `default_rng(seed)`, one stream over | `assembly`     |
 |          | the rows (row r of a batch is not row 1 of a single request)  |                |
+| infer    | partners' actions under all G task nets, one pass (issue 9)   | `goal_inference`|
 
 A single observation row with sl, nail or aail takes `fastpath.act_row` after the stack step:
 the same steps with few numpy calls and Python floats (3-4x faster at batch 1; numbers
@@ -36,6 +37,7 @@ from __future__ import annotations
 
 import logging
 import threading
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -49,6 +51,7 @@ from services.engine.assembly import impact_q, member_inputs, models_used, sampl
 from services.engine.environments import env_runtime
 from services.engine.errors import EngineError, InvalidRequest
 from services.engine.fastpath import act_row
+from services.engine.goal_inference import goal_log_likelihoods, recover_partner_actions
 from services.engine.messages import (
     DEFAULT_TEMPERATURE,
     ActRequest,
@@ -172,6 +175,31 @@ class InferenceEngine:
             self._member_plans[key] = plan
         members, needs = plan
         return members, self.cache.resolve_all(needs, request.alias, request.versions)
+
+    # --- goal inference (issue 9; `goal_inference`) -----------------------------------------
+    def goal_log_likelihoods(
+        self,
+        env: str,
+        observation: np.ndarray,
+        partners: Sequence[int],
+        actions: Sequence[int],
+        *,
+        alias: str = "production",
+        versions: Mapping[str, int] | None = None,
+        temperature: float | None = None,
+    ) -> np.ndarray:
+        """(P, G) log π_g(actions[p] | partner p's view of the ego's `observation`), goals in
+        the env's catalogue order: every task network in one stacked pass."""
+        return goal_log_likelihoods(
+            self.cache, env, observation, partners, actions,
+            alias=alias, versions=versions, temperature=temperature,
+        )  # fmt: skip
+
+    def recover_partner_actions(
+        self, env: str, previous: np.ndarray, current: np.ndarray, partners: Sequence[int]
+    ) -> list[int]:
+        """Each partner's most likely action between two consecutive ego observations."""
+        return recover_partner_actions(env, previous, current, partners)
 
     # --- environments, hot reload, status --------------------------------------------------
     def envs(self) -> list[EnvInfo]:
