@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import typer
 
-from cli import demo, evaluate, models, run, serve, train
+from cli import demo, evaluate, jobs, models, run, serve, train
 
 app = typer.Typer(
     name="coexist",
@@ -30,6 +30,7 @@ app.command("eval")(evaluate.evaluate)
 app.command("serve")(serve.serve)
 app.add_typer(train.app, name="train")
 app.add_typer(models.app, name="models")
+app.add_typer(jobs.app, name="jobs")
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -1,16 +1,26 @@
 """The training job API: trigger `coexist train ...` remotely (`trainer.jobs`).
 
-| method | path                 | auth  | answers                                              |
-|--------|----------------------|-------|------------------------------------------------------|
-| POST   | `/v1/jobs`           | write | 202 `{id, status}`; 422 naming a bad field           |
-| GET    | `/v1/jobs`           | read  | `{jobs: [...]}`, newest first (`limit`, default 100) |
-| GET    | `/v1/jobs/{id}`      | read  | the job: kind, args, status, times, exit code        |
-| GET    | `/v1/jobs/{id}/logs` | read  | `{id, status, log}`: the last `tail` characters      |
+| method | path                 | auth  | answers                                                       |
+|--------|----------------------|-------|---------------------------------------------------------------|
+| POST   | `/v1/jobs`           | write | 202 and the job (`queued`); 422 naming a bad field            |
+| GET    | `/v1/jobs`           | read  | `{jobs: [...]}`, newest first (`limit`, default 100)          |
+| GET    | `/v1/jobs/{id}`      | read  | the job: kind, args, status, times, exit code                 |
+| GET    | `/v1/jobs/{id}/logs` | read  | `{id, status, log}`: the last `tail` characters; with         |
+|        |                      |       | `offset`, the log from that byte on plus `next_offset`        |
+| DELETE | `/v1/jobs/{id}`      | write | cancel: 200 `cancelled` (was queued), 202 `cancelling` (was   |
+|        |                      |       | running; `cancelled` once its subprocess is gone); 409 naming |
+|        |                      |       | the status of a finished job; 404 unknown id                  |
 
 Jobs live in the model store's database (`training_jobs`), their run directories and logs under
 `<data_dir>/jobs/<id>`. The runner thread starts with the app when unfinished jobs are waiting
 (a restarted server resumes them, `--resume` skips finished batches) and otherwise on the first
 submit; it stops with the app, leaving a running job for the next start. Jobs need a SQL store.
+
+Cancelling a running job stops its `coexist train` subprocess (SIGTERM, SIGKILL after the
+runner's grace period), from whichever server process answers the DELETE (`trainer.jobs.table`).
+Networks the job registered before that stay in the store as complete versions (each is one
+transaction); a cancelled job is never resumed. Submitting it again starts a new job with a new
+run directory, so it trains from the first batch (`--resume` only spans restarts of one job).
 """
 
 from __future__ import annotations
@@ -29,8 +39,11 @@ from model_store.errors import StoreUnavailable
 
 # isort: split
 from services.deps import ReadAuth, WriteAuth
-from trainer.jobs import JobRunner, JobSpec, JobTable
-from trainer.jobs.runner import read_log
+from trainer.jobs import JobRunner, JobSpec, JobStatus, JobTable
+from trainer.jobs.runner import append_log, read_log, read_log_from
+from trainer.jobs.table import CANCELLED_WHILE_QUEUED
+
+LOG_CHUNK_BYTES = 1 << 20  # the most one `offset` read of a log returns
 
 
 class JobRequest(BaseModel):
@@ -99,7 +112,7 @@ def submit(body: JobRequest, request: Request, _auth: WriteAuth) -> JSONResponse
     job = table.submit(spec, str(run_root))
     runner.start()
     runner.wake()
-    return JSONResponse({"id": job.id, "status": job.status.value}, status_code=202)
+    return JSONResponse(job.to_json(), status_code=202)
 
 
 @router.get("")
@@ -114,14 +127,36 @@ def get_job(job_id: str, table: TableDep, _auth: ReadAuth) -> dict[str, Any]:
     return table.get(job_id).to_json()
 
 
+@router.delete("/{job_id}")
+def cancel_job(job_id: str, request: Request, _auth: WriteAuth) -> JSONResponse:
+    """Cancel a queued job at once, or have the runner of a running one stop its subprocess."""
+    table, runner = _open(request.app)
+    job = table.cancel(job_id)
+    if job.status is JobStatus.cancelled:
+        append_log(job.run_dir, CANCELLED_WHILE_QUEUED)  # a requeued job already has a log
+        return JSONResponse(job.to_json(), status_code=200)
+    runner.wake()  # when this process runs the job, it stops it now rather than at its next poll
+    return JSONResponse(job.to_json(), status_code=202)
+
+
 @router.get("/{job_id}/logs")
 def get_logs(
     job_id: str,
     table: TableDep,
     _auth: ReadAuth,
     tail: Annotated[int, Query(ge=1, le=1_000_000)] = 64_000,
+    offset: Annotated[
+        int | None, Query(ge=0, description="byte offset to read from (to follow a log)")
+    ] = None,
 ) -> dict[str, Any]:
     """The log file when this machine has it, else the tail the row kept when the job ended."""
     job = table.get(job_id)
-    text = read_log(job.run_dir, tail) or job.log_tail[-tail:]
-    return {"id": job.id, "status": job.status.value, "log": text}
+    if offset is None:
+        text = read_log(job.run_dir, tail) or job.log_tail[-tail:]
+        return {"id": job.id, "status": job.status.value, "log": text}
+    chunk = read_log_from(job.run_dir, offset, LOG_CHUNK_BYTES)
+    if chunk is None:  # no log file here: follow the row's tail as if it were the file
+        kept = job.log_tail.encode()[offset : offset + LOG_CHUNK_BYTES]
+        chunk = kept.decode("utf-8", errors="replace"), offset + len(kept)
+    text, next_offset = chunk
+    return {"id": job.id, "status": job.status.value, "log": text, "next_offset": next_offset}

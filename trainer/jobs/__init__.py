@@ -3,8 +3,8 @@
 | module     | what                                                                   |
 |------------|------------------------------------------------------------------------|
 | `spec`     | `JobSpec`: what to train, validated; the `coexist train` command line  |
-| `table`    | `JobTable`: the `training_jobs` rows (submit, claim, finish, recover)  |
-| `runner`   | `JobRunner`: a thread that runs queued jobs one at a time              |
+| `table`    | `JobTable`: the `training_jobs` rows (submit, claim, cancel, recover)  |
+| `runner`   | `JobRunner`: a thread that runs queued jobs one at a time, stops them  |
 
 Used by the REST job API (`services.jobs_api`).
 """

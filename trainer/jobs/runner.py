@@ -1,31 +1,46 @@
 """`JobRunner`: one thread that runs the queued training jobs, one subprocess at a time.
 
-    runner = JobRunner(table, store_url="sqlite:////abs/models.db", run_root=Path("/data/jobs"))
+    runner = JobRunner(table, store_url="sqlite:////abs/models.db")  # run dirs: the rows' own
     runner.start()        # requeues jobs left running by a dead process, then works the queue
-    runner.stop()         # kills the running subprocess and leaves its job for the next process
+    runner.stop()         # stops the running subprocess and leaves its job for the next process
 
 Each job runs `python -m cli.main train <kind> ... --store-url <store> --run-dir <run_root>/<id>
 --resume` (`spec.train_command`), stdout and stderr appended to `<run_dir>/log.txt`. One job at a
 time per process: training takes every core there is. The loop wakes every `poll_s` (or at once
 on `wake()`), refreshes the running job's heartbeat every `heartbeat_s`, and re-runs `recover`
 every `stale_after_s / 2` so a job abandoned by another, dead, process is picked up too.
+
+While a job runs, every poll also reads its row: `cancelling` (set by `JobTable.cancel`, from any
+server process) makes the runner stop the subprocess (`terminate`: SIGTERM to its process group,
+SIGKILL after `cancel_grace_s`), say so in the log and record the job `cancelled` with the exit
+code. The subprocess gets a session of its own, so a Ctrl-C meant for the server does not reach it
+(the server's shutdown stops it and leaves the job for the next start instead) and the group
+signal also reaches anything it started.
 """
 
 from __future__ import annotations
 
+import contextlib
 import logging
+import os
+import signal
 import subprocess
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import BinaryIO
 
-from trainer.jobs.spec import train_command
-from trainer.jobs.table import Job, JobTable
+from trainer.jobs.spec import JobSpec, train_command
+from trainer.jobs.table import Job, JobStatus, JobTable
 
 log = logging.getLogger("coexist.jobs")
 
 LOG_NAME = "log.txt"
 _PROJECT_ROOT = Path(__file__).resolve().parents[2]  # `-m cli.main` resolves from here
+
+# (spec, store URL, run directory) -> argv; tests swap in a stand-in for `coexist train`
+CommandFn = Callable[[JobSpec, str, Path], list[str]]
 
 
 def read_log(run_dir: str | Path, max_chars: int) -> str:
@@ -39,6 +54,38 @@ def read_log(run_dir: str | Path, max_chars: int) -> str:
         return f.read().decode("utf-8", errors="replace")[-max_chars:]
 
 
+def read_log_from(run_dir: str | Path, offset: int, max_bytes: int) -> tuple[str, int] | None:
+    """The log from byte `offset` on (at most `max_bytes`) and the offset after it; None when
+    this machine has no log file. A chunk never ends inside a UTF-8 character, so a follower
+    that asks again from the returned offset decodes every character whole."""
+    file = Path(run_dir) / LOG_NAME
+    if not file.exists():
+        return None
+    with file.open("rb") as f:
+        f.seek(offset)
+        data = f.read(max_bytes)
+    cut = len(data) - _incomplete_tail(data)
+    return data[:cut].decode("utf-8", errors="replace"), offset + cut
+
+
+def _incomplete_tail(data: bytes) -> int:
+    """How many bytes at the end of `data` start a UTF-8 character that is not all there."""
+    for back in range(1, min(4, len(data)) + 1):
+        byte = data[-back]
+        if byte & 0xC0 != 0x80:  # a lead byte (or ASCII): how long is its character?
+            length = 1 if byte < 0x80 else 2 if byte < 0xE0 else 3 if byte < 0xF0 else 4
+            return back if length > back else 0
+    return 0
+
+
+def append_log(run_dir: str | Path, line: str) -> None:
+    """Add a line of the runner's own to a job's log, when this machine has the log."""
+    file = Path(run_dir) / LOG_NAME
+    if file.exists():
+        with file.open("ab") as f:
+            f.write(f"{line}\n".encode())
+
+
 class JobRunner:
     def __init__(
         self,
@@ -47,13 +94,15 @@ class JobRunner:
         store_url: str,
         poll_s: float = 1.0,
         heartbeat_s: float = 5.0,
+        cancel_grace_s: float = 10.0,
+        command: CommandFn = train_command,
     ) -> None:
         self.table, self.store_url = table, store_url
         self.poll_s, self.heartbeat_s = poll_s, heartbeat_s
+        self.cancel_grace_s, self.command = cancel_grace_s, command
         self._wake = threading.Event()
         self._stopping = threading.Event()
         self._thread: threading.Thread | None = None
-        self._proc: subprocess.Popen[bytes] | None = None
 
     def start(self) -> None:
         if self._thread is None:
@@ -61,14 +110,15 @@ class JobRunner:
             self._thread.start()
 
     def wake(self) -> None:
-        """A job was submitted: look at the queue now."""
+        """A job was submitted or cancelled: look at the queue (and the running job) now."""
         self._wake.set()
 
-    def stop(self, timeout_s: float = 10.0) -> None:
+    def stop(self, timeout_s: float | None = None) -> None:
+        """Stop the loop; a running subprocess is terminated (`cancel_grace_s`, then killed)."""
         self._stopping.set()
         self._wake.set()  # the loop terminates the subprocess itself (see `_run`)
         if self._thread is not None:
-            self._thread.join(timeout_s)
+            self._thread.join(self.cancel_grace_s + 5.0 if timeout_s is None else timeout_s)
 
     def _loop(self) -> None:
         last_recover = -float("inf")
@@ -89,26 +139,69 @@ class JobRunner:
     def _run(self, job: Job) -> None:
         run_dir = Path(job.run_dir)
         run_dir.mkdir(parents=True, exist_ok=True)
-        cmd = train_command(job.spec, self.store_url, run_dir)
+        cmd = self.command(job.spec, self.store_url, run_dir)
         log.info("job %s: attempt %d: %s", job.id, job.attempts, " ".join(cmd))
         with (run_dir / LOG_NAME).open("ab") as out:
             out.write(f"--- attempt {job.attempts}: {' '.join(cmd)}\n".encode())
             out.flush()
-            self._proc = proc = subprocess.Popen(
+            proc = subprocess.Popen(
                 cmd, stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                cwd=_PROJECT_ROOT,
+                cwd=_PROJECT_ROOT, start_new_session=True,
             )  # fmt: skip
             last_beat = time.monotonic()
             while proc.poll() is None:
-                if self._stopping.wait(self.poll_s):
-                    proc.terminate()
-                    proc.wait()
+                self._wake.wait(self.poll_s)
+                self._wake.clear()
+                if self._check_status(job.id) is JobStatus.cancelling:
+                    self._cancel(job, proc, out)
+                    return
+                if self._stopping.is_set():
+                    terminate(proc, self.cancel_grace_s)
                     self.table.release(job.id)  # the next process resumes it
                     log.info("job %s: left for the next process", job.id)
                     return
                 if time.monotonic() - last_beat >= self.heartbeat_s:
                     self.table.heartbeat(job.id)
                     last_beat = time.monotonic()
-        self._proc = None
         self.table.finish(job.id, proc.returncode, read_log(run_dir, 8_000))
         log.info("job %s: exit code %d", job.id, proc.returncode)
+
+    def _check_status(self, job_id: str) -> JobStatus:
+        try:
+            return self.table.status(job_id)
+        except Exception:  # the database is briefly away: keep training, ask again next poll
+            log.exception("job %s: could not read its status", job_id)
+            return JobStatus.running
+
+    def _cancel(self, job: Job, proc: subprocess.Popen[bytes], out: BinaryIO) -> None:
+        """Stop a job somebody cancelled; its log and row both say how it ended."""
+        out.write(f"--- cancelled: stopping process group {proc.pid} (SIGTERM)\n".encode())
+        out.flush()
+        started = time.monotonic()
+        how = terminate(proc, self.cancel_grace_s)
+        elapsed = time.monotonic() - started
+        out.write(
+            f"--- cancelled: {how} after {elapsed:.1f} s, exit code {proc.returncode}\n".encode()
+        )
+        out.flush()
+        self.table.finish_cancelled(job.id, proc.returncode, read_log(job.run_dir, 8_000))
+        log.info("job %s: cancelled (%s, exit code %d)", job.id, how, proc.returncode)
+
+
+def terminate(proc: subprocess.Popen[bytes], grace_s: float) -> str:
+    """SIGTERM to the process group, SIGKILL if it is still there after `grace_s`; says which
+    ended it. Either signal is safe for the store: `coexist train` registers each version in one
+    transaction, so a version is there whole or not at all."""
+    _signal_group(proc, signal.SIGTERM)
+    try:
+        proc.wait(grace_s)
+        return "ended on SIGTERM"
+    except subprocess.TimeoutExpired:
+        _signal_group(proc, signal.SIGKILL)
+        proc.wait()
+        return f"killed (SIGKILL) after ignoring SIGTERM for {grace_s:g} s"
+
+
+def _signal_group(proc: subprocess.Popen[bytes], sig: signal.Signals) -> None:
+    with contextlib.suppress(ProcessLookupError):  # already gone
+        os.killpg(proc.pid, sig)  # its own session: the group id is its pid

@@ -7,11 +7,19 @@
 | `succeeded`   | the subprocess exited 0                                                |
 | `failed`      | it exited non-zero (`exit_code`, `log_tail`)                           |
 | `interrupted` | its runner died `max_attempts` times while it ran: not retried again   |
+| `cancelling`  | cancel asked while it ran: its runner is stopping the subprocess       |
+| `cancelled`   | cancelled before it started, or its subprocess was stopped (exit code) |
 
 Claiming is one conditional UPDATE (`WHERE status = 'queued'`), so two server processes over one
 database never run the same job. A `running` row whose heartbeat is older than `stale_after_s`
 belongs to a dead process: `recover` puts it back in the queue (its run directory records the
 finished batches, so the retry trains only what is left).
+
+Cancelling goes through the row too, so it works whichever server process answers the request:
+`cancel` turns `queued` into `cancelled` at once and `running` into `cancelling`; the runner that
+owns the subprocess sees it at its next poll, stops the process and calls `finish_cancelled`. A
+`cancelling` row whose runner died is finished by `recover` as `cancelled`, never requeued, so a
+restarted server does not resume a job somebody cancelled.
 """
 
 from __future__ import annotations
@@ -25,13 +33,15 @@ from typing import Any
 from sqlalchemy import Engine, or_, select, update
 from sqlalchemy.orm import Session, sessionmaker
 
-from model_store.errors import NotFound
+from model_store.errors import Conflict, NotFound
 from model_store.sql.engine import BEGIN_MODE_OPTION, create_store_engine
 from model_store.sql.migrate import ensure_schema
 from model_store.sql.orm import TrainingJobRow
 from trainer.jobs.spec import JobSpec
 
 LOG_TAIL_CHARS = 8_000  # what the row keeps of a finished job's log
+_RUNNER_DIED = "\n--- cancelled; its runner died before it could report the exit code\n"
+CANCELLED_WHILE_QUEUED = "--- cancelled while queued"
 
 
 class JobStatus(StrEnum):
@@ -40,6 +50,11 @@ class JobStatus(StrEnum):
     succeeded = "succeeded"
     failed = "failed"
     interrupted = "interrupted"
+    cancelling = "cancelling"
+    cancelled = "cancelled"
+
+
+UNFINISHED = (JobStatus.queued.value, JobStatus.running.value, JobStatus.cancelling.value)
 
 
 @dataclass(frozen=True)
@@ -105,8 +120,7 @@ class JobTable:
             return _job(row)
 
     def has_unfinished(self) -> bool:
-        unfinished = (JobStatus.queued.value, JobStatus.running.value)
-        query = select(TrainingJobRow.id).where(TrainingJobRow.status.in_(unfinished)).limit(1)
+        query = select(TrainingJobRow.id).where(TrainingJobRow.status.in_(UNFINISHED)).limit(1)
         with self._read() as s, s.begin():
             return s.scalar(query) is not None
 
@@ -133,11 +147,52 @@ class JobTable:
         with self._write() as s, s.begin():
             _set(s, job_id, JobStatus.running, heartbeat_at=_now())
 
+    def status(self, job_id: str) -> JobStatus:
+        """The row's status alone (what the runner polls while a job runs)."""
+        with self._read() as s, s.begin():
+            status = s.scalar(select(TrainingJobRow.status).where(TrainingJobRow.id == job_id))
+        if status is None:
+            raise NotFound(f"job {job_id!r} not found", field="id")
+        return JobStatus(status)
+
     def finish(self, job_id: str, exit_code: int, log_tail: str) -> None:
+        """The subprocess exited by itself. A cancel that came too late to stop it loses: the
+        row records what the process did."""
         status = JobStatus.succeeded if exit_code == 0 else JobStatus.failed
         with self._write() as s, s.begin():
-            _set(s, job_id, JobStatus.running, status=status.value, exit_code=exit_code,
-                 finished_at=_now(), log_tail=log_tail[-LOG_TAIL_CHARS:])  # fmt: skip
+            for expected in (JobStatus.running, JobStatus.cancelling):
+                if _set(s, job_id, expected, status=status.value, exit_code=exit_code,
+                        finished_at=_now(), log_tail=log_tail[-LOG_TAIL_CHARS:]):  # fmt: skip
+                    return
+
+    def cancel(self, job_id: str) -> Job:
+        """Cancel a queued job (done at once) or ask the runner of a running one to stop it.
+
+        Asking again while it is `cancelling` changes nothing; a finished job is a `Conflict`.
+        """
+        with self._write() as s, s.begin():
+            row = s.get(TrainingJobRow, job_id)
+            if row is None:
+                raise NotFound(f"job {job_id!r} not found", field="id")
+            if row.status == JobStatus.queued.value:
+                row.status, row.finished_at = JobStatus.cancelled.value, _now()
+                row.log_tail = CANCELLED_WHILE_QUEUED + "\n"
+            elif row.status == JobStatus.running.value:
+                row.status = JobStatus.cancelling.value
+            elif row.status != JobStatus.cancelling.value:
+                raise Conflict(
+                    f"job {job_id!r} is already {row.status}: only queued or running jobs can "
+                    "be cancelled",
+                    field="status",
+                )
+            return _job(row)
+
+    def finish_cancelled(self, job_id: str, exit_code: int | None, log_tail: str) -> None:
+        """The runner stopped a `cancelling` job's subprocess (exit code: -signal on POSIX)."""
+        with self._write() as s, s.begin():
+            _set(s, job_id, JobStatus.cancelling, status=JobStatus.cancelled.value,
+                 exit_code=exit_code, finished_at=_now(),
+                 log_tail=log_tail[-LOG_TAIL_CHARS:])  # fmt: skip
 
     def release(self, job_id: str) -> None:
         """This process stops while the job runs: leave it for the next one (stale at once)."""
@@ -145,10 +200,12 @@ class JobTable:
             _set(s, job_id, JobStatus.running, heartbeat_at=None)
 
     def recover(self) -> list[str]:
-        """Requeue `running` jobs of dead processes (or give up after `max_attempts`)."""
+        """Requeue `running` jobs of dead processes (or give up after `max_attempts`); finish
+        their `cancelling` jobs as `cancelled`. Returns the requeued ids."""
         stale = _now() - timedelta(seconds=self.stale_after_s)
+        owned = (JobStatus.running.value, JobStatus.cancelling.value)
         dead = select(TrainingJobRow).where(
-            TrainingJobRow.status == JobStatus.running.value,
+            TrainingJobRow.status.in_(owned),
             or_(TrainingJobRow.heartbeat_at.is_(None), TrainingJobRow.heartbeat_at < stale),
         )
         with self._read() as s, s.begin():
@@ -157,7 +214,10 @@ class JobTable:
         requeued = []
         with self._write() as s, s.begin():
             for row in s.scalars(dead):
-                if row.attempts >= self.max_attempts:
+                if row.status == JobStatus.cancelling.value:
+                    row.status, row.finished_at = JobStatus.cancelled.value, _now()
+                    row.log_tail = (row.log_tail + _RUNNER_DIED)[-LOG_TAIL_CHARS:]
+                elif row.attempts >= self.max_attempts:
                     row.status, row.finished_at = JobStatus.interrupted.value, _now()
                 else:
                     row.status = JobStatus.queued.value

@@ -1,0 +1,59 @@
+"""A stand-in for `coexist train`, run by the job tests' runner instead of the real trainer.
+
+    python jobs_fake_train.py MODE STORE_URL
+
+| mode       | does                                                                      |
+|------------|---------------------------------------------------------------------------|
+| `ok`       | prints a line, exits 0                                                    |
+| `fail`     | prints a line, exits 3                                                    |
+| `sleep`    | prints `training started`, then sleeps a minute (to be cancelled)        |
+| `stubborn` | the same, but ignores SIGTERM (only SIGKILL stops it)                     |
+| `register` | registers one version of `particle/task/a2` in the store, then sleeps    |
+
+Not a test module: `jobs_fakes.fake_command` runs it.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import time
+
+
+def _register(store_url: str) -> None:
+    from model_store.entities import Lineage
+    from model_store.sql import SqlModelStore
+    from policy.qnet import QNetSpec, QNetwork, weights_to_safetensors
+
+    spec = QNetSpec(obs_dim=8, n_actions=5, hidden=(4,))
+    with SqlModelStore(store_url) as store:
+        store.create_model(
+            "particle/task/a2", env="particle", kind="task", goals=("a2",), obs_dim=8,
+            n_actions=5, exist_ok=True,
+        )  # fmt: skip
+        version = store.register_version(
+            "particle/task/a2", spec=spec.to_json(), weights=weights_to_safetensors(QNetwork(spec)),
+            lineage=Lineage(seed=0, registered_by="jobs_fake_train"),
+        )  # fmt: skip
+    print(f"registered {version.ref}", flush=True)
+
+
+def main(mode: str, store_url: str) -> int:
+    if mode == "ok":
+        print("trained every batch", flush=True)
+        return 0
+    if mode == "fail":
+        print("boom: the trainer failed", flush=True)
+        return 3
+    if mode == "stubborn":
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    if mode == "register":
+        _register(store_url)
+    print(f"training started (pid {os.getpid()})", flush=True)
+    time.sleep(60)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1], sys.argv[2]))
