@@ -45,6 +45,7 @@ def serve(
     os.environ["COEXIST_HTTP_PORT"] = str(http_port)
     os.environ["COEXIST_GRPC_PORT"] = str(grpc_port)
     os.environ["COEXIST_GRPC_ENABLED"] = "true" if grpc_port else "false"
+    os.environ["COEXIST_WORKERS"] = str(workers)  # the app refuses REST sessions with > 1
     if store_url:
         os.environ["COEXIST_STORE_URL"] = store_url
 

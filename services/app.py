@@ -8,9 +8,11 @@ given), the inference engine with its hot-reload thread, and the gRPC server on
 `settings.grpc_port` (unless disabled). Several uvicorn workers can run this app side by side:
 uvicorn shares the HTTP socket, and gRPC binds its port with SO_REUSEPORT (grpcio's default on
 Linux), so the kernel spreads both kinds of connections over the workers. Nothing in a worker is
-state another worker needs: the store is the only shared state.
+state another worker needs: the store is the only shared state. The exception is REST sessions
+(`/v1/sessions`, kept in `app.state.sessions`, one process's memory): with `settings.workers` > 1
+creating one is refused (docs/architecture.md, "Sessions").
 
-Routes: `/v1/act`, `/v1/act:batch`, `/v1/envs` (services.rest), the registry under
+Routes: `/v1/act`, `/v1/act:batch`, `/v1/envs`, `/v1/sessions` (services.rest), the registry under
 `/v1/registry` (services.registry), `/healthz` (liveness), `/readyz` (models loaded, store
 reachable), `/metrics` (Prometheus) and the OpenAPI docs at `/docs`. Every response carries
 `X-Request-ID` (the request's own, else a new one) and every log line written while serving it
@@ -38,12 +40,14 @@ from services.registry import router as registry_router
 from services.registry.errors import install_error_handlers as install_registry_errors
 from services.rest import install_error_handlers as install_act_errors
 from services.rest import router as act_router
+from services.rest import sessions_router
+from services.sessions import SessionStore
 from services.settings import Settings, get_settings
 from services.warmup import warm_up
 
 log = logging.getLogger("coexist.server")
 
-ROUTERS: list[APIRouter] = [act_router, registry_router, jobs_router]
+ROUTERS: list[APIRouter] = [act_router, sessions_router, registry_router, jobs_router]
 
 
 def create_app(
@@ -76,6 +80,9 @@ def create_app(
             warm_up(owned_engine, limit=settings.cache_size)
             owned_engine.start_refresh_thread()
             app.state.engine = owned_engine
+        app.state.sessions = SessionStore(
+            app.state.engine, max_sessions=settings.max_sessions, ttl_s=settings.session_ttl_s
+        )
         if settings.grpc_enabled:
             from services.grpc_api.server import build_grpc_server
 
@@ -96,6 +103,7 @@ def create_app(
             if grpc_server is not None:
                 grace = settings.shutdown_grace_s  # in-flight calls finish first
                 grpc_server.stop(grace).wait(grace + 1.0)
+            app.state.sessions = None
             if owned_engine is not None:
                 owned_engine.stop()
                 app.state.engine = None
@@ -112,6 +120,7 @@ def create_app(
     app.state.settings = settings
     app.state.store = store
     app.state.engine = engine
+    app.state.sessions = None  # the lifespan's SessionStore
     app.state.grpc_port = None
     # The registry's handlers first, then the inference API's (which also format request
     # validation errors for every route): one JSON error shape everywhere.

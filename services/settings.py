@@ -22,6 +22,11 @@ by the test suite and by Ray.
 | `COEXIST_REFRESH_INTERVAL_S`  | 2.0                | server        | how often aliases are re-checked (hot reload)     |
 | `COEXIST_CACHE_SIZE`          | 256                | server        | networks kept loaded (LRU)                        |
 | `COEXIST_MAX_BATCH`           | 4096               | server        | rows allowed in one act:batch                     |
+| `COEXIST_SESSION_TTL_S`       | 300                | server        | a REST session idle this long is forgotten        |
+| `COEXIST_MAX_SESSIONS`        | 1000               | server        | live REST sessions per server process             |
+| `COEXIST_WORKERS`             | 1                  | server        | uvicorn worker processes (set by `coexist serve   |
+|                               |                    |               | --workers`); > 1 refuses REST sessions, which     |
+|                               |                    |               | live in one process's memory                      |
 | `COEXIST_LOG_FORMAT`          | `text`             | server        | `json`: one JSON object per line (the images set  |
 |                               |                    |               | it); `text`: for a terminal (`services.logging`)  |
 | `COEXIST_LOG_LEVEL`           | `info`             | server        | `debug` (also probe access lines), `info`,        |
@@ -74,6 +79,9 @@ class Settings(BaseSettings):
     refresh_interval_s: float = Field(default=2.0, gt=0, le=3600)
     cache_size: int = Field(default=256, ge=1)
     max_batch: int = Field(default=4096, ge=1)
+    session_ttl_s: float = Field(default=300.0, gt=0, le=86400)
+    max_sessions: int = Field(default=1000, ge=1)
+    workers: int = Field(default=1, ge=1)
     log_format: Literal["json", "text"] = "text"
     log_level: Literal["debug", "info", "warning", "error"] = "info"
     shutdown_grace_s: int = Field(default=10, ge=0, le=3600)

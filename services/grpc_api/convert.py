@@ -7,13 +7,19 @@
 | `episode_request`        | `EpisodeSettings` + `EpisodeStep`, t  | engine `ActRequest`, seed + t |
 | `act_response`           | engine `ActResult`                    | `ActResponse`                 |
 | `act_batch_response`     | engine `ActResult`s                   | `ActBatchResponse`            |
+| `infers_goals`           | `EpisodeSettings`                     | whether a partner is inferred |
+| `session_settings`       | `EpisodeSettings`                     | `SessionSettings` (sessions)  |
+| `session_step_inputs`    | `EpisodeStep`                         | observation (1, D), observed  |
+| `session_response`       | `SessionStepResult`                   | `ActResponse` with `beliefs`  |
 | `env_info`               | engine `EnvInfo`                      | `EnvInfo`                     |
 | `renamed_for_transport`  | an `EngineError`                      | the same, blaming the field   |
 |                          |                                       | the client actually sent      |
 
 Field names follow the REST API: a single request's rows are `observation` / `state` (the engine
 calls them `observations[0]`), a batch of states is `states[b]`. Unset proto3 fields take the REST
-defaults: method "aail", alias "production", no temperature, no seed.
+defaults: method "aail", alias "production", no temperature, no seed; an unset belief field the
+`SessionSettings` / `BeliefConfig` default. `infer` is refused outside an Episode (a unary call
+has no history of the partner's actions).
 """
 
 from __future__ import annotations
@@ -23,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from policy.belief import BeliefConfig
 from services.engine import (
     ActRequest,
     ActResult,
@@ -35,12 +42,20 @@ from services.engine import (
 from services.engine.environments import env_runtime
 from services.engine.messages import DEFAULT_ALIAS
 from services.grpc_api.gen.coexist.v1 import policy_pb2 as pb
+from services.sessions import Observed, SessionPartner, SessionSettings, SessionStepResult
 
 Settings = pb.ActRequest | pb.ActBatchRequest | pb.EpisodeSettings
 Rows = pb.ActRequest | pb.ActBatchRequest | pb.EpisodeStep  # messages carrying observations
 
 
 def _partners(specs: Sequence[pb.PartnerSpec]) -> tuple[PartnerSpec, ...]:
+    for i, spec in enumerate(specs):
+        if spec.infer:
+            raise InvalidRequest(
+                f"partners[{i}].infer",
+                "goals are inferred in an Episode stream (or a REST session), which sees the "
+                "partner's actions over time; a single call cannot",
+            )
     return tuple(
         PartnerSpec(
             index=p.index,
@@ -110,6 +125,66 @@ def act_batch_request(message: pb.ActBatchRequest) -> ActRequest:
     flat = [x for row in message.observations for x in row.values]
     obs_BD = np.asarray(flat, dtype=np.float64).reshape(len(message.observations), width)
     return _request(message, obs_BD)
+
+
+def _is_inferred(partner: pb.PartnerSpec) -> bool:
+    return partner.infer or (not partner.HasField("goal") and not partner.goal_probs)
+
+
+def infers_goals(settings: pb.EpisodeSettings) -> bool:
+    """Whether an episode with these settings keeps beliefs (a partner is inferred)."""
+    return any(_is_inferred(p) for p in settings.partners)
+
+
+def session_settings(settings: pb.EpisodeSettings) -> SessionSettings:
+    """The settings of the episode's session; unset belief fields take the defaults."""
+    partners = tuple(
+        SessionPartner(
+            index=p.index,
+            goal=p.goal if p.HasField("goal") else None,
+            goal_probs=dict(sorted(p.goal_probs.items())) if p.goal_probs else None,
+            infer=p.infer,
+        )
+        for p in settings.partners
+    )
+    b = settings.belief
+    belief = {k: getattr(b, k) for k in ("forgetting", "floor", "temperature") if b.HasField(k)}
+    blend = {k: getattr(b, k) for k in ("blend_mass", "blend_max_goals") if b.HasField(k)}
+    return SessionSettings(
+        env=settings.env, ego_goal=settings.ego_goal, partners=partners,
+        method=settings.method or "aail",  # type: ignore[arg-type]  # the session checks it
+        temperature=settings.temperature if settings.HasField("temperature") else None,
+        seed=settings.seed if settings.HasField("seed") else None,
+        alias=settings.alias or DEFAULT_ALIAS, versions=dict(settings.versions),
+        belief=BeliefConfig(**belief), **blend,
+    )  # fmt: skip
+
+
+def session_step_inputs(env: str, step: pb.EpisodeStep) -> tuple[np.ndarray, list[Observed]]:
+    """The step's ego observation (1, D) and its `observed` entries."""
+    observation = _single_observation(env, step)
+    observed = [
+        Observed(o.index, o.action if o.HasField("action") else None) for o in step.observed
+    ]
+    return observation, observed
+
+
+def session_response(settings: SessionSettings, answer: SessionStepResult) -> pb.ActResponse:
+    """The step's action (as `act_response`) plus the beliefs."""
+    message = pb.ActResponse()
+    result = answer.result
+    shared = pb.ActResponse(method=result.method, models=_models(result)).SerializeToString()
+    meanings = env_runtime(settings.env).info.action_meanings
+    _fill(message, result, shared, [p.index for p in settings.partners], meanings)
+    for belief in answer.beliefs:
+        out = message.beliefs.add(
+            index=belief.index, entropy=belief.entropy, updates=belief.updates
+        )
+        for goal, prob in belief.top:
+            out.top.add(goal=goal, prob=prob)
+        if belief.observed_action is not None:
+            out.observed_action = belief.observed_action
+    return message
 
 
 def renamed_for_transport(err: EngineError, *, single: bool, from_state: bool) -> EngineError:

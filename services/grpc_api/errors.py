@@ -7,6 +7,10 @@
 | `services.engine.ModelNotFound`                 | NOT_FOUND        | "FIELD: problem"       |
 | `model_store.NotFound`                          | NOT_FOUND        | the store's message    |
 | `services.engine.ModelUnavailable`              | UNAVAILABLE      | the engine's message   |
+| `services.sessions.SessionNotFound`             | NOT_FOUND        | "session_id: ..."      |
+| `services.sessions.SessionLimitReached`         | RESOURCE_EXHAUSTED | the store's message  |
+| `services.sessions.StepConflict`                | ABORTED          | "expected_step: ..."   |
+| `services.sessions.SessionsUnavailable`         | UNIMPLEMENTED    | the message            |
 | `model_store.StoreUnavailable`, other store err | UNAVAILABLE      | the store's message    |
 | other `services.engine.EngineError`             | INTERNAL         | the engine's message   |
 | anything else (a bug)                           | INTERNAL         | "internal error ..."   |
@@ -34,6 +38,12 @@ from google.protobuf.message import DecodeError
 from model_store.errors import ModelStoreError
 from model_store.errors import NotFound as StoreNotFound
 from services.engine import EngineError, InvalidRequest, ModelNotFound, ModelUnavailable
+from services.sessions.errors import (
+    SessionLimitReached,
+    SessionNotFound,
+    SessionsUnavailable,
+    StepConflict,
+)
 
 log = logging.getLogger(__name__)
 
@@ -88,14 +98,25 @@ def _field_and_message(err: BaseException) -> tuple[str | None, str]:
     return field, message
 
 
+_SESSION_CODES: tuple[tuple[type[EngineError], grpc.StatusCode], ...] = (
+    (SessionLimitReached, grpc.StatusCode.RESOURCE_EXHAUSTED),
+    (StepConflict, grpc.StatusCode.ABORTED),
+    (SessionsUnavailable, grpc.StatusCode.UNIMPLEMENTED),
+)
+
+
 def status_of(err: BaseException) -> tuple[grpc.StatusCode, str, str | None]:
     """(status code, details message, field) for an error raised while serving a request."""
     if isinstance(err, InvalidRequest | InvalidMessage):
         field, message = _field_and_message(err)
         return grpc.StatusCode.INVALID_ARGUMENT, message, field
-    if isinstance(err, ModelNotFound | StoreNotFound):
+    if isinstance(err, ModelNotFound | StoreNotFound | SessionNotFound):
         field, message = _field_and_message(err)
         return grpc.StatusCode.NOT_FOUND, message, field
+    for session_error, code in _SESSION_CODES:  # the Episode stream raises none of these today
+        if isinstance(err, session_error):
+            field, message = _field_and_message(err)
+            return code, message, field
     if isinstance(err, ModelUnavailable):
         return grpc.StatusCode.UNAVAILABLE, str(err), None
     if isinstance(err, ModelStoreError):

@@ -8,6 +8,8 @@ maps errors (`errors`); the engine does the work, exactly as for the REST routes
 | `ListEnvs` | `engine.envs()`                       |                                          |
 | `Episode`  | `engine.act` per received step        | settings from the first message (or the  |
 |            |                                       | latest that carried them); seed + t      |
+|            | with an inferred partner: a           | the stream owns it (no store): beliefs   |
+|            | `services.sessions.Session` per stream| updated from `observed`, then act        |
 
 On the sync server each open `Episode` stream holds one worker thread until the client closes it,
 so `max_workers` bounds the number of concurrent episodes plus in-flight unary calls.
@@ -19,6 +21,7 @@ from collections.abc import Callable, Iterator
 from functools import partial
 
 import grpc
+import numpy as np
 
 from services.engine import ActRequest, ActResult, EngineError, InferenceEngine, InvalidRequest
 from services.grpc_api import convert
@@ -30,6 +33,7 @@ from services.grpc_api.errors import (
 )
 from services.grpc_api.gen.coexist.v1 import policy_pb2 as pb
 from services.grpc_api.gen.coexist.v1 import policy_pb2_grpc as pb_grpc
+from services.sessions import Session
 
 
 class PolicyServicer(pb_grpc.PolicyServiceServicer):
@@ -77,18 +81,64 @@ class PolicyServicer(pb_grpc.PolicyServiceServicer):
         self, requests: Iterator[pb.EpisodeStep], context: grpc.ServicerContext
     ) -> Iterator[pb.ActResponse]:
         settings: pb.EpisodeSettings | None = None
+        session: Session | None = None  # while a partner is inferred
+        previous: tuple[str, np.ndarray] | None = None  # env, observation: for a later session
         for t, step in enumerate(requests):
             try:
                 check_parsed(step)
                 if step.HasField("settings"):
                     settings = step.settings
+                    session = self._episode_session(settings, session, t, previous)
                 if settings is None:
                     raise InvalidRequest(
                         "settings", "the first message of an episode must carry the settings"
                     )
-                build = partial(convert.episode_request, settings, step, t)
-                act_request, results = self._run(step, build, single=True)
-                response = convert.act_response(act_request, results[0])
+                if session is not None:
+                    response = self._session_step(session, step)
+                else:
+                    if step.observed:
+                        raise InvalidRequest(
+                            "observed[0].index",
+                            "no partner of this episode is inferred: set infer on a partner "
+                            "(or give it no goal) to send its actions",
+                        )
+                    build = partial(convert.episode_request, settings, step, t)
+                    act_request, results = self._run(step, build, single=True)
+                    response = convert.act_response(act_request, results[0])
+                    previous = (settings.env, act_request.observations[0])
             except Exception as err:
                 raise StepError(t, err) from err
             yield response
+
+    def _episode_session(
+        self,
+        settings: pb.EpisodeSettings,
+        session: Session | None,
+        t: int,
+        previous: tuple[str, np.ndarray] | None,
+    ) -> Session | None:
+        """The stream's session under new settings: None when no partner is inferred; the same
+        session with replaced settings (beliefs kept) or a new one starting at step t."""
+        if not convert.infers_goals(settings):
+            return None
+        session_settings = convert.session_settings(settings)
+        if session is not None:
+            session.replace_settings(session_settings)
+            return session
+        # a session begun mid-stream judges the next step's `observed` on the last observation
+        observation = previous[1] if previous and previous[0] == settings.env else None
+        return Session(
+            self.engine, session_settings, first_step=t, previous_observation=observation
+        )
+
+    def _session_step(self, session: Session, step: pb.EpisodeStep) -> pb.ActResponse:
+        """One step of an inferring episode; errors blame the field the client sent."""
+        from_state = convert.check_one_input(step)
+        try:
+            observation, observed = convert.session_step_inputs(session.settings.env, step)
+            answer = session.step(observation, observed)
+        except EngineError as err:
+            if from_state and err.field == "observation":
+                raise err.renamed("state") from None
+            raise convert.renamed_for_transport(err, single=True, from_state=from_state) from None
+        return convert.session_response(session.settings, answer)

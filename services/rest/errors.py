@@ -11,6 +11,10 @@ one `{field, message}` per problem. Fields use the engine's naming: `partners[0]
 | request validation (types, JSON)   | 422    | invalid_request   |
 | `ModelNotFound`                    | 404    | model_not_found   |
 | `ModelUnavailable`                 | 503    | model_unavailable |
+| `SessionNotFound`                  | 404    | session_not_found |
+| `StepConflict`                     | 409    | step_conflict     |
+| `SessionLimitReached`              | 429    | too_many_sessions |
+| `SessionsUnavailable`              | 501    | sessions_unavailable (several workers) |
 | a body that is not UTF-8 (FastAPI) | 400    | (the app's HTTPException handler) |
 
 `install_error_handlers(app)` registers both handlers. Call it *after* the registry's
@@ -30,10 +34,20 @@ from fastapi.responses import JSONResponse
 
 from services.engine.errors import EngineError, InvalidRequest, ModelNotFound, ModelUnavailable
 from services.registry.errors import ErrorResponse, error_response
+from services.sessions.errors import (
+    SessionLimitReached,
+    SessionNotFound,
+    SessionsUnavailable,
+    StepConflict,
+)
 
 log = logging.getLogger(__name__)
 
 ENGINE_STATUS: tuple[tuple[type[EngineError], int], ...] = (
+    (SessionNotFound, 404),
+    (StepConflict, 409),
+    (SessionLimitReached, 429),
+    (SessionsUnavailable, 501),
     (InvalidRequest, 422),
     (ModelNotFound, 404),
     (ModelUnavailable, 503),
@@ -46,6 +60,19 @@ ACT_ERROR_RESPONSES: dict[int | str, dict[str, Any]] = {
     404: {"model": ErrorResponse, "description": "no network for a goal, alias or version"},
     422: {"model": ErrorResponse, "description": "invalid request; `field` names it"},
     503: {"model": ErrorResponse, "description": "model store unavailable or model unusable"},
+}
+
+# The session routes: the same, plus the session store's errors.
+SESSION_ERROR_RESPONSES: dict[int | str, dict[str, Any]] = {
+    **ACT_ERROR_RESPONSES,
+    404: {
+        "model": ErrorResponse,
+        "description": "no such session (expired, deleted, made by another process) or no "
+        "network for a goal",
+    },
+    409: {"model": ErrorResponse, "description": "`expected_step` is not the next step"},
+    429: {"model": ErrorResponse, "description": "the server holds its maximum of sessions"},
+    501: {"model": ErrorResponse, "description": "this server cannot keep sessions (workers > 1)"},
 }
 
 

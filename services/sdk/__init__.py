@@ -12,8 +12,15 @@ method="aail", temperature=None, seed=None, alias="production", versions=None) -
 `act_batch(...) -> list[Action]`, `envs() -> list[EnvInfo]`, `health() -> Health` and
 `episode(env, ego_goal, ...)` (a session whose `act(observation)` is one environment step).
 Partners: `{1: "b3"}`, `{1: {"b3": 0.7, "c": 0.3}}` or a list of PartnerSpec-like objects.
+
+Goals inferred online (issue 9): the HTTP clients' `create_session(env, ego_goal, partners={1:
+None}, ...) -> Session` (REST `/v1/sessions`; `session.step(obs, observed={1: 3}) ->
+SessionStep`, `session.info()`, `session.close()`), and the gRPC clients' `episode(...,
+partners={1: None})` whose `act(obs, observed={1: 3})` answers carry `Action.beliefs`.
+
 Errors: `CoexistError(code, message, field)` and its subclasses `InvalidArgument`, `NotFound`,
-`Unavailable`.
+`Unavailable`, `Conflict` (a session step's `expected_step`), `ResourceExhausted` (too many
+sessions).
 
     from services.sdk import CoexistClient
     with CoexistClient("http://127.0.0.1:8000") as client:
@@ -21,19 +28,40 @@ Errors: `CoexistError(code, message, field)` and its subclasses `InvalidArgument
         print(a.action_meaning, a.probs, a.diagnostics.task_weight)
 """
 
-from services.sdk.errors import CoexistError, InvalidArgument, NotFound, Unavailable
+from services.sdk.errors import (
+    CoexistError,
+    Conflict,
+    InvalidArgument,
+    NotFound,
+    ResourceExhausted,
+    Unavailable,
+)
 from services.sdk.grpc_aio_client import AsyncGrpcCoexistClient
 from services.sdk.grpc_client import GrpcCoexistClient
 from services.sdk.http_aio_client import AsyncCoexistClient
 from services.sdk.http_client import CoexistClient
-from services.sdk.types import Action, Diagnostics, EnvInfo, Health, ModelUsed, PartnerWeight
+from services.sdk.http_sessions import AsyncSession, Session
+from services.sdk.jobs import JobsClient as JobsClient  # the job API (services.sdk.jobs)
+from services.sdk.types import (
+    Action,
+    Diagnostics,
+    EnvInfo,
+    Health,
+    ModelUsed,
+    PartnerBelief,
+    PartnerWeight,
+    SessionInfo,
+    SessionStep,
+)
 
 __all__ = [
     "Action",
     "AsyncCoexistClient",
     "AsyncGrpcCoexistClient",
+    "AsyncSession",
     "CoexistClient",
     "CoexistError",
+    "Conflict",
     "Diagnostics",
     "EnvInfo",
     "GrpcCoexistClient",
@@ -41,6 +69,11 @@ __all__ = [
     "InvalidArgument",
     "ModelUsed",
     "NotFound",
+    "PartnerBelief",
     "PartnerWeight",
+    "ResourceExhausted",
+    "Session",
+    "SessionInfo",
+    "SessionStep",
     "Unavailable",
 ]

@@ -5,6 +5,8 @@
 | `InvalidArgument` | `ValueError`      | 400, 413, 422   | INVALID_ARGUMENT, OUT_OF_RANGE |
 | `NotFound`        | `LookupError`     | 404             | NOT_FOUND                    |
 | `Unavailable`     | `ConnectionError` | 502, 503, 504, no connection | UNAVAILABLE, DEADLINE_EXCEEDED |
+| `Conflict`        |                   | 409 (a session's `expected_step`) | ABORTED           |
+| `ResourceExhausted` |                 | 429 (too many sessions) | RESOURCE_EXHAUSTED           |
 | `CoexistError`    |                   | anything else   | anything else                |
 
 `code` is the same whichever transport answered: the gRPC status name in lower case
@@ -43,12 +45,20 @@ class Unavailable(CoexistError, ConnectionError):
     """The server (or its model store) cannot be reached or is not ready."""
 
 
+class Conflict(CoexistError):
+    """A session step's `expected_step` is not the session's next step (REST 409)."""
+
+
+class ResourceExhausted(CoexistError):
+    """The server holds its maximum of sessions (REST 429): delete finished ones, or retry."""
+
+
 _HTTP_CODES = {
     400: "invalid_argument",
     401: "unauthenticated",
     403: "permission_denied",
     404: "not_found",
-    409: "conflict",
+    409: "aborted",  # the policy API's one 409: a session step conflict (gRPC ABORTED)
     413: "invalid_argument",
     422: "invalid_argument",
     429: "resource_exhausted",
@@ -64,6 +74,8 @@ _CLASSES: dict[str, type[CoexistError]] = {
     "not_found": NotFound,
     "unavailable": Unavailable,
     "deadline_exceeded": Unavailable,
+    "aborted": Conflict,
+    "resource_exhausted": ResourceExhausted,
 }
 
 

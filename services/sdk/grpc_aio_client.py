@@ -12,7 +12,7 @@ loop that uses it.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import grpc
@@ -23,11 +23,13 @@ from services.grpc_api.gen.coexist.v1 import policy_pb2 as pb
 from services.grpc_api.gen.coexist.v1 import policy_pb2_grpc as pb_grpc
 from services.sdk import proto
 from services.sdk.bodies import (
+    Observed,
     Partners,
     act_batch_body,
     act_body,
-    episode_settings,
     observation_fields,
+    observed_entries,
+    session_body,
 )
 from services.sdk.errors import CoexistError
 from services.sdk.grpc_client import DEFAULT_TARGET, SERVICE_NAME, grpc_target, sdk_error
@@ -115,15 +117,17 @@ class AsyncGrpcCoexistClient:
         ego_goal: str,
         *,
         partners: Partners = None,
+        infer: Sequence[int] = (),
         method: str = "aail",
         temperature: float | None = None,
         seed: int | None = None,
         alias: str = "production",
         versions: Mapping[str, int] | None = None,
+        belief: Mapping[str, Any] | None = None,
     ) -> AsyncGrpcEpisode:
-        settings = episode_settings(
-            env, ego_goal, partners=partners, method=method, temperature=temperature,
-            seed=seed, alias=alias, versions=versions,
+        settings = session_body(
+            env, ego_goal, partners=partners, infer=infer, method=method,
+            temperature=temperature, seed=seed, alias=alias, versions=versions, belief=belief,
         )  # fmt: skip
         return AsyncGrpcEpisode(self._stub, settings)
 
@@ -146,11 +150,17 @@ class AsyncGrpcEpisode:
         self.step = 0
 
     async def act(
-        self, observation: Any = None, *, state: Any = None, ego_index: int = 0
+        self,
+        observation: Any = None,
+        *,
+        state: Any = None,
+        ego_index: int = 0,
+        observed: Observed = None,
     ) -> Action:
         fields = observation_fields(observation, state, ego_index)
+        message = proto.episode_step(self._settings, fields, observed_entries(observed))
         try:
-            await self._call.write(proto.episode_step(self._settings, fields))
+            await self._call.write(message)
             response = await self._call.read()
         except grpc.RpcError as err:
             raise sdk_error(err) from None

@@ -4,6 +4,8 @@
         a = client.act("particle", "a2", obs, partners={1: "b3"}, seed=7)
         with client.episode("particle", "a2", partners={1: "b3"}, seed=0) as ep:
             a = ep.act(obs)                                      # one Episode stream message
+        with client.episode("particle", "a2", partners={1: None}) as ep:  # goal inferred
+            ep.act(obs_0); a = ep.act(obs_1, observed={1: 3})    # a.beliefs[0].top
 
 The same methods and results as the HTTP clients (`act`, `act_batch`, `envs`, `health`,
 `episode`); one persistent channel per client. Errors raise `services.sdk.errors` classes; the
@@ -13,7 +15,7 @@ field comes from the server's `coexist-field` trailing metadata.
 from __future__ import annotations
 
 import queue
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from typing import Any
 
 import grpc
@@ -24,11 +26,13 @@ from services.grpc_api.gen.coexist.v1 import policy_pb2 as pb
 from services.grpc_api.gen.coexist.v1 import policy_pb2_grpc as pb_grpc
 from services.sdk import proto
 from services.sdk.bodies import (
+    Observed,
     Partners,
     act_batch_body,
     act_body,
-    episode_settings,
     observation_fields,
+    observed_entries,
+    session_body,
 )
 from services.sdk.errors import CoexistError, error_for_grpc
 from services.sdk.types import Action, EnvInfo, Health
@@ -133,16 +137,18 @@ class GrpcCoexistClient:
         ego_goal: str,
         *,
         partners: Partners = None,
+        infer: Sequence[int] = (),
         method: str = "aail",
         temperature: float | None = None,
         seed: int | None = None,
         alias: str = "production",
         versions: Mapping[str, int] | None = None,
+        belief: Mapping[str, Any] | None = None,
     ) -> GrpcEpisode:
         """An `Episode` stream: settings sent with the first step, step t seeded with seed + t."""
-        settings = episode_settings(
-            env, ego_goal, partners=partners, method=method, temperature=temperature,
-            seed=seed, alias=alias, versions=versions,
+        settings = session_body(
+            env, ego_goal, partners=partners, infer=infer, method=method,
+            temperature=temperature, seed=seed, alias=alias, versions=versions, belief=belief,
         )  # fmt: skip
         return GrpcEpisode(self._stub, settings)
 
@@ -170,9 +176,19 @@ class GrpcEpisode:
         self._responses = stub.Episode(_drain(self._outbox))
         self.step = 0
 
-    def act(self, observation: Any = None, *, state: Any = None, ego_index: int = 0) -> Action:
+    def act(
+        self,
+        observation: Any = None,
+        *,
+        state: Any = None,
+        ego_index: int = 0,
+        observed: Observed = None,
+    ) -> Action:
+        """One step; `observed`: the inferred partners' actions since the previous step
+        (`{1: 3}`; None as an action: the server recovers it). `Action.beliefs` carries the
+        beliefs when a partner is inferred."""
         fields = observation_fields(observation, state, ego_index)
-        self._outbox.put(proto.episode_step(self._settings, fields))
+        self._outbox.put(proto.episode_step(self._settings, fields, observed_entries(observed)))
         try:
             response = next(self._responses)
         except grpc.RpcError as err:

@@ -7,16 +7,17 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import httpx
 from numpy.typing import ArrayLike
 
-from services.sdk.bodies import Partners, act_batch_body, act_body
+from services.sdk.bodies import Partners, act_batch_body, act_body, session_body
 from services.sdk.errors import CoexistError
 from services.sdk.http_client import DEFAULT_URL, checked_json, envs_from_json, unavailable_error
-from services.sdk.types import Action, EnvInfo, Health
+from services.sdk.http_sessions import AsyncSession, new_affinity
+from services.sdk.types import Action, EnvInfo, Health, SessionInfo
 
 
 class AsyncCoexistClient:
@@ -34,9 +35,11 @@ class AsyncCoexistClient:
             base_url=base_url, timeout=timeout, headers=headers, transport=transport
         )
 
-    async def _request(self, method: str, path: str, body: Any = None) -> Any:
+    async def _request(
+        self, method: str, path: str, body: Any = None, headers: dict[str, str] | None = None
+    ) -> Any:
         try:
-            response = await self._http.request(method, path, json=body)
+            response = await self._http.request(method, path, json=body, headers=headers)
         except httpx.TransportError as err:
             raise unavailable_error(err) from err
         return checked_json(response)
@@ -112,6 +115,30 @@ class AsyncCoexistClient:
         except CoexistError as err:
             ready, detail = False, {"code": err.code, "message": err.message}
         return Health(live=bool(live), ready=ready, detail=detail or {})
+
+    async def create_session(
+        self,
+        env: str,
+        ego_goal: str,
+        *,
+        partners: Partners = None,
+        infer: Sequence[int] = (),
+        method: str = "aail",
+        temperature: float | None = None,
+        seed: int | None = None,
+        alias: str = "production",
+        versions: Mapping[str, int] | None = None,
+        belief: Mapping[str, Any] | None = None,
+        expect_steps: bool = True,
+    ) -> AsyncSession:
+        """As `CoexistClient.create_session`, awaited."""
+        body = session_body(
+            env, ego_goal, partners=partners, infer=infer, method=method,
+            temperature=temperature, seed=seed, alias=alias, versions=versions, belief=belief,
+        )  # fmt: skip
+        headers = new_affinity()
+        info = SessionInfo.from_json(await self._request("POST", "/v1/sessions", body, headers))
+        return AsyncSession(self._request, info, headers, expect_steps=expect_steps)
 
     async def aclose(self) -> None:
         await self._http.aclose()

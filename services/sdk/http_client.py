@@ -12,6 +12,7 @@
 | `envs()`                | `GET /v1/envs`          | `list[EnvInfo]`  |
 | `health()`              | `/healthz`, `/readyz`   | `Health`         |
 | `episode(...)`          | `POST /v1/act` per step | an episode session |
+| `create_session(...)`   | `POST /v1/sessions`     | `Session` (goals inferred online; `http_sessions`) |
 
 An episode session follows the gRPC `Episode` stream's rules over plain requests: the settings are
 given once, and step t samples with seed + t, so both transports give the same episode.
@@ -20,15 +21,23 @@ Errors raise `services.sdk.errors` classes (`InvalidArgument`, `NotFound`, `Unav
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import httpx
 from numpy.typing import ArrayLike
 
-from services.sdk.bodies import Partners, act_batch_body, act_body, episode_settings, step_seed
+from services.sdk.bodies import (
+    Partners,
+    act_batch_body,
+    act_body,
+    episode_settings,
+    session_body,
+    step_seed,
+)
 from services.sdk.errors import CoexistError, Unavailable, error_for_http
-from services.sdk.types import Action, EnvInfo, Health
+from services.sdk.http_sessions import Session, new_affinity
+from services.sdk.types import Action, EnvInfo, Health, SessionInfo
 
 DEFAULT_URL = "http://127.0.0.1:8000"
 
@@ -36,7 +45,7 @@ DEFAULT_URL = "http://127.0.0.1:8000"
 def checked_json(response: httpx.Response) -> Any:
     """The response's JSON, or the SDK error its error body describes."""
     if response.status_code < 400:
-        return response.json()
+        return response.json() if response.content else None  # 204: no body
     try:
         error = response.json()["error"]
         message, field = str(error["message"]), error.get("field")
@@ -69,9 +78,11 @@ class CoexistClient:
             base_url=base_url, timeout=timeout, headers=headers, transport=transport
         )
 
-    def _request(self, method: str, path: str, body: Any = None) -> Any:
+    def _request(
+        self, method: str, path: str, body: Any = None, headers: dict[str, str] | None = None
+    ) -> Any:
         try:
-            response = self._http.request(method, path, json=body)
+            response = self._http.request(method, path, json=body, headers=headers)
         except httpx.TransportError as err:
             raise unavailable_error(err) from err
         return checked_json(response)
@@ -169,6 +180,31 @@ class CoexistClient:
             seed=seed, alias=alias, versions=versions,
         )  # fmt: skip
         return HttpEpisode(self, settings)
+
+    def create_session(
+        self,
+        env: str,
+        ego_goal: str,
+        *,
+        partners: Partners = None,
+        infer: Sequence[int] = (),
+        method: str = "aail",
+        temperature: float | None = None,
+        seed: int | None = None,
+        alias: str = "production",
+        versions: Mapping[str, int] | None = None,
+        belief: Mapping[str, Any] | None = None,
+        expect_steps: bool = True,
+    ) -> Session:
+        """A REST session whose partners' goals the server infers from their actions:
+        `partners={1: None}` (uniform prior) or `infer=[1]` (the announced goal is the prior)."""
+        body = session_body(
+            env, ego_goal, partners=partners, infer=infer, method=method,
+            temperature=temperature, seed=seed, alias=alias, versions=versions, belief=belief,
+        )  # fmt: skip
+        headers = new_affinity()
+        info = SessionInfo.from_json(self._request("POST", "/v1/sessions", body, headers))
+        return Session(self._request, info, headers, expect_steps=expect_steps)
 
     def close(self) -> None:
         self._http.close()

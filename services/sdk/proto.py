@@ -4,7 +4,8 @@
 |-----------------------|-----------------------------|-----------------------------------|
 | `act_request`         | `act_body(...)` dict        | `coexist.v1.ActRequest`           |
 | `act_batch_request`   | `act_batch_body(...)` dict  | `coexist.v1.ActBatchRequest`      |
-| `episode_step`        | settings and/or observation | `coexist.v1.EpisodeStep`          |
+| `episode_step`        | settings and/or observation,| `coexist.v1.EpisodeStep`          |
+|                       | observed actions            |                                   |
 | `action_from_proto`   | `coexist.v1.ActResponse`    | `services.sdk.types.Action`       |
 | `env_from_proto`      | `coexist.v1.EnvInfo`        | `services.sdk.types.EnvInfo`      |
 """
@@ -15,7 +16,14 @@ from typing import Any
 
 from services.grpc_api.gen.coexist.v1 import policy_pb2 as pb
 from services.sdk.errors import InvalidArgument
-from services.sdk.types import Action, Diagnostics, EnvInfo, ModelUsed, PartnerWeight
+from services.sdk.types import (
+    Action,
+    Diagnostics,
+    EnvInfo,
+    ModelUsed,
+    PartnerBelief,
+    PartnerWeight,
+)
 
 _SETTINGS = ("env", "ego_goal", "method", "alias")
 
@@ -32,6 +40,7 @@ def _settings_kwargs(body: dict[str, Any]) -> dict[str, Any]:
                 partner.goal = spec["goal"]
             if spec.get("goal_probs") is not None:
                 partner.goal_probs.update(spec["goal_probs"])
+            partner.infer = bool(spec.get("infer", False))
         except (TypeError, ValueError, KeyError) as err:
             field = f"partners[{k}]"
             raise InvalidArgument("invalid_argument", f"{field}: {err}", field) from None
@@ -41,6 +50,8 @@ def _settings_kwargs(body: dict[str, Any]) -> dict[str, Any]:
     for key in ("temperature", "seed"):
         if body[key] is not None:
             kwargs[key] = body[key]
+    if body.get("belief"):  # episodes only (session_body); unset fields: the server's defaults
+        kwargs["belief"] = _build(pb.BeliefSettings, dict(body["belief"]))
     return kwargs
 
 
@@ -79,11 +90,18 @@ def act_batch_request(body: dict[str, Any]) -> pb.ActBatchRequest:
     return message
 
 
-def episode_step(settings: dict[str, Any] | None, fields: dict[str, Any]) -> pb.EpisodeStep:
-    """One step; `settings` (an `episode_settings` dict) only on the first step."""
+def episode_step(
+    settings: dict[str, Any] | None,
+    fields: dict[str, Any],
+    observed: list[dict[str, Any]] | None = None,
+) -> pb.EpisodeStep:
+    """One step; `settings` (a `session_body` dict) only on the first step; `observed` in the
+    `observed_entries` form."""
     kwargs = _observation_kwargs(fields)
     if settings is not None:
         kwargs["settings"] = _build(pb.EpisodeSettings, _settings_kwargs(settings))
+    if observed:
+        kwargs["observed"] = [_build(pb.ObservedAction, dict(entry)) for entry in observed]
     message: pb.EpisodeStep = _build(pb.EpisodeStep, kwargs)
     return message
 
@@ -111,6 +129,16 @@ def action_from_proto(response: pb.ActResponse) -> Action:
                 goal=m.goal or None,
             )
             for m in response.models
+        ),
+        beliefs=tuple(
+            PartnerBelief(
+                index=b.index,
+                top=tuple((g.goal, g.prob) for g in b.top),
+                entropy=b.entropy,
+                observed_action=b.observed_action if b.HasField("observed_action") else None,
+                updates=b.updates,
+            )
+            for b in response.beliefs
         ),
     )
 

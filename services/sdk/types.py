@@ -6,6 +6,9 @@
 | `Diagnostics`   | task entropy, task weight w_t (eq. 9), partner weights w_i (eq. 10)  |
 | `PartnerWeight` | one partner's weight, by its index in the ego's observation layout   |
 | `ModelUsed`     | a model the answer was computed with (name, version, sha256, role)   |
+| `PartnerBelief` | the belief over an inferred partner's goal: top goals, entropy       |
+| `SessionStep`   | an `Action` of a session step, with the step's index and session id  |
+| `SessionInfo`   | a REST session: next step, beliefs, idle time left, settings         |
 | `EnvInfo`       | an environment the server knows (goals, layout, action meanings)     |
 | `Health`        | liveness and readiness of a server                                   |
 
@@ -66,6 +69,33 @@ class ModelUsed:
 
 
 @dataclass(frozen=True)
+class PartnerBelief:
+    """The belief over an inferred partner's goal after a step (sessions and episodes)."""
+
+    index: int
+    top: tuple[tuple[str, float], ...]  # the most probable goals, highest first
+    entropy: float  # nats (log G when uniform)
+    observed_action: int | None = None  # the action this step's update used
+    updates: int = 0  # actions incorporated so far
+
+    @property
+    def goal(self) -> str:
+        """The most probable goal."""
+        return self.top[0][0]
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> PartnerBelief:
+        action = data.get("observed_action")
+        return cls(
+            index=int(data["index"]),
+            top=tuple((str(g["goal"]), float(g["prob"])) for g in data.get("top", ())),
+            entropy=float(data["entropy"]),
+            observed_action=None if action is None else int(action),
+            updates=int(data.get("updates", 0)),
+        )
+
+
+@dataclass(frozen=True)
 class Action:
     """The server's answer for one observation."""
 
@@ -76,17 +106,58 @@ class Action:
     method: str
     diagnostics: Diagnostics
     models: tuple[ModelUsed, ...] = ()
+    beliefs: tuple[PartnerBelief, ...] = ()  # one per inferred partner (sessions, episodes)
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> Action:
+        return cls(**_action_fields(data))
+
+
+def _action_fields(data: Mapping[str, Any]) -> dict[str, Any]:
+    return {
+        "probs": tuple(float(p) for p in data["probs"]),
+        "action": int(data["action"]),
+        "greedy_action": int(data["greedy_action"]),
+        "action_meaning": str(data.get("action_meaning", "")),
+        "method": str(data["method"]),
+        "diagnostics": Diagnostics.from_json(data["diagnostics"]),
+        "models": tuple(ModelUsed.from_json(m) for m in data.get("models", ())),
+        "beliefs": tuple(PartnerBelief.from_json(b) for b in data.get("beliefs", ())),
+    }
+
+
+@dataclass(frozen=True)
+class SessionStep(Action):
+    """The answer to a REST session step: the action, the beliefs, and which step it was."""
+
+    session_id: str = ""
+    step: int = 0  # 0-based index of this step
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> SessionStep:
         return cls(
-            probs=tuple(float(p) for p in data["probs"]),
-            action=int(data["action"]),
-            greedy_action=int(data["greedy_action"]),
-            action_meaning=str(data.get("action_meaning", "")),
-            method=str(data["method"]),
-            diagnostics=Diagnostics.from_json(data["diagnostics"]),
-            models=tuple(ModelUsed.from_json(m) for m in data.get("models", ())),
+            **_action_fields(data), session_id=str(data["session_id"]), step=int(data["step"])
+        )
+
+
+@dataclass(frozen=True)
+class SessionInfo:
+    """A REST session as `GET /v1/sessions/{id}` describes it."""
+
+    session_id: str
+    step: int  # the index the next step gets
+    expires_in_s: float  # idle time left
+    beliefs: tuple[PartnerBelief, ...] = ()
+    settings: Mapping[str, Any] = field(default_factory=dict)  # the session's settings (JSON)
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> SessionInfo:
+        return cls(
+            session_id=str(data["session_id"]),
+            step=int(data["step"]),
+            expires_in_s=float(data["expires_in_s"]),
+            beliefs=tuple(PartnerBelief.from_json(b) for b in data.get("beliefs", ())),
+            settings=dict(data.get("settings", {})),
         )
 
 

@@ -19,7 +19,7 @@ class State(_message.Message):
     def __init__(self, agents: _Optional[_Iterable[_Union[Vector, _Mapping]]] = ...) -> None: ...
 
 class PartnerSpec(_message.Message):
-    __slots__ = ("index", "goal", "goal_probs")
+    __slots__ = ("index", "goal", "goal_probs", "infer")
     class GoalProbsEntry(_message.Message):
         __slots__ = ("key", "value")
         KEY_FIELD_NUMBER: _ClassVar[int]
@@ -30,10 +30,26 @@ class PartnerSpec(_message.Message):
     INDEX_FIELD_NUMBER: _ClassVar[int]
     GOAL_FIELD_NUMBER: _ClassVar[int]
     GOAL_PROBS_FIELD_NUMBER: _ClassVar[int]
+    INFER_FIELD_NUMBER: _ClassVar[int]
     index: int
     goal: str
     goal_probs: _containers.ScalarMap[str, float]
-    def __init__(self, index: _Optional[int] = ..., goal: _Optional[str] = ..., goal_probs: _Optional[_Mapping[str, float]] = ...) -> None: ...
+    infer: bool
+    def __init__(self, index: _Optional[int] = ..., goal: _Optional[str] = ..., goal_probs: _Optional[_Mapping[str, float]] = ..., infer: _Optional[bool] = ...) -> None: ...
+
+class BeliefSettings(_message.Message):
+    __slots__ = ("forgetting", "floor", "temperature", "blend_mass", "blend_max_goals")
+    FORGETTING_FIELD_NUMBER: _ClassVar[int]
+    FLOOR_FIELD_NUMBER: _ClassVar[int]
+    TEMPERATURE_FIELD_NUMBER: _ClassVar[int]
+    BLEND_MASS_FIELD_NUMBER: _ClassVar[int]
+    BLEND_MAX_GOALS_FIELD_NUMBER: _ClassVar[int]
+    forgetting: float
+    floor: float
+    temperature: float
+    blend_mass: float
+    blend_max_goals: int
+    def __init__(self, forgetting: _Optional[float] = ..., floor: _Optional[float] = ..., temperature: _Optional[float] = ..., blend_mass: _Optional[float] = ..., blend_max_goals: _Optional[int] = ...) -> None: ...
 
 class ActRequest(_message.Message):
     __slots__ = ("env", "ego_goal", "observation", "state", "ego_index", "partners", "method", "temperature", "seed", "alias", "versions")
@@ -102,7 +118,7 @@ class ActBatchRequest(_message.Message):
     def __init__(self, env: _Optional[str] = ..., ego_goal: _Optional[str] = ..., observations: _Optional[_Iterable[_Union[Vector, _Mapping]]] = ..., states: _Optional[_Iterable[_Union[State, _Mapping]]] = ..., ego_index: _Optional[int] = ..., partners: _Optional[_Iterable[_Union[PartnerSpec, _Mapping]]] = ..., method: _Optional[str] = ..., temperature: _Optional[float] = ..., seed: _Optional[int] = ..., alias: _Optional[str] = ..., versions: _Optional[_Mapping[str, int]] = ...) -> None: ...
 
 class EpisodeSettings(_message.Message):
-    __slots__ = ("env", "ego_goal", "partners", "method", "temperature", "seed", "alias", "versions")
+    __slots__ = ("env", "ego_goal", "partners", "method", "temperature", "seed", "alias", "versions", "belief")
     class VersionsEntry(_message.Message):
         __slots__ = ("key", "value")
         KEY_FIELD_NUMBER: _ClassVar[int]
@@ -118,6 +134,7 @@ class EpisodeSettings(_message.Message):
     SEED_FIELD_NUMBER: _ClassVar[int]
     ALIAS_FIELD_NUMBER: _ClassVar[int]
     VERSIONS_FIELD_NUMBER: _ClassVar[int]
+    BELIEF_FIELD_NUMBER: _ClassVar[int]
     env: str
     ego_goal: str
     partners: _containers.RepeatedCompositeFieldContainer[PartnerSpec]
@@ -126,19 +143,30 @@ class EpisodeSettings(_message.Message):
     seed: int
     alias: str
     versions: _containers.ScalarMap[str, int]
-    def __init__(self, env: _Optional[str] = ..., ego_goal: _Optional[str] = ..., partners: _Optional[_Iterable[_Union[PartnerSpec, _Mapping]]] = ..., method: _Optional[str] = ..., temperature: _Optional[float] = ..., seed: _Optional[int] = ..., alias: _Optional[str] = ..., versions: _Optional[_Mapping[str, int]] = ...) -> None: ...
+    belief: BeliefSettings
+    def __init__(self, env: _Optional[str] = ..., ego_goal: _Optional[str] = ..., partners: _Optional[_Iterable[_Union[PartnerSpec, _Mapping]]] = ..., method: _Optional[str] = ..., temperature: _Optional[float] = ..., seed: _Optional[int] = ..., alias: _Optional[str] = ..., versions: _Optional[_Mapping[str, int]] = ..., belief: _Optional[_Union[BeliefSettings, _Mapping]] = ...) -> None: ...
+
+class ObservedAction(_message.Message):
+    __slots__ = ("index", "action")
+    INDEX_FIELD_NUMBER: _ClassVar[int]
+    ACTION_FIELD_NUMBER: _ClassVar[int]
+    index: int
+    action: int
+    def __init__(self, index: _Optional[int] = ..., action: _Optional[int] = ...) -> None: ...
 
 class EpisodeStep(_message.Message):
-    __slots__ = ("settings", "observation", "state", "ego_index")
+    __slots__ = ("settings", "observation", "state", "ego_index", "observed")
     SETTINGS_FIELD_NUMBER: _ClassVar[int]
     OBSERVATION_FIELD_NUMBER: _ClassVar[int]
     STATE_FIELD_NUMBER: _ClassVar[int]
     EGO_INDEX_FIELD_NUMBER: _ClassVar[int]
+    OBSERVED_FIELD_NUMBER: _ClassVar[int]
     settings: EpisodeSettings
     observation: _containers.RepeatedScalarFieldContainer[float]
     state: State
     ego_index: int
-    def __init__(self, settings: _Optional[_Union[EpisodeSettings, _Mapping]] = ..., observation: _Optional[_Iterable[float]] = ..., state: _Optional[_Union[State, _Mapping]] = ..., ego_index: _Optional[int] = ...) -> None: ...
+    observed: _containers.RepeatedCompositeFieldContainer[ObservedAction]
+    def __init__(self, settings: _Optional[_Union[EpisodeSettings, _Mapping]] = ..., observation: _Optional[_Iterable[float]] = ..., state: _Optional[_Union[State, _Mapping]] = ..., ego_index: _Optional[int] = ..., observed: _Optional[_Iterable[_Union[ObservedAction, _Mapping]]] = ...) -> None: ...
 
 class PartnerWeight(_message.Message):
     __slots__ = ("index", "weight")
@@ -174,8 +202,30 @@ class ModelUsed(_message.Message):
     goal: str
     def __init__(self, role: _Optional[str] = ..., name: _Optional[str] = ..., version: _Optional[int] = ..., sha256: _Optional[str] = ..., partner_index: _Optional[int] = ..., goal: _Optional[str] = ...) -> None: ...
 
+class GoalProb(_message.Message):
+    __slots__ = ("goal", "prob")
+    GOAL_FIELD_NUMBER: _ClassVar[int]
+    PROB_FIELD_NUMBER: _ClassVar[int]
+    goal: str
+    prob: float
+    def __init__(self, goal: _Optional[str] = ..., prob: _Optional[float] = ...) -> None: ...
+
+class PartnerBelief(_message.Message):
+    __slots__ = ("index", "top", "entropy", "observed_action", "updates")
+    INDEX_FIELD_NUMBER: _ClassVar[int]
+    TOP_FIELD_NUMBER: _ClassVar[int]
+    ENTROPY_FIELD_NUMBER: _ClassVar[int]
+    OBSERVED_ACTION_FIELD_NUMBER: _ClassVar[int]
+    UPDATES_FIELD_NUMBER: _ClassVar[int]
+    index: int
+    top: _containers.RepeatedCompositeFieldContainer[GoalProb]
+    entropy: float
+    observed_action: int
+    updates: int
+    def __init__(self, index: _Optional[int] = ..., top: _Optional[_Iterable[_Union[GoalProb, _Mapping]]] = ..., entropy: _Optional[float] = ..., observed_action: _Optional[int] = ..., updates: _Optional[int] = ...) -> None: ...
+
 class ActResponse(_message.Message):
-    __slots__ = ("probs", "action", "greedy_action", "action_meaning", "method", "diagnostics", "models")
+    __slots__ = ("probs", "action", "greedy_action", "action_meaning", "method", "diagnostics", "models", "beliefs")
     PROBS_FIELD_NUMBER: _ClassVar[int]
     ACTION_FIELD_NUMBER: _ClassVar[int]
     GREEDY_ACTION_FIELD_NUMBER: _ClassVar[int]
@@ -183,6 +233,7 @@ class ActResponse(_message.Message):
     METHOD_FIELD_NUMBER: _ClassVar[int]
     DIAGNOSTICS_FIELD_NUMBER: _ClassVar[int]
     MODELS_FIELD_NUMBER: _ClassVar[int]
+    BELIEFS_FIELD_NUMBER: _ClassVar[int]
     probs: _containers.RepeatedScalarFieldContainer[float]
     action: int
     greedy_action: int
@@ -190,7 +241,8 @@ class ActResponse(_message.Message):
     method: str
     diagnostics: Diagnostics
     models: _containers.RepeatedCompositeFieldContainer[ModelUsed]
-    def __init__(self, probs: _Optional[_Iterable[float]] = ..., action: _Optional[int] = ..., greedy_action: _Optional[int] = ..., action_meaning: _Optional[str] = ..., method: _Optional[str] = ..., diagnostics: _Optional[_Union[Diagnostics, _Mapping]] = ..., models: _Optional[_Iterable[_Union[ModelUsed, _Mapping]]] = ...) -> None: ...
+    beliefs: _containers.RepeatedCompositeFieldContainer[PartnerBelief]
+    def __init__(self, probs: _Optional[_Iterable[float]] = ..., action: _Optional[int] = ..., greedy_action: _Optional[int] = ..., action_meaning: _Optional[str] = ..., method: _Optional[str] = ..., diagnostics: _Optional[_Union[Diagnostics, _Mapping]] = ..., models: _Optional[_Iterable[_Union[ModelUsed, _Mapping]]] = ..., beliefs: _Optional[_Iterable[_Union[PartnerBelief, _Mapping]]] = ...) -> None: ...
 
 class ActBatchResponse(_message.Message):
     __slots__ = ("results",)

@@ -97,6 +97,16 @@ class PolicyServiceServicer:
         independent draws. Without a seed, actions are sampled from fresh entropy.
         - Models are resolved per step, so an alias moved in the store during an episode takes
         effect at the next step (pin `versions` for a fixed episode).
+        - Goal inference (the REST sessions' step semantics, docs/architecture.md "Sessions"): a
+        partner with `infer` set (or with neither goal nor goal_probs) gets a belief over its
+        goal; a given goal / goal_probs is then the belief's prior. Step t may carry `observed`:
+        the actions a_{t-1} the inferred partners took between the previous step's observation
+        and this one (`action` unset: recovered from the two observations). The beliefs are
+        updated first (each goal's task network as a Boltzmann likelihood, on the PREVIOUS
+        observation), then the step acts with each inferred partner's goal distribution taken from
+        its belief; the response's `beliefs` carry them. `observed` at the first step, or naming a
+        partner that is not inferred, is INVALID_ARGUMENT (field `observed`, `observed[j].index`).
+        New settings keep the belief of a partner inferred before and after.
         - A bad step ends the stream with INVALID_ARGUMENT / NOT_FOUND; the details message starts
         with "step[t]: " followed by the field and the problem.
         - The client ends the episode by closing its side; the server then closes the stream.

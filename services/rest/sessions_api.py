@@ -1,0 +1,185 @@
+"""The session routes: a partner's goal inferred online over REST (issue 9).
+
+| route                              | what                                            | answer |
+|------------------------------------|-------------------------------------------------|--------|
+| `POST /v1/sessions`                | settings checked, beliefs at their priors       | 201    |
+| `POST /v1/sessions/{id}/steps`     | update beliefs with `observed`, act on o_t      | 200    |
+| `GET /v1/sessions/{id}`            | settings, next step, beliefs, expiry            | 200    |
+| `DELETE /v1/sessions/{id}`         | forget the session                              | 204    |
+
+Step semantics are `services.sessions.session`'s. The sessions live in `app.state.sessions` (a
+`SessionStore` the app's lifespan creates over the engine; created on first use with defaults
+when an app did not set one). They are in this process's memory: with `settings.workers` > 1
+(`coexist serve --workers N`) a step could reach a worker that does not hold its session, so
+creating one is refused (501) there; see docs/architecture.md "Sessions". Errors: those of
+`/v1/act` (422 naming the field, 404 model not found, 503) plus 404 `session_not_found`, 409
+`step_conflict`, 429 `too_many_sessions` and 501 `sessions_unavailable`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+import orjson
+from fastapi import APIRouter, Request, Response
+
+from policy.belief import BeliefConfig
+from services.engine import EngineError, InvalidRequest, PartnerSpec, observations_from_states
+from services.rest.act_api import _encoder, _engine, _models
+from services.rest.errors import SESSION_ERROR_RESPONSES
+from services.rest.session_schemas import (
+    SessionBody,
+    SessionOut,
+    SessionStepBody,
+    SessionStepOut,
+)
+from services.sessions import (
+    Observed,
+    PartnerBelief,
+    SessionInfo,
+    SessionPartner,
+    SessionSettings,
+    SessionStore,
+    SessionsUnavailable,
+)
+
+router = APIRouter(prefix="/v1/sessions", tags=["sessions"])
+
+
+def session_store(request: Request) -> SessionStore:
+    """The app's `SessionStore` (made on first use over the app's engine if none was set)."""
+    store: SessionStore | None = getattr(request.app.state, "sessions", None)
+    engine = _engine(request)
+    if store is None or store.engine is not engine:
+        settings = getattr(request.app.state, "settings", None)
+        kwargs = {}
+        if settings is not None:
+            kwargs = {"max_sessions": settings.max_sessions, "ttl_s": settings.session_ttl_s}
+        store = SessionStore(engine, **kwargs)
+        request.app.state.sessions = store
+    return store
+
+
+def _json(body: Any, status_code: int = 200, headers: Mapping[str, str] | None = None) -> Response:
+    return Response(
+        orjson.dumps(body), status_code=status_code, media_type="application/json", headers=headers
+    )
+
+
+def _settings(body: SessionBody) -> SessionSettings:
+    b = body.belief
+    return SessionSettings(
+        env=body.env, ego_goal=body.ego_goal,
+        partners=tuple(SessionPartner(p.index, p.goal, p.goal_probs, p.infer) for p in body.partners),
+        method=body.method, temperature=body.temperature, seed=body.seed, alias=body.alias,
+        versions=body.versions,
+        belief=BeliefConfig(forgetting=b.forgetting, floor=b.floor, temperature=b.temperature),
+        blend_mass=b.blend_mass, blend_max_goals=b.blend_max_goals,
+    )  # fmt: skip
+
+
+def _beliefs(beliefs: tuple[PartnerBelief, ...]) -> list[dict[str, Any]]:
+    return [
+        {
+            "index": b.index,
+            "top": [{"goal": goal, "prob": prob} for goal, prob in b.top],
+            "entropy": b.entropy,
+            "observed_action": b.observed_action,
+            "updates": b.updates,
+        }
+        for b in beliefs
+    ]
+
+
+def _session_json(info: SessionInfo) -> dict[str, Any]:
+    s = info.settings
+    partners = [
+        {"index": p.index, "goal": p.goal,
+         "goal_probs": None if p.goal_probs is None else dict(p.goal_probs), "infer": p.inferred}
+        for p in s.partners
+    ]  # fmt: skip
+    belief = {
+        "forgetting": s.belief.forgetting, "floor": s.belief.floor,
+        "temperature": s.belief.temperature, "blend_mass": s.blend_mass,
+        "blend_max_goals": s.blend_max_goals,
+    }  # fmt: skip
+    return {
+        "session_id": info.session_id,
+        "step": info.step,
+        "expires_in_s": info.expires_in_s,
+        "beliefs": _beliefs(info.beliefs),
+        "settings": {
+            "env": s.env, "ego_goal": s.ego_goal, "partners": partners, "method": s.method,
+            "temperature": s.temperature, "seed": s.seed, "alias": s.alias,
+            "versions": dict(s.versions), "belief": belief,
+        },
+    }  # fmt: skip
+
+
+def _observation(env: str, body: SessionStepBody) -> tuple[np.ndarray | list[float], bool]:
+    """The step's ego observation and whether it came as a state."""
+    if (body.observation is None) == (body.state is None):
+        raise InvalidRequest(
+            "observation", "give exactly one of observation and state (with ego_index)"
+        )
+    if body.state is None:
+        if body.ego_index is not None:
+            raise InvalidRequest("ego_index", "only used with state")
+        return body.observation or [], False
+    if body.ego_index is None:
+        raise InvalidRequest("ego_index", "required with state")
+    return observations_from_states(env, [body.state], body.ego_index, field="state")[0], True
+
+
+@router.post("", status_code=201, response_model=SessionOut, responses=SESSION_ERROR_RESPONSES)
+async def create_session(body: SessionBody, request: Request) -> Response:
+    """A new session; its beliefs start at the partners' priors. Expires when idle."""
+    settings = getattr(request.app.state, "settings", None)
+    if settings is not None and settings.workers > 1:
+        raise SessionsUnavailable(
+            None,
+            f"this server runs {settings.workers} worker processes and a session lives in the "
+            "memory of one: run sessions on a server with one worker (coexist serve --workers "
+            "1, several replicas behind a load balancer routing each session to one), or use "
+            "the gRPC Episode stream, which is a session on one connection",
+        )
+    info = session_store(request).create(_settings(body))
+    location = f"/v1/sessions/{info.session_id}"
+    return _json(_session_json(info), status_code=201, headers={"Location": location})
+
+
+@router.post(
+    "/{session_id}/steps", response_model=SessionStepOut, responses=SESSION_ERROR_RESPONSES
+)
+async def step_session(session_id: str, body: SessionStepBody, request: Request) -> Response:
+    """One step: the partners' actions since the previous step update the beliefs, then the
+    blended action for this observation."""
+    store = session_store(request)
+    settings = store.settings(session_id)
+    observation, from_state = _observation(settings.env, body)
+    observed = [Observed(o.index, o.action) for o in body.observed]
+    try:
+        answer = store.step(session_id, observation, observed, body.expected_step)
+    except EngineError as err:
+        if from_state and err.field == "observation":
+            raise err.renamed("state") from None
+        raise
+    encode = _encoder(settings.env, [PartnerSpec(p.index) for p in settings.partners])
+    out = encode(answer.result, _models(answer.result))
+    out.update(session_id=answer.session_id, step=answer.step, beliefs=_beliefs(answer.beliefs))
+    return _json(out)
+
+
+@router.get("/{session_id}", response_model=SessionOut, responses=SESSION_ERROR_RESPONSES)
+async def get_session(session_id: str, request: Request) -> Response:
+    """The session's settings, next step, beliefs and idle time left (does not extend it)."""
+    return _json(_session_json(session_store(request).get(session_id)))
+
+
+@router.delete("/{session_id}", status_code=204, responses=SESSION_ERROR_RESPONSES)
+async def delete_session(session_id: str, request: Request) -> Response:
+    """Forget the session now (rather than at expiry)."""
+    session_store(request).delete(session_id)
+    return Response(status_code=204)

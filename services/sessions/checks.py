@@ -1,0 +1,187 @@
+"""Checks of a session's settings (once, at creation) and of each step's `observed` entries.
+Every bad input becomes `InvalidRequest(field, message)` in the REST body's naming.
+
+| field                        | rule                                                             |
+|------------------------------|------------------------------------------------------------------|
+| `env`, `ego_goal`, `method`, | as for `/v1/act` (`services.engine.validation`), checked on a    |
+| `temperature`, `seed`,       | stand-in observation of the smallest scene that holds every      |
+| `alias`, `versions`          | partner                                                          |
+| `partners[i].index`          | 1..max_agents-1 of the env, no index twice                       |
+| `partners[i].goal(_probs)`   | at most one of the two; a known goal / a distribution summing to |
+|                              | 1; with `infer` it is the belief's prior                         |
+| `partners[i].infer`          | not with method jl (a joint network needs announced goals)       |
+| `belief.forgetting`, `.floor`,| `policy.belief.BeliefConfig.validate`                           |
+| `.temperature`               |                                                                  |
+| `belief.blend_mass`          | a number in (0, 1]                                               |
+| `belief.blend_max_goals`     | an integer >= 1                                                  |
+| `observed`                   | none at step 0 (there is no previous observation to judge the    |
+|                              | actions on)                                                      |
+| `observed[j].index`          | an inferred partner, at most once per step                       |
+| `observed[j].action`         | None (recover it) or an integer in 0..n_actions-1                |
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from policy.belief import BeliefConfig, initial_log_belief, prior_log_probs
+from services.engine import ActRequest, InvalidRequest, PartnerSpec
+from services.engine.environments import EnvRuntime, env_runtime
+from services.engine.validation import check_request
+from services.sessions.messages import Observed, SessionPartner, SessionSettings
+
+
+@dataclass(frozen=True, eq=False)  # eq=False: arrays
+class CheckedSettings:
+    settings: SessionSettings
+    runtime: EnvRuntime
+    goals: tuple[str, ...]  # the env's goal catalogue: the belief's column order
+    inferred: tuple[int, ...]  # positions in `settings.partners` of the inferred partners
+    log_prior_PG: np.ndarray  # one row per inferred partner
+    initial_PG: np.ndarray  # the prior with the floor applied: the belief before any action
+
+
+def _is_int(value: object) -> bool:
+    return isinstance(value, int | np.integer) and not isinstance(value, bool)
+
+
+def _split_field(err: ValueError, default: str) -> tuple[str, str]:
+    """("belief.floor", "expected ...") from a ValueError written "belief.floor: expected ..."."""
+    text = str(err)
+    head, sep, rest = text.partition(": ")
+    if sep and head and " " not in head:
+        return head, rest
+    return default, text
+
+
+def _check_partner_indices(partners: object, runtime: EnvRuntime) -> tuple[SessionPartner, ...]:
+    if not isinstance(partners, tuple | list):
+        raise InvalidRequest("partners", "expected a list of partners")
+    top = runtime.domain.max_agents - 1
+    seen: set[int] = set()
+    for i, partner in enumerate(partners):
+        if not isinstance(partner, SessionPartner):
+            raise InvalidRequest(f"partners[{i}]", "expected a SessionPartner")
+        index = partner.index
+        if not _is_int(index) or not 1 <= index <= top:
+            expected = f"1..{top}" if top else "none (the env has a single agent)"
+            raise InvalidRequest(
+                f"partners[{i}].index",
+                f"expected an integer in {expected} (env {runtime.domain.name!r} has at most "
+                f"{runtime.domain.max_agents} agents), got {index!r}",
+            )
+        if index in seen:
+            raise InvalidRequest(f"partners[{i}].index", f"partner index {index} given twice")
+        seen.add(int(index))
+        if not isinstance(partner.infer, bool):
+            raise InvalidRequest(
+                f"partners[{i}].infer", f"expected true or false, got {partner.infer!r}"
+            )
+    return tuple(partners)
+
+
+def _dry_act_request(settings: SessionSettings, runtime: EnvRuntime) -> ActRequest:
+    """The act request of a stand-in step: zeros for the smallest scene that holds every
+    partner; an inferred partner without a prior stands in with the catalogue's first goal."""
+    n_agents = max((p.index for p in settings.partners), default=0) + 1
+    specs = tuple(
+        PartnerSpec(
+            p.index,
+            runtime.domain.goals[0] if p.goal is None and p.goal_probs is None else p.goal,
+            p.goal_probs,
+        )
+        for p in settings.partners
+    )
+    return ActRequest(
+        env=settings.env, ego_goal=settings.ego_goal,
+        observations=np.zeros((1, runtime.domain.obs_dim(n_agents))), partners=specs,
+        method=settings.method, temperature=settings.temperature, seed=settings.seed,
+        alias=settings.alias, versions=settings.versions,
+    )  # fmt: skip
+
+
+def _check_blend(settings: SessionSettings) -> None:
+    mass = settings.blend_mass
+    if not isinstance(mass, int | float) or isinstance(mass, bool) or not 0 < mass <= 1:
+        raise InvalidRequest("belief.blend_mass", f"expected a number in (0, 1], got {mass!r}")
+    if not _is_int(settings.blend_max_goals) or settings.blend_max_goals < 1:
+        raise InvalidRequest(
+            "belief.blend_max_goals", f"expected an integer >= 1, got {settings.blend_max_goals!r}"
+        )
+
+
+def check_settings(settings: SessionSettings) -> CheckedSettings:
+    """Check every field (module docstring) and build the inferred partners' priors."""
+    if not isinstance(settings, SessionSettings):
+        raise InvalidRequest(None, f"expected SessionSettings, got {type(settings).__name__}")
+    runtime = env_runtime(settings.env)
+    partners = _check_partner_indices(settings.partners, runtime)
+    inferred = tuple(i for i, p in enumerate(partners) if p.inferred)
+    if settings.method == "jl" and inferred:
+        raise InvalidRequest(
+            f"partners[{inferred[0]}].infer",
+            "method jl needs every partner's announced goal (a joint network exists per goal "
+            "combination); use aail or nail with inferred goals",
+        )
+    check_request(_dry_act_request(settings, runtime), max_batch=1)
+    goals = tuple(runtime.domain.goals)
+    config = settings.belief
+    if not isinstance(config, BeliefConfig):
+        raise InvalidRequest("belief", f"expected a BeliefConfig, got {type(config).__name__}")
+    try:
+        config.validate(len(goals))
+    except ValueError as err:
+        raise InvalidRequest(*_split_field(err, "belief")) from None
+    _check_blend(settings)
+    priors = []
+    for i in inferred:
+        partner = partners[i]
+        try:
+            priors.append(prior_log_probs(goals, partner.goal_probs, announced=partner.goal))
+        except ValueError as err:
+            _, message = _split_field(err, "prior")
+            suffix = "goal" if partner.goal is not None else "goal_probs"
+            raise InvalidRequest(f"partners[{i}].{suffix}", message) from None
+    log_prior_PG = np.asarray(priors, dtype=np.float64).reshape(len(inferred), len(goals))
+    initial_PG = np.asarray(
+        [initial_log_belief(row, config) for row in log_prior_PG], dtype=np.float64
+    ).reshape(log_prior_PG.shape)
+    return CheckedSettings(settings, runtime, goals, inferred, log_prior_PG, initial_PG)
+
+
+def check_observed(
+    observed: object, inferred_indices: Sequence[int], step: int, has_previous: bool, n_actions: int
+) -> tuple[Observed, ...]:
+    """The `observed` entries of step `step`, checked (module docstring)."""
+    if not isinstance(observed, tuple | list):
+        raise InvalidRequest("observed", "expected a list of {index, action} entries")
+    if observed and not has_previous:
+        raise InvalidRequest(
+            "observed",
+            f"step {step} has no previous observation: send the partners' actions from the next "
+            "step on (each the action taken between the previous step's observation and this one)",
+        )
+    seen: set[int] = set()
+    for j, entry in enumerate(observed):
+        if not isinstance(entry, Observed):
+            raise InvalidRequest(f"observed[{j}]", "expected an Observed entry")
+        if not _is_int(entry.index) or entry.index not in inferred_indices:
+            shown = ", ".join(map(str, inferred_indices)) or "none"
+            raise InvalidRequest(
+                f"observed[{j}].index",
+                f"{entry.index!r} is not an inferred partner (inferred partners: {shown}); "
+                "create the session with infer on that partner",
+            )
+        if entry.index in seen:
+            raise InvalidRequest(f"observed[{j}].index", f"partner {entry.index} given twice")
+        seen.add(int(entry.index))
+        action = entry.action
+        if action is not None and (not _is_int(action) or not 0 <= action < n_actions):
+            raise InvalidRequest(
+                f"observed[{j}].action",
+                f"expected an action in 0..{n_actions - 1} (or none: recover it), got {action!r}",
+            )
+    return tuple(observed)

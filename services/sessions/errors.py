@@ -1,0 +1,60 @@
+"""Errors of the session store. They are `EngineError`s (field + message), so the transports'
+existing error mapping carries them; each transport maps them to its status in its one place.
+
+| error                 | meaning                                              | REST | gRPC               |
+|-----------------------|------------------------------------------------------|------|--------------------|
+| `SessionNotFound`     | no such session: expired, deleted, or made elsewhere | 404  | NOT_FOUND          |
+| `SessionLimitReached` | `max_sessions` live sessions (after purging expired) | 429  | RESOURCE_EXHAUSTED |
+| `StepConflict`        | `expected_step` is not the session's next step       | 409  | ABORTED            |
+| `SessionsUnavailable` | this server cannot keep sessions (several workers)   | 501  | UNIMPLEMENTED      |
+
+Bad input to a step (observation length, an `observed` entry, ...) is `InvalidRequest`, as for
+`/v1/act`.
+"""
+
+from __future__ import annotations
+
+from services.engine.errors import EngineError
+
+
+class SessionError(EngineError):
+    """Base class of the session errors."""
+
+    code = "session_error"
+
+
+class SessionNotFound(SessionError, LookupError):
+    code = "session_not_found"
+
+    def __init__(self, session_id: str, reason: str) -> None:
+        super().__init__("session_id", f"session {session_id!r} not found: {reason}")
+        self.session_id = session_id
+
+
+class SessionLimitReached(SessionError):
+    code = "too_many_sessions"
+
+    def __init__(self, limit: int) -> None:
+        super().__init__(
+            None,
+            f"the server holds its maximum of {limit} live sessions; delete finished sessions "
+            "(DELETE /v1/sessions/{id}) or retry after idle ones expire",
+        )
+        self.limit = limit
+
+
+class StepConflict(SessionError):
+    code = "step_conflict"
+
+    def __init__(self, session_id: str, expected: int, actual: int) -> None:
+        super().__init__(
+            "expected_step",
+            f"session {session_id!r} is at step {actual}, not {expected} (another request "
+            "stepped it, or a retry of an answered step)",
+        )
+        self.expected = expected
+        self.actual = actual
+
+
+class SessionsUnavailable(SessionError):
+    code = "sessions_unavailable"

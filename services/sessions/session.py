@@ -1,0 +1,267 @@
+"""`Session`: one session's state and its step, shared by the REST store and the gRPC `Episode`.
+
+    session = Session(engine, SessionSettings("particle", "a2", (SessionPartner(1, infer=True),)))
+    first = session.step(obs_0)                                   # no evidence yet: the prior
+    later = session.step(obs_1, observed=[Observed(1, action=3)])  # a_0 of partner 1, then act
+
+Step semantics. Step t carries the ego's observation o_t and, optionally, the actions a_{t-1}
+the inferred partners took between o_{t-1} and o_t (or `action=None`: recover it from o_{t-1} and
+o_t with the env's `recover_action`). The session first updates each observed partner's belief
+with the Boltzmann likelihood π_g(a_{t-1} | the partner's view of o_{t-1}) of every goal g
+(eq. 2 of the paper, all task networks in one pass: `engine.goal_log_likelihoods` on the STORED
+previous observation), by `policy.belief.update_log_belief` (forgetting toward the prior, floor).
+It then acts on o_t with each inferred partner's goal distribution =
+`policy.belief.blend_goal_probs` of its new belief (the goals covering `blend_mass` of it);
+announced partners as given. A partner not in `observed` keeps its belief. With a seed, step t
+samples with seed + t (the `Episode` rule).
+
+A step is all or nothing: it computes the new belief and the action on copies and commits them
+(belief, previous observation, counters) only when everything succeeded, so a bad step changes
+nothing. Steps are serialised by a per-session lock; `expected_step` turns a stale or repeated
+step into `StepConflict` instead of a second update.
+
+State held: the settings (checked once), one log-belief row (G,) per inferred partner, the
+previous observation, the next step's index and per-partner counters.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from policy.belief import belief_entropy, blend_goal_probs, top_goals, update_log_belief
+from services.engine import (
+    ActRequest,
+    ActResult,
+    EngineError,
+    InferenceEngine,
+    InvalidRequest,
+    PartnerSpec,
+)
+from services.engine.validation import check_observations
+from services.sessions.checks import check_observed, check_settings
+from services.sessions.errors import StepConflict
+from services.sessions.messages import (
+    TOP_GOALS,
+    Observed,
+    PartnerBelief,
+    SessionSettings,
+    SessionStepResult,
+)
+
+
+class Session:
+    """One session: settings, beliefs, previous observation, counters (module docstring)."""
+
+    def __init__(
+        self,
+        engine: InferenceEngine,
+        settings: SessionSettings,
+        session_id: str = "",
+        *,
+        first_step: int = 0,
+        previous_observation: ArrayLike | None = None,
+    ) -> None:
+        self.engine = engine
+        self.session_id = session_id
+        self._lock = threading.Lock()
+        self._checked = check_settings(settings)
+        self._log_belief_PG = self._checked.initial_PG.copy()
+        self._updates = [0] * len(self._checked.inferred)
+        self._last_actions: list[int | None] = [None] * len(self._checked.inferred)
+        self._previous: np.ndarray | None = None  # (1, D) float32
+        if previous_observation is not None:
+            self._previous = self._observation(previous_observation)
+        self._next_step = first_step
+
+    # --- read ------------------------------------------------------------------------------
+    @property
+    def settings(self) -> SessionSettings:
+        return self._checked.settings
+
+    @property
+    def next_step(self) -> int:
+        """The index the next step gets (= the steps taken so far, plus `first_step`)."""
+        return self._next_step
+
+    def snapshot(self) -> tuple[int, tuple[PartnerBelief, ...]]:
+        """The next step's index and each inferred partner's belief, read together."""
+        with self._lock:
+            beliefs = self._beliefs(self._log_belief_PG, self._updates, self._last_actions)
+            return self._next_step, beliefs
+
+    # --- step ------------------------------------------------------------------------------
+    def step(
+        self,
+        observation: object,
+        observed: Sequence[Observed] = (),
+        expected_step: int | None = None,
+    ) -> SessionStepResult:
+        """Update the beliefs with `observed`, then act on `observation` (module docstring)."""
+        with self._lock:
+            t = self._next_step
+            if expected_step is not None:
+                if isinstance(expected_step, bool) or not isinstance(expected_step, int):
+                    raise InvalidRequest(
+                        "expected_step", f"expected an integer, got {expected_step!r}"
+                    )
+                if expected_step != t:
+                    raise StepConflict(self.session_id, expected_step, t)
+            checked = self._checked
+            obs_1D = self._observation(observation)
+            indices = [checked.settings.partners[i].index for i in checked.inferred]
+            n_actions = checked.runtime.domain.n_actions
+            entries = check_observed(observed, indices, t, self._previous is not None, n_actions)
+            log_belief_PG, updates, actions = self._updated(entries, obs_1D, indices)
+            result = self._act(obs_1D, log_belief_PG, t)
+            # everything succeeded: commit
+            self._log_belief_PG, self._updates, self._last_actions = log_belief_PG, updates, actions
+            self._previous = obs_1D
+            self._next_step = t + 1
+            beliefs = self._beliefs(log_belief_PG, updates, actions)
+        return SessionStepResult(self.session_id, t, result, beliefs)
+
+    def replace_settings(self, settings: SessionSettings) -> None:
+        """New settings from the next step on (the `Episode` stream's settings message). A
+        partner inferred before and after, in the same env, keeps its belief and counters (its
+        new prior takes over through the forgetting term); others start from their prior. The
+        step counter and the previous observation are kept (dropped if the env changes)."""
+        checked = check_settings(settings)
+        with self._lock:
+            old = self._checked
+            same_env = old.settings.env == settings.env
+            old_rows = {old.settings.partners[i].index: r for r, i in enumerate(old.inferred)}
+            log_belief_PG = checked.initial_PG.copy()
+            updates = [0] * len(checked.inferred)
+            for r, i in enumerate(checked.inferred):
+                previous_row = old_rows.get(settings.partners[i].index)
+                if same_env and previous_row is not None:
+                    log_belief_PG[r] = self._log_belief_PG[previous_row]
+                    updates[r] = self._updates[previous_row]
+            self._checked, self._log_belief_PG, self._updates = checked, log_belief_PG, updates
+            self._last_actions = [None] * len(checked.inferred)
+            if not same_env:
+                self._previous = None
+
+    # --- helpers ---------------------------------------------------------------------------
+    def _observation(self, observation: object) -> np.ndarray:
+        """The ego's observation as float32 (1, D), checked as /v1/act checks it."""
+        try:
+            obs = np.asarray(observation, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise InvalidRequest("observation", "expected a list of numbers") from None
+        if obs.ndim == 2 and obs.shape[0] == 1:
+            obs = obs[0]
+        if obs.ndim != 1:
+            raise InvalidRequest(
+                "observation", f"expected one row of numbers, got shape {obs.shape}"
+            )
+        try:
+            obs_1D, _ = check_observations(obs[None, :], self._checked.runtime, max_batch=1)
+        except EngineError as err:
+            raise err.renamed("observation") from None
+        return obs_1D
+
+    def _updated(
+        self, entries: Sequence[Observed], obs_1D: np.ndarray, indices: Sequence[int]
+    ) -> tuple[np.ndarray, list[int], list[int | None]]:
+        """The beliefs, update counts and used actions after this step's evidence (copies)."""
+        count = len(indices)
+        actions_used: list[int | None] = [None] * count
+        if not entries:
+            return self._log_belief_PG, self._updates, actions_used
+        assert self._previous is not None  # check_observed refuses entries without one
+        checked, settings = self._checked, self._checked.settings
+        actions = [e.action for e in entries]
+        self._recover(entries, actions, obs_1D)
+        partners = [e.index for e in entries]
+        try:
+            log_lik_EG = self.engine.goal_log_likelihoods(
+                settings.env, self._previous[0], partners, actions,  # type: ignore[arg-type]
+                alias=settings.alias, versions=settings.versions,
+                temperature=settings.belief.temperature,
+            )  # fmt: skip
+        except EngineError as err:  # the engine counts partners in the order given: ours
+            field = err.field or ""
+            if field.startswith("partners["):
+                raise err.renamed("observed[" + field.removeprefix("partners[")) from None
+            raise
+        rows = [indices.index(e.index) for e in entries]
+        log_belief_PG = self._log_belief_PG.copy()
+        log_belief_PG[rows] = update_log_belief(
+            log_belief_PG[rows], log_lik_EG, checked.log_prior_PG[rows], settings.belief
+        )
+        updates = list(self._updates)
+        for row, action in zip(rows, actions, strict=True):
+            updates[row] += 1
+            actions_used[row] = action
+        return log_belief_PG, updates, actions_used
+
+    def _recover(
+        self, entries: Sequence[Observed], actions: list[int | None], obs_1D: np.ndarray
+    ) -> None:
+        """Fill the actions sent as None from the previous and current observations."""
+        missing = [j for j, a in enumerate(actions) if a is None]
+        if not missing:
+            return
+        assert self._previous is not None
+        field = f"observed[{missing[0]}].action"
+        if self._previous.shape != obs_1D.shape:
+            raise InvalidRequest(
+                field,
+                f"cannot recover the action: the observation's length changed from "
+                f"{self._previous.shape[1]} to {obs_1D.shape[1]} since the previous step; send it",
+            )
+        try:
+            recovered = self.engine.recover_partner_actions(
+                self._checked.settings.env, self._previous[0], obs_1D[0],
+                [entries[j].index for j in missing],
+            )  # fmt: skip
+        except InvalidRequest as err:
+            raise err.renamed(field) from None
+        for j, action in zip(missing, recovered, strict=True):
+            actions[j] = int(action)
+
+    def _act(self, obs_1D: np.ndarray, log_belief_PG: np.ndarray, t: int) -> ActResult:
+        checked, settings = self._checked, self._checked.settings
+        rows = {i: r for r, i in enumerate(checked.inferred)}
+        specs = []
+        for i, partner in enumerate(settings.partners):
+            row = rows.get(i)
+            if row is None:
+                specs.append(PartnerSpec(partner.index, partner.goal, partner.goal_probs))
+                continue
+            probs = blend_goal_probs(
+                log_belief_PG[row], checked.goals, settings.blend_mass, settings.blend_max_goals
+            )
+            specs.append(PartnerSpec(partner.index, goal_probs=probs))
+        request = ActRequest(
+            env=settings.env, ego_goal=settings.ego_goal, observations=obs_1D,
+            partners=tuple(specs), method=settings.method, temperature=settings.temperature,
+            seed=None if settings.seed is None else settings.seed + t, alias=settings.alias,
+            versions=settings.versions,
+        )  # fmt: skip
+        try:
+            return self.engine.act(request)[0]
+        except EngineError as err:
+            if err.field is not None and err.field.startswith("observations"):
+                raise err.renamed("observation") from None
+            raise
+
+    def _beliefs(
+        self, log_belief_PG: np.ndarray, updates: Sequence[int], actions: Sequence[int | None]
+    ) -> tuple[PartnerBelief, ...]:
+        checked = self._checked
+        return tuple(
+            PartnerBelief(
+                index=checked.settings.partners[i].index,
+                top=tuple(top_goals(log_belief_PG[r], checked.goals, k=TOP_GOALS)),
+                entropy=float(belief_entropy(log_belief_PG[r])),
+                observed_action=actions[r],
+                updates=updates[r],
+            )
+            for r, i in enumerate(checked.inferred)
+        )

@@ -1,0 +1,82 @@
+"""`coexist serve` as a user runs it: with one worker REST sessions work end to end; with two the
+create is refused (501, saying why) because a session's steps could reach the other worker, while
+the gRPC Episode with an inferred partner still works (one stream stays on one worker)."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import httpx
+import pytest
+from session_zoo import session_zoo_template
+
+from services.sdk import CoexistClient, CoexistError, GrpcCoexistClient
+
+OBS = [0.1, 0.4, 0.0, 0.0, 0.7, 0.6, 0.0, 0.0]
+
+
+def _free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+def _wait_ready(url: str, process: subprocess.Popen[bytes], timeout: float = 60.0) -> None:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        assert process.poll() is None, process.communicate()[0].decode()
+        try:
+            if httpx.get(f"{url}/readyz", timeout=1.0).status_code == 200:
+                return
+        except httpx.TransportError:
+            pass
+        time.sleep(0.2)
+    raise AssertionError("server did not become ready")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("workers", [1, 2])
+def test_sessions_need_one_worker(
+    tmp_path_factory: pytest.TempPathFactory, tmp_path: Path, workers: int
+) -> None:
+    http_port, grpc_port = _free_port(), _free_port()
+    env = {**os.environ, "COEXIST_DEV_MODE": "1", "COEXIST_DATA_DIR": str(tmp_path)}
+    env.pop("COEXIST_WORKERS", None)
+    private = tmp_path / "models.db"  # the server may write (migrations): a private copy
+    shutil.copy(session_zoo_template(tmp_path_factory), private)
+    store_url = f"sqlite:///{private}"
+    cmd = [sys.executable, "-m", "cli.main", "serve", "--no-bootstrap",
+           "--http-port", str(http_port), "--grpc-port", str(grpc_port),
+           "--workers", str(workers), "--store-url", store_url]  # fmt: skip
+    process = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    try:
+        url = f"http://127.0.0.1:{http_port}"
+        _wait_ready(url, process)
+        with CoexistClient(url) as rest, GrpcCoexistClient(f"127.0.0.1:{grpc_port}") as grpc:
+            if workers == 1:
+                with rest.create_session("particle", "a2", partners={1: None}) as session:
+                    session.step(OBS)
+                    assert session.step(OBS, observed={1: 2}).beliefs[0].updates == 1
+            else:
+                with pytest.raises(CoexistError) as err:
+                    rest.create_session("particle", "a2", partners={1: None})
+                assert err.value.code == "unimplemented"
+                assert "2 worker processes" in err.value.message
+            assert rest.act("particle", "a2", OBS).probs  # stateless routes answer anyway
+            with grpc.episode("particle", "a2", partners={1: None}) as episode:
+                episode.act(OBS)
+                assert episode.act(OBS, observed={1: 2}).beliefs[0].updates == 1
+    finally:
+        process.send_signal(signal.SIGTERM)
+        try:
+            process.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait()
