@@ -8,7 +8,8 @@ by the test suite and by Ray.
 |-------------------------------|--------------------|---------------|---------------------------------------------------|
 | `COEXIST_STORE_URL`           | SQLite in data dir | server, CLI   | model store URL (`sqlite:///…`, `postgresql://…`) |
 | `COEXIST_DATA_DIR`            | `.coexist`         | server, CLI   | where the SQLite file (and bootstrap run) lives   |
-| `COEXIST_ADMIN_TOKEN`         | `dev-token`        | server        | bearer token for registry writes (refused at its  |
+| `COEXIST_ADMIN_TOKEN`         | `dev-token`        | server, CLI   | bearer token for registry and job writes (the     |
+|                               |                    |               | `coexist jobs` CLI sends it; refused at its       |
 |                               |                    |               | default unless `DEV_MODE`)                        |
 | `COEXIST_READ_TOKEN`          | unset              | server        | bearer token for reads                            |
 | `COEXIST_REQUIRE_READ_TOKEN`  | false              | server        | reads need a token                                |

@@ -134,7 +134,8 @@ class EventRow(Base):
 
 
 class TrainingJobRow(Base):
-    """A training job of `trainer.jobs` (status: queued|running|succeeded|failed|interrupted)."""
+    """A training job of `trainer.jobs` (status: queued|running|succeeded|failed|interrupted|
+    cancelling|cancelled)."""
 
     __tablename__ = "training_jobs"
 
