@@ -49,6 +49,7 @@ from replica_cluster import (
 )
 
 from services.sdk import GrpcCoexistClient
+from services.sdk.http_sessions import AFFINITY_HEADER
 
 COMPOSE = yaml.safe_load((DOCKER / "compose.yaml").read_text())
 SERVICES: dict[str, Any] = COMPOSE["services"]
@@ -145,7 +146,7 @@ def test_envoy_sends_both_protocols_to_the_replicas() -> None:
     for port, listener in listeners.items():
         manager = listener["filter_chains"][0]["filters"][0]["typed_config"]
         routes = manager["route_config"]["virtual_hosts"][0]["routes"]
-        cluster = clusters[routes[0]["route"]["cluster"]]
+        cluster = clusters[routes[-1]["route"]["cluster"]]  # the catch-all "/"
         endpoint = cluster["load_assignment"]["endpoints"][0]["lb_endpoints"][0]["endpoint"]
         address = endpoint["address"]["socket_address"]
         assert address["address"] == "inference" and cluster["type"] == "STRICT_DNS"
@@ -154,6 +155,22 @@ def test_envoy_sends_both_protocols_to_the_replicas() -> None:
     assert "http2_protocol_options" in str(clusters["inference_grpc"])
     assert clusters["inference_http"]["health_checks"][0]["http_health_check"]["path"] == "/readyz"
     assert "grpc_health_check" in clusters["inference_grpc"]["health_checks"][0]
+
+
+def test_envoy_keeps_a_session_on_one_replica() -> None:
+    envoy = yaml.safe_load((DOCKER / "envoy.yaml").read_text())
+    resources = envoy["static_resources"]
+    [rest] = [lst for lst in resources["listeners"] if lst["name"] == "rest"]
+    manager = rest["filter_chains"][0]["filters"][0]["typed_config"]
+    routes = manager["route_config"]["virtual_hosts"][0]["routes"]
+    assert routes[0]["match"] == {"prefix": "/v1/sessions"}  # before the catch-all "/"
+    route = routes[0]["route"]
+    assert route["hash_policy"] == [{"header": {"header_name": AFFINITY_HEADER.lower()}}]
+    assert route["retry_policy"]["retry_on"] == "connect-failure"  # a step is not idempotent
+    clusters = {c["name"]: c for c in resources["clusters"]}
+    sessions, http = clusters[route["cluster"]], clusters["inference_http"]
+    assert sessions["lb_policy"] == "RING_HASH"
+    assert sessions["load_assignment"]["endpoints"] == http["load_assignment"]["endpoints"]
 
 
 def _service_env(service: str, base: dict[str, str], store_url: str) -> dict[str, str]:
