@@ -18,9 +18,11 @@ Shapes carry suffixes: `obs_BD` is a batch B of observations of size D.
 
 from __future__ import annotations
 
-from typing import Protocol, runtime_checkable
+from typing import Literal, Protocol, runtime_checkable
 
 import numpy as np
+
+BlendNormalisation = Literal["standardise", "none"]
 
 
 @runtime_checkable
@@ -32,6 +34,9 @@ class Domain(Protocol):
     action_meanings: tuple[str, ...]
     max_agents: int
     pair_obs_dim: int
+    # how AAIL's eq. 8 treats the Q-vectors it blends (`policy.blend`): "standardise" each over
+    # the actions first, or "none" (raw Q, for rewards on one scale)
+    blend_normalisation: BlendNormalisation
 
     @property
     def n_actions(self) -> int: ...

@@ -22,11 +22,12 @@ kept in log space, with two changes a deployment needs (`BeliefConfig`):
 | `initial_log_belief`         | the prior with the floor applied                 | like input   |
 | `boltzmann_log_likelihoods`  | log π_g(a_p | s_p) from Q-values (eq. 2)         | (P, G)       |
 | `update_log_belief`          | one step: forget, multiply, normalise, floor     | (P, G)/(G,)  |
+| `PreparedUpdate`             | the same for fixed priors, checked once (faster) | (E, G)       |
 | `evidence_rows`              | which likelihood rows count as evidence          | (P,)/()      |
-| `top_goals`                  | the k most probable goals                        | list         |
-| `belief_entropy`             | entropy in nats                                  | float        |
-| `belief_cross_entropy`       | -log b(g*) for the true goal g*                  | float        |
-| `blend_goal_probs`           | the goals covering `mass` of the belief (blend)  | dict         |
+
+What a belief says (`top_goals`, `belief_entropy`, `belief_summary`, `belief_cross_entropy`, and
+the blend's goal distribution `blend_goal_probs` / `blend_goal_weights`) lives in
+`policy.belief_views` and is re-exported here.
 
 Stability: the likelihood subtracts max Q before dividing by α (so Q ~ 1e4 with α ~ 1e-6 gives
 large finite negatives, never NaN) and normalisation uses logsumexp. A likelihood row that holds
@@ -44,12 +45,23 @@ from dataclasses import dataclass
 import numpy as np
 
 from policy._validate import PROB_SUM_TOL
+from policy.belief_views import (
+    belief_cross_entropy,
+    belief_entropy,
+    belief_summary,
+    blend_goal_probs,
+    blend_goal_weights,
+    top_goals,
+)
 
 __all__ = [
     "BeliefConfig",
+    "PreparedUpdate",
     "belief_cross_entropy",
     "belief_entropy",
+    "belief_summary",
     "blend_goal_probs",
+    "blend_goal_weights",
     "boltzmann_log_likelihoods",
     "evidence_rows",
     "initial_log_belief",
@@ -204,6 +216,8 @@ def boltzmann_log_likelihoods(
         z = q - q.max(axis=2, keepdims=True)
         z /= alpha  # <= 0, the arg-max exactly 0 (a tiny α gives -inf, never NaN)
         log_norm = np.log(np.exp(z).sum(axis=2))  # >= log 1 = 0: the arg-max term is exp(0)
+    if q.shape[0] == 1:  # one partner (the usual case): plain indexing, the same numbers
+        return z[0, :, int(actions[0])][None] - log_norm
     return z[np.arange(q.shape[0]), :, actions] - log_norm  # (P, G): advanced indices first
 
 
@@ -255,81 +269,70 @@ def update_log_belief(
         )
     config.validate(n_goals)
     lam, eps = float(config.forgetting), float(config.floor)
+    return _updated(log_b, lik, _forgetting_pull(log_prior, lam, eps), lam, eps)
+
+
+class PreparedUpdate:
+    """`update_log_belief` for fixed priors and settings (a session's): the arguments are checked
+    and the prior's forgetting term computed once, so a step costs a dozen numpy operations
+    (~10 µs for G = 35 instead of ~30) and gives the same numbers, bit for bit.
+
+        update = PreparedUpdate(log_prior_PG, config)
+        new_EG = update(log_belief_PG[rows], log_lik_EG, rows)  # rows: which partners acted
+    """
+
+    def __init__(self, log_prior_PG: np.ndarray, config: BeliefConfig) -> None:
+        log_prior = _log_array(log_prior_PG, "log_prior_PG")
+        if log_prior.ndim != 2:
+            raise ValueError(f"log_prior_PG: expected shape (P, G), got {log_prior.shape}")
+        config.validate(log_prior.shape[1])
+        self.n_goals = log_prior.shape[1]
+        self.forgetting, self.floor = float(config.forgetting), float(config.floor)
+        self._pull_PG = _forgetting_pull(log_prior, self.forgetting, self.floor)
+
+    def __call__(
+        self, log_belief_EG: np.ndarray, log_lik_EG: np.ndarray, rows: Sequence[int] | None = None
+    ) -> np.ndarray:
+        """`update_log_belief(log_belief_EG, log_lik_EG, log_prior_PG[rows], config)` for
+        float64 arrays of shape (E, G), E = len(rows) (rows None: all P, in order); the shapes
+        are the caller's to check."""
+        pull = self._pull_PG
+        if pull is not None and rows is not None:
+            pull = pull[rows]
+        return _updated(log_belief_EG, log_lik_EG, pull, self.forgetting, self.floor)
+
+
+def _forgetting_pull(log_prior: np.ndarray, lam: float, eps: float) -> np.ndarray | None:
+    """(1 - λ) log prior_ε, the prior's share of an update (None at λ = 1, where
+    (1 - λ) * -inf would be NaN: the term is skipped then)."""
+    if lam >= 1:
+        return None
+    with np.errstate(invalid="ignore"):  # an all -inf prior row gives NaN: no evidence then
+        target = _apply_floor(log_prior - _logsumexp(log_prior), eps, log_prior.shape[-1])
+        return (1.0 - lam) * target
+
+
+def _updated(
+    log_b: np.ndarray, lik: np.ndarray, pull: np.ndarray | None, lam: float, eps: float
+) -> np.ndarray:
+    """The update's arithmetic (`update_log_belief`). When every entry is finite (every row is
+    evidence and normalisable: the usual case) the masks are skipped; the operations, hence the
+    bits, are those of the general path."""
+    n_goals = log_b.shape[-1]
+    if np.isfinite(lik).all():
+        x = lam * log_b + lik
+        if pull is not None:
+            x = x + pull
+        if np.isfinite(x).all():
+            top = x.max(axis=-1, keepdims=True)
+            norm = top + np.log(np.exp(x - top).sum(axis=-1, keepdims=True))
+            return _apply_floor(x - norm, eps, n_goals)
     evidence = evidence_rows(lik)
     with np.errstate(invalid="ignore"):  # NaN and inf in rows that are no evidence
         x = lam * log_b + np.where(evidence[..., None], lik, 0.0)
-        if lam < 1:  # (1 - λ) * -inf would be NaN at λ = 1: skip the term then
-            target = _apply_floor(log_prior - _logsumexp(log_prior), eps, n_goals)
-            x = x + (1.0 - lam) * target
+        if pull is not None:
+            x = x + pull
         norm = _logsumexp(x)
     usable = evidence & np.isfinite(norm[..., 0])  # all -inf: nothing left possible, keep b
     updated = _apply_floor(x - np.where(usable[..., None], norm, 0.0), eps, n_goals)
     return np.where(usable[..., None], updated, log_b)
-
-
-def _belief_vector(log_belief_G: np.ndarray) -> np.ndarray:
-    log_b = np.asarray(log_belief_G, dtype=np.float64)
-    if log_b.ndim != 1 or log_b.size == 0:
-        raise ValueError(f"log_belief_G: expected shape (G,) with G >= 1, got {log_b.shape}")
-    return log_b
-
-
-def top_goals(
-    log_belief_G: np.ndarray, goals: Sequence[str], k: int = 3
-) -> list[tuple[str, float]]:
-    """The k most probable goals with their probabilities, highest first (ties: goal order)."""
-    log_b = _belief_vector(log_belief_G)
-    if len(goals) != log_b.size:
-        raise ValueError(f"goals: expected {log_b.size} goals, got {len(goals)}")
-    if k < 1:
-        raise ValueError(f"k: expected >= 1, got {k}")
-    order = np.argsort(-log_b, kind="stable")[:k]
-    probs = np.exp(log_b[order])
-    return [(goals[g], float(p)) for g, p in zip(order.tolist(), probs.tolist(), strict=True)]
-
-
-def belief_entropy(log_belief_G: np.ndarray) -> float:
-    """Entropy of the belief in nats (0 when certain, log G when uniform)."""
-    log_b = _belief_vector(log_belief_G)
-    b = np.exp(log_b)
-    terms = np.where(b > 0, b * np.where(b > 0, log_b, 0.0), 0.0)  # 0 log 0 = 0
-    return max(0.0, float(-terms.sum()))
-
-
-def belief_cross_entropy(log_belief_G: np.ndarray, true_index: int) -> float:
-    """-log b(g*), in nats, for the true goal's index g* (inf when the belief rules it out)."""
-    log_b = _belief_vector(log_belief_G)
-    if isinstance(true_index, bool) or not 0 <= true_index < log_b.size:
-        raise ValueError(f"true_index: expected 0..{log_b.size - 1}, got {true_index!r}")
-    return float(-log_b[true_index])
-
-
-def blend_goal_probs(
-    log_belief_G: np.ndarray, goals: Sequence[str], mass: float = 0.99, max_goals: int = 8
-) -> dict[str, float]:
-    """The most probable goals, highest first, until they cover `mass` of the belief (at most
-    `max_goals`), renormalised to sum to 1: the goal distribution the act pass blends impact
-    networks by. An approximation by design: with a floor every goal has probability >= ε, and
-    mixing all G impact networks on every step would cost G forwards for a few percent of mass."""
-    log_b = _belief_vector(log_belief_G)
-    if len(goals) != log_b.size:
-        raise ValueError(f"goals: expected {log_b.size} goals, got {len(goals)}")
-    if not _is_real(mass) or not 0 < mass <= 1:
-        raise ValueError(f"mass: expected a number in (0, 1], got {mass!r}")
-    if isinstance(max_goals, bool) or not isinstance(max_goals, int) or max_goals < 1:
-        raise ValueError(f"max_goals: expected an integer >= 1, got {max_goals!r}")
-    order = np.argsort(-log_b, kind="stable")[:max_goals].tolist()
-    probs = np.exp(log_b[order]).tolist()
-    kept: list[tuple[int, float]] = []
-    covered = 0.0
-    for g, p in zip(order, probs, strict=True):
-        if p <= 0:
-            break
-        kept.append((g, p))
-        covered += p
-        if covered >= mass * (1 - 1e-12):  # rounding must not add a goal for 1e-16 of mass
-            break
-    if not kept:
-        raise ValueError("log_belief_G: every goal has probability 0")
-    total = math.fsum(p for _, p in kept)
-    return {goals[g]: p / total for g, p in kept}

@@ -27,6 +27,12 @@ Methods (`METHODS`):
   typical scale of its inputs so that α means the same as for the networks themselves.
   A row with no active partner uses w_t = 1 (there is no compound interaction policy to blend
   in), so Q_C = Q_t - mean_A Q_t and the policy equals SL's.
+  `normalise=False` blends the raw Q-vectors instead, Q_C = w_t Q_t + (1 - w_t) Σ_i ŵ_i Q_i
+  (eq. 8 as written, the same weights): for environments whose task and impact rewards share one
+  scale. Standardising blows a nearly flat impact Q-vector (no real preference) up to unit
+  spread, so it can outvote a clear task preference; in the cooking kitchen that froze AAIL
+  cooks in no-op loops (reports/cooking/README.md), so that environment declares raw blending
+  (`Domain.blend_normalisation`).
 
 `mix_goal_beliefs` turns partner goals given as a probability distribution (paper §3.2, last
 paragraph) into one impact Q-vector per partner: the expectation of the per-goal impact Q-vectors
@@ -138,6 +144,7 @@ def _aail(
     mask: np.ndarray,
     alpha_B1: np.ndarray,
     pi_task: np.ndarray,
+    normalise: bool = True,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Blended Q, task weight and normalised partner weights of eqs. 8-10 (`pi_task` comes
     from the caller, which needs it anyway)."""
@@ -149,10 +156,13 @@ def _aail(
     total = w_partner.sum(axis=1, keepdims=True)
     equal_share = mask / np.maximum(n_active_B, 1)[:, None]
     w_hat = np.where(total > 0, w_partner / np.where(total > 0, total, 1.0), equal_share)
+    w_t = w_task[:, None]
+    if not normalise:  # eq. 8 on the raw Q-vectors (masked slots are zero)
+        q_raw = w_t * q_task + (1.0 - w_t) * np.einsum("bp,bpa->ba", w_hat, q_impact)
+        return q_raw, w_task, w_hat
 
     z_task, s_task = standardise(q_task)
     z_impact, s_impact = standardise(q_impact)
-    w_t = w_task[:, None]
     # eq. 8 on the standardised preferences, then the same weights on the scales
     z_blend = w_t * z_task + (1.0 - w_t) * np.einsum("bp,bpa->ba", w_hat, z_impact)
     s_blend = w_task * s_task + (1.0 - w_task) * (w_hat * s_impact).sum(axis=1)
@@ -165,8 +175,11 @@ def blend(
     q_impact_BPA: ArrayLike,
     alpha: ArrayLike,
     partner_mask_BP: ArrayLike | None = None,
+    *,
+    normalise: bool = True,
 ) -> BlendResult:
-    """Blend the task and impact Q-vectors of each row with `method` ("sl", "nail", "aail")."""
+    """Blend the task and impact Q-vectors of each row with `method` ("sl", "nail", "aail");
+    `normalise=False`: AAIL's eq. 8 on the raw Q-vectors (module docstring)."""
     q_task, q_impact, mask, alpha_B1 = _checked(
         method, q_task_BA, q_impact_BPA, alpha, partner_mask_BP
     )
@@ -174,8 +187,9 @@ def blend(
         rows = zip(
             q_task.tolist(), q_impact.tolist(), alpha_B1[:, 0].tolist(), mask.tolist(), strict=True
         )
-        return _as_arrays([blend_row(method, *row) for row in rows], q_impact.shape[1])
-    return _vectorised(method, q_task, q_impact, mask, alpha_B1)
+        blended = [blend_row(method, *row, normalise=normalise) for row in rows]
+        return _as_arrays(blended, q_impact.shape[1])
+    return _vectorised(method, q_task, q_impact, mask, alpha_B1, normalise)
 
 
 def _rows_are_faster(method: BlendMethod, shape_BPA: tuple[int, ...]) -> bool:
@@ -193,10 +207,12 @@ def blend_vectorised(
     q_impact_BPA: ArrayLike,
     alpha: ArrayLike,
     partner_mask_BP: ArrayLike | None = None,
+    *,
+    normalise: bool = True,
 ) -> BlendResult:
     """`blend` on the vectorised numpy path whatever the size (the reference for the fast path)."""
     checked = _checked(method, q_task_BA, q_impact_BPA, alpha, partner_mask_BP)
-    return _vectorised(method, *checked)
+    return _vectorised(method, *checked, normalise)
 
 
 def _checked(
@@ -230,6 +246,7 @@ def _vectorised(
     q_impact: np.ndarray,
     mask: np.ndarray,
     alpha_B1: np.ndarray,
+    normalise: bool = True,
 ) -> BlendResult:
     n_active_B = mask.sum(axis=1)
     pi_task = boltzmann(q_task, alpha_B1[:, 0])
@@ -244,7 +261,7 @@ def _vectorised(
         w_task = 1.0 / (1.0 + n_active_B)
         w_partner = mask / np.maximum(n_active_B, 1)[:, None]
     else:
-        q, w_task, w_partner = _aail(q_task, q_impact, mask, alpha_B1, pi_task)
+        q, w_task, w_partner = _aail(q_task, q_impact, mask, alpha_B1, pi_task, normalise)
 
     return BlendResult(
         q_BA=q,

@@ -181,6 +181,7 @@ def blend_row(
     q_impact_PA: Sequence[Vector],
     alpha: float,
     mask_P: Sequence[bool] | None = None,
+    normalise: bool = True,
 ) -> RowBlend:
     """`policy.blend.blend` of one row, on trusted inputs (module docstring)."""
     alpha = float(alpha)  # a numpy float32 would turn the Python floats below into float32
@@ -211,7 +212,7 @@ def blend_row(
     w_eq9 = 1.0 - power / n_act if n_act > 1 else 1.0
     impact_pis = [_renormalised(p, vsum) for p in policies[1:]]
     jsd = _js_distances(p_once, impact_pis, vsum) if impact_pis else []
-    return _aail(q_task_A, q_impact_PA, alpha, mask, jsd, entropy, w_eq9, vsum)
+    return _aail(q_task_A, q_impact_PA, alpha, mask, jsd, entropy, w_eq9, vsum, normalise)
 
 
 def _nail(
@@ -247,6 +248,7 @@ def _aail(
     entropy: float,
     w_eq9: float,
     vsum: Summer,
+    normalise: bool = True,
 ) -> RowBlend:
     """eqs. 8-10 given the JS distances of the active partners and the eq. 9 weight."""
     n_active = len(jsd)
@@ -258,6 +260,8 @@ def _aail(
     else:  # every impact policy equals the task policy: equal shares
         w_hat = [1.0 / max(n_active, 1) if on else 0.0 for on in mask]
     w_t = w_eq9 if n_active > 0 else 1.0  # no partner: the task alone
+    if not normalise:  # eq. 8 on the raw Q-vectors
+        return _aail_raw(q_task_A, q_impact_PA, alpha, mask, entropy, w_t, w_hat, vsum)
 
     z_task, s_task = _standardise(q_task_A, vsum)
     z_active, w_active = [], []
@@ -275,5 +279,26 @@ def _aail(
     z_blend = [w_t * zt + (1.0 - w_t) * zm for zt, zm in zip(z_task, mixed_z, strict=False)]
     s_blend = w_t * s_task + (1.0 - w_t) * np_sum(list(map(mul, w_hat, scales)))
     q_blend = [s_blend * z for z in z_blend]
+    [probs] = _boltzmann([q_blend], alpha, vsum)
+    return RowBlend(q_blend, probs, entropy, w_t, w_hat)
+
+
+def _aail_raw(
+    q_task_A: Vector,
+    q_impact_PA: Sequence[Vector],
+    alpha: float,
+    mask: list[bool],
+    entropy: float,
+    w_t: float,
+    w_hat: list[float],
+    vsum: Summer,
+) -> RowBlend:
+    """eq. 8 without normalisation: Q_C = w_t Q_t + (1 - w_t) Σ_i ŵ_i Q_i."""
+    active = [(q, w) for q, w, on in zip(q_impact_PA, w_hat, mask, strict=True) if on]
+    # Σ_i ŵ_i Q_i one action at a time, partners in order (numpy's einsum order)
+    mixed = [_sequential_sum(w * q[a] for q, w in active) for a in range(len(q_task_A))]
+    if not active:
+        mixed = [0.0] * len(q_task_A)
+    q_blend = [w_t * qt + (1.0 - w_t) * qm for qt, qm in zip(q_task_A, mixed, strict=True)]
     [probs] = _boltzmann([q_blend], alpha, vsum)
     return RowBlend(q_blend, probs, entropy, w_t, w_hat)

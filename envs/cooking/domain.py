@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from envs.base import BlendNormalisation
 from envs.cooking.layouts import MAX_AGENTS
 from envs.cooking.observation import AGENT_DIM, feature_names, obs_dim, select_agents
 from envs.cooking.recipes import RECIPE_NAMES
@@ -39,6 +40,9 @@ class CookingDomain:
     action_meanings: tuple[str, ...] = ACTION_MEANINGS
     max_agents = MAX_AGENTS
     pair_obs_dim = obs_dim(2)
+    # eq. 8 on the raw Q-vectors: task and impact Q are returns of the same dish rewards, and
+    # standardising a nearly flat impact Q let it outvote the task (reports/cooking/README.md)
+    blend_normalisation: BlendNormalisation = "none"
 
     @property
     def n_actions(self) -> int:

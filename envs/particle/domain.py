@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from envs.base import BlendNormalisation
 from envs.particle.batched import MAX_AGENTS
 from envs.particle.goals import GOAL_IDS
 from envs.particle.world import ACTION_MEANINGS, N_ACTIONS, STATE_DIM, step_state
@@ -52,6 +53,8 @@ class ParticleDomain:
     action_meanings: tuple[str, ...] = ACTION_MEANINGS
     max_agents = MAX_AGENTS
     pair_obs_dim = 2 * STATE_DIM
+    # AAIL standardises each Q-vector before eq. 8 (policy.blend): the paper's evaluation here
+    blend_normalisation: BlendNormalisation = "standardise"
 
     @property
     def n_actions(self) -> int:

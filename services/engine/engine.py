@@ -20,11 +20,13 @@ One engine per server process, shared by the REST and gRPC transports.
 A single observation row with sl, nail or aail takes `fastpath.act_row` after the stack step:
 the same steps with few numpy calls and Python floats (3-4x faster at batch 1; numbers
 equal up to float32 rounding). The networks a request shape needs (`_plan_members`) are
-remembered; resolution and stacking go through `model_cache` on every request, so hot reload,
-LRU order and the cache counters are those of the general path.
+remembered; resolution and stacking go through `model_cache` on every request (a remembered
+plan as one fixed set: `ModelCache.resolve_group`), so hot reload, the stacks' LRU order and the
+cache counters are those of the general path.
 
 Choices the paper leaves open: the temperature is the request's, else the task (jl: joint)
-model's training α (`lineage.config["alpha"]`), else 0.02. For jl the "task" diagnostics describe
+model's training α (`lineage.config["alpha"]`), else 0.02. Whether AAIL standardises the
+Q-vectors before eq. 8 is the environment's `Domain.blend_normalisation` (`policy.blend`). For jl the "task" diagnostics describe
 the joint policy (`task_weight` 1, partner weights 0); jl needs each partner's announced goal.
 Partners given with `sl` are checked but load no network.
 
@@ -42,7 +44,6 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from envs.registry import known_envs
-from model_store.entities import ModelVersion
 from model_store.errors import InvalidArgument, ModelStoreError
 from model_store.naming import joint_model_name
 from model_store.store import ModelStore
@@ -62,7 +63,7 @@ from services.engine.messages import (
     Member,
 )
 from services.engine.model_cache import ModelCache
-from services.engine.networks import forward_group
+from services.engine.networks import StackedGroup, forward_group
 from services.engine.validation import CheckedRequest, check_request
 
 log = logging.getLogger(__name__)
@@ -105,8 +106,15 @@ class InferenceEngine:
     # --- act -------------------------------------------------------------------------------
     def act(self, request: ActRequest) -> list[ActResult]:
         """One result per observation row; `EngineError` on bad input or missing models."""
+        return self.act_checked(request, None)
+
+    def act_checked(self, request: ActRequest, checked: CheckedRequest | None) -> list[ActResult]:
+        """`act`, given what `check_request(request)` would return (None: check it here).
+        Internal, for a caller that checked the request's parts itself and builds `checked`
+        from them (a session: settings once, the observation and its belief's distribution on
+        each step); `request.observations` and `request.partners` are then not read."""
         try:
-            results = self._act(request)
+            results = self._act(request, checked)
         except EngineError:
             self.stats.errors += 1
             raise
@@ -114,11 +122,11 @@ class InferenceEngine:
         self.stats.rows += len(results)
         return results
 
-    def _act(self, request: ActRequest) -> list[ActResult]:
-        checked = check_request(request, self.max_batch)
+    def _act(self, request: ActRequest, checked: CheckedRequest | None) -> list[ActResult]:
+        if checked is None:
+            checked = check_request(request, self.max_batch)
         domain, method = checked.runtime.domain, request.method
-        members, versions = self._resolve_members(request, checked)
-        group = self.cache.group(versions, members, domain)
+        members, group = self._resolve_members(request, checked)
         batch, n_actions = checked.obs_BD.shape[0], domain.n_actions
         if batch == 1 and method != "jl":
             results = act_row(checked, request, members, group, self._rng)
@@ -138,7 +146,8 @@ class InferenceEngine:
         if not (np.isfinite(q_task_BA).all() and np.isfinite(q_impact_BPA).all()):
             raise InvalidRequest("observations", "values so large that the Q-values overflow")
         temperature = request.temperature or group.nets[0].alpha or DEFAULT_TEMPERATURE
-        blended = blend(blend_method, q_task_BA, q_impact_BPA, temperature)
+        normalise = checked.runtime.domain.blend_normalisation == "standardise"
+        blended = blend(blend_method, q_task_BA, q_impact_BPA, temperature, normalise=normalise)
         partner_weights_BP = blended.partner_weights_BP
         if blend_method == "sl":  # no impact network was evaluated: every partner weighs 0
             partner_weights_BP = np.zeros((batch, len(checked.partners)))
@@ -158,9 +167,10 @@ class InferenceEngine:
 
     def _resolve_members(
         self, request: ActRequest, checked: CheckedRequest
-    ) -> tuple[tuple[Member, ...], list[ModelVersion]]:
-        """The networks the request needs (`_plan_members`) and their versions, resolved in
-        order (so the first missing one is the one reported)."""
+    ) -> tuple[tuple[Member, ...], StackedGroup]:
+        """The networks the request needs (`_plan_members`) and their stacked group, resolved in
+        order (so the first missing one is the one reported). A cached plan is the same tuple
+        each time, so the cache resolves it as one fixed set (`ModelCache.resolve_group`)."""
         key = (
             checked.runtime.domain.name,
             request.method,
@@ -174,7 +184,10 @@ class InferenceEngine:
                 self._member_plans.clear()
             self._member_plans[key] = plan
         members, needs = plan
-        return members, self.cache.resolve_all(needs, request.alias, request.versions)
+        _, group = self.cache.resolve_group(
+            needs, request.alias, request.versions, members, checked.runtime.domain
+        )
+        return members, group
 
     # --- goal inference (issue 9; `goal_inference`) -----------------------------------------
     def goal_log_likelihoods(

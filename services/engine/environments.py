@@ -39,6 +39,8 @@ class StateAdapter:
     observations: Callable[[np.ndarray], np.ndarray]  # (B, N, S) -> (B, N, D) every agent's view
 
 
+# No "cooking" adapter: a kitchen's state is not one row per agent (objects, plates, who holds
+# what, the layout), so cooking clients send observations (`envs.cooking.observation`).
 STATE_ADAPTERS: dict[str, StateAdapter] = {
     "particle": StateAdapter(("x", "y", "vx", "vy"), particle_world.observations),
 }
@@ -113,7 +115,11 @@ def observations_from_states(
     runtime = env_runtime(env)
     adapter = STATE_ADAPTERS.get(runtime.domain.name)
     if adapter is None:
-        raise InvalidRequest(field, f"env {env!r} takes observations only, not global states")
+        raise InvalidRequest(
+            field,
+            f"env {env!r} takes observations only, not global states (its state is not one row "
+            "per agent): send observation / observations (layout: GET /v1/envs)",
+        )
     try:
         states_BNS = np.asarray(states, dtype=np.float64)
     except (TypeError, ValueError):

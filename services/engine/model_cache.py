@@ -6,6 +6,7 @@
 | pinned       | (name, version)              | `ModelVersion`         | 4096                    |
 | nets         | (name, version)              | `LoadedNet`            | `cache_size`            |
 | stacks       | ((name, version), ...)       | `StackedGroup`         | `stack_cache_size`      |
+| fixed sets   | (id of a needs tuple, alias) | versions + stack key   | 1024, void after reload |
 
 Versions are immutable, so only `name@alias` resolutions can go stale. `refresh()` reads the
 store's change token *first* (a change made while it runs shows up next time); when the token
@@ -14,6 +15,16 @@ is the new resolution table swapped in by one assignment. A request that missed 
 refresh ran writes its entry only if the table it read is still current, so a stale version can
 never land in the new table. Requests in flight keep the objects they hold. Locks guard dict
 operations only, never a load or a forward.
+
+Fixed sets (`resolve_group`): a caller that asks again and again for the same tuple of names (the
+engine's cached request plans; goal inference's task network of every goal, 35 in the particle
+world) gets the versions and the stacked group in one look-up instead of one per name (~2 µs
+instead of ~15 for 36 names). An entry remembers the resolution table it was read from and counts
+only while that table is current, so a reload (which always swaps the table when the store's
+change token moved) invalidates every fixed set at once: hot reload works as for single names.
+An entry holds no group, only its stack key: the group comes from the stack LRU, whose bound and
+order stay as they were. Counters are the per-name path's; the resolutions' LRU order is not
+refreshed by a fixed-set hit.
 """
 
 from __future__ import annotations
@@ -21,6 +32,7 @@ from __future__ import annotations
 import logging
 import threading
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from typing import cast
 
 from envs.base import Domain
@@ -34,6 +46,18 @@ from services.engine.networks import LoadedNet, LruCache, StackedGroup, build_gr
 log = logging.getLogger(__name__)
 
 MAX_RESOLUTIONS = 4096
+MAX_FIXED_SETS = 1024  # fixed name tuples remembered (the table is cleared when full)
+
+Needs = tuple[tuple[str, str, str], ...]  # (model name, field to blame, why it is needed)
+
+
+@dataclass(frozen=True, eq=False)
+class _FixedSet:
+    needs: Needs  # held so that its id, the key, is not reused while the entry lives
+    members: Sequence[Member]
+    table: object  # the resolution table the versions were read from
+    versions: list[ModelVersion]
+    stack_key: tuple[tuple[str, int], ...]
 
 
 class ModelCache:
@@ -50,6 +74,7 @@ class ModelCache:
         )
         self._resolved: LruCache[tuple[str, str], ModelVersion] = LruCache(MAX_RESOLUTIONS)
         self._pinned: LruCache[tuple[str, int], ModelVersion] = LruCache(MAX_RESOLUTIONS)
+        self._fixed: dict[tuple[int, str], _FixedSet] = {}
         self._swap_lock = threading.Lock()
         self._refresh_lock = threading.Lock()
         self.last_token: str | None = None
@@ -95,6 +120,46 @@ class ModelCache:
                 return cast(list[ModelVersion], found)  # no None in it
         return [self.resolve(name, alias, pinned, field, why) for name, field, why in needs]
 
+    def resolve_group(
+        self,
+        needs: Needs,
+        alias: str,
+        pinned: Mapping[str, int],
+        members: Sequence[Member],
+        domain: Domain,
+    ) -> tuple[list[ModelVersion], StackedGroup]:
+        """`resolve_all(needs, ...)` then `group(...)` of the versions, in one look-up when the
+        same `needs` tuple (the same object) came with `alias` before and no reload happened
+        since (module docstring, "fixed sets"). Pinned versions take the per-name path. The
+        versions list is shared between calls: read it, never change it."""
+        if pinned:
+            versions = self.resolve_all(needs, alias, pinned)
+            return versions, self.group(versions, members, domain)
+        key = (id(needs), alias)
+        entry = self._fixed.get(key)
+        if (
+            entry is not None
+            and entry.needs is needs
+            and entry.members is members
+            and entry.table is self._resolved
+        ):
+            self.stats.resolve_hits += len(needs)
+            group = self._stacks.get(entry.stack_key)
+            if group is None:  # evicted by other groups: stack it again
+                return entry.versions, self.group(
+                    entry.versions, members, domain, key=entry.stack_key
+                )
+            self.stats.stack_hits += 1
+            return entry.versions, group
+        table = self._resolved  # read before resolving: a swap meanwhile voids the entry
+        versions = self.resolve_all(needs, alias, pinned)
+        stack_key = tuple((v.name, v.version) for v in versions)
+        group = self.group(versions, members, domain, key=stack_key)
+        if len(self._fixed) >= MAX_FIXED_SETS:
+            self._fixed.clear()
+        self._fixed[key] = _FixedSet(needs, members, table, versions, stack_key)
+        return versions, group
+
     def _from_store(self, name: str, ref: str, field: str, why: str) -> ModelVersion:
         try:
             return self.store.resolve(ref)
@@ -121,10 +186,17 @@ class ModelCache:
         return net
 
     def group(
-        self, versions: Sequence[ModelVersion], members: Sequence[Member], domain: Domain
+        self,
+        versions: Sequence[ModelVersion],
+        members: Sequence[Member],
+        domain: Domain,
+        *,
+        key: tuple[tuple[str, int], ...] | None = None,
     ) -> StackedGroup:
-        """The stacked group of `versions` (cached by their (name, version) tuple)."""
-        key = tuple((v.name, v.version) for v in versions)
+        """The stacked group of `versions` (cached by their (name, version) tuple, `key` if
+        the caller has it already)."""
+        if key is None:
+            key = tuple((v.name, v.version) for v in versions)
         group = self._stacks.get(key)
         if group is not None:
             self.stats.stack_hits += 1

@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
@@ -107,6 +108,9 @@ def _check_goal_probs(
     """The goals with probability > 0 and their probabilities (renormalised to sum to 1)."""
     if not isinstance(probs, Mapping) or not probs:
         raise InvalidRequest(field, "expected a non-empty mapping of goal to probability")
+    checked = _clean_goal_probs(probs, runtime)
+    if checked is not None:
+        return checked
     goals, values = [], []
     for goal, p in probs.items():
         if not _known_goal(goal, runtime):
@@ -117,7 +121,10 @@ def _check_goal_probs(
             )
         goals.append(goal)
         values.append(float(p))
-    total = math.fsum(values)
+    try:
+        total = math.fsum(values)
+    except OverflowError:  # finite values whose sum is beyond float range: far from 1
+        total = math.inf
     if abs(total - 1.0) > PROB_SUM_TOL:
         raise InvalidRequest(
             field, f"probabilities sum to {total:.9g}, expected 1 (±{PROB_SUM_TOL:g})"
@@ -125,6 +132,35 @@ def _check_goal_probs(
     # renormalised exactly, so that a sum just inside the tolerance stays inside it downstream
     kept = [(g, p / total) for g, p in zip(goals, values, strict=True) if p > 0]
     return tuple(g for g, _ in kept), tuple(p for _, p in kept)
+
+
+def _clean_goal_probs(
+    probs: Mapping[object, object], runtime: EnvRuntime
+) -> tuple[tuple[str, ...], tuple[float, ...]] | None:
+    """`_check_goal_probs`' answer for the usual mapping (known goals, float probabilities,
+    all > 0, a finite sum within the tolerance) with a few whole-collection checks instead of
+    one Python step per goal (a 35-goal belief: ~4.5 µs instead of ~10); None for anything else,
+    which the per-goal loop then checks and names. The same numbers: a sum by `math.fsum` and a
+    division by it."""
+    values = cast(list[float], list(probs.values()))  # checked on the next line
+    if not all(type(p) is float for p in values) or not runtime.goals.issuperset(probs):
+        return None
+    try:
+        total = math.fsum(values)
+    except (OverflowError, ValueError):  # inf - inf, or an overflow: not a distribution
+        return None
+    if not (min(values) > 0 and abs(total - 1.0) <= PROB_SUM_TOL):  # NaN fails both ways
+        return None
+    goals = cast(tuple[str, ...], tuple(probs))  # known goals: strings
+    return goals, tuple([p / total for p in values])
+
+
+def check_partner_index(index: int, n_agents: int, field: str) -> None:
+    """A partner index must be one of the observation's other agents: 1..n_agents-1."""
+    if not 1 <= index <= n_agents - 1:
+        holds = f"the observation holds {n_agents} agent(s)"
+        expected = f"1..{n_agents - 1}" if n_agents > 1 else "no partner index (only the ego)"
+        raise InvalidRequest(field, f"{index} out of range: {holds}, expected {expected}")
 
 
 def check_partners(
@@ -140,12 +176,7 @@ def check_partners(
         index = partner.index
         if not _is_int(index):
             raise InvalidRequest(f"partners[{i}].index", f"expected an integer, got {index!r}")
-        if not 1 <= index <= n_agents - 1:
-            holds = f"the observation holds {n_agents} agent(s)"
-            expected = f"1..{n_agents - 1}" if n_agents > 1 else "no partner index (only the ego)"
-            raise InvalidRequest(
-                f"partners[{i}].index", f"{index} out of range: {holds}, expected {expected}"
-            )
+        check_partner_index(index, n_agents, f"partners[{i}].index")
         if index in seen:
             raise InvalidRequest(f"partners[{i}].index", f"partner index {index} given twice")
         seen.add(int(index))

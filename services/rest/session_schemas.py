@@ -47,9 +47,17 @@ class BeliefIn(BaseModel):
         description="α of the partners' Boltzmann policies (default: each task model's training α)",
     )
     blend_mass: float = Field(
-        default=0.99, description="the belief mass whose goals the blend mixes, in (0, 1]"
+        default=1.0,
+        description="the blend mixes the impact networks of the most probable goals covering "
+        "this mass of the belief, in (0, 1]; 1 (default): every goal, the exact expected impact "
+        "Q, with the same networks at every step. Below 1 the set of goals changes as the "
+        "belief moves, and each new set costs the server a new stacked group of networks",
     )
-    blend_max_goals: int = Field(default=8, description="at most this many goals in the blend")
+    blend_max_goals: int | None = Field(
+        default=None,
+        description="at most this many goals in the blend (null, default: no bound); a bound "
+        "below the number of goals has blend_mass's cost: a new stacked group per new set",
+    )
 
 
 class SessionBody(BaseModel):

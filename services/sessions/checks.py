@@ -13,7 +13,7 @@ Every bad input becomes `InvalidRequest(field, message)` in the REST body's nami
 | `belief.forgetting`, `.floor`,| `policy.belief.BeliefConfig.validate`                           |
 | `.temperature`               |                                                                  |
 | `belief.blend_mass`          | a number in (0, 1]                                               |
-| `belief.blend_max_goals`     | an integer >= 1                                                  |
+| `belief.blend_max_goals`     | null (no bound) or an integer >= 1                               |
 | `observed`                   | none at step 0 (there is no previous observation to judge the    |
 |                              | actions on)                                                      |
 | `observed[j].index`          | an inferred partner, at most once per step                       |
@@ -27,10 +27,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from policy.belief import BeliefConfig, initial_log_belief, prior_log_probs
+from policy.belief import BeliefConfig, PreparedUpdate, initial_log_belief, prior_log_probs
 from services.engine import ActRequest, InvalidRequest, PartnerSpec
 from services.engine.environments import EnvRuntime, env_runtime
-from services.engine.validation import check_request
+from services.engine.validation import CheckedPartner, check_partners, check_request
 from services.sessions.messages import Observed, SessionPartner, SessionSettings
 
 
@@ -42,6 +42,10 @@ class CheckedSettings:
     inferred: tuple[int, ...]  # positions in `settings.partners` of the inferred partners
     log_prior_PG: np.ndarray  # one row per inferred partner
     initial_PG: np.ndarray  # the prior with the floor applied: the belief before any action
+    update: PreparedUpdate  # `update_log_belief` with these priors and `settings.belief`
+    inferred_indices: tuple[int, ...]  # the inferred partners' indices, in partner order
+    # per partner: what `check_request` makes of it when announced (fixed), None when inferred
+    announced: tuple[CheckedPartner | None, ...]
 
 
 def _is_int(value: object) -> bool:
@@ -107,9 +111,10 @@ def _check_blend(settings: SessionSettings) -> None:
     mass = settings.blend_mass
     if not isinstance(mass, int | float) or isinstance(mass, bool) or not 0 < mass <= 1:
         raise InvalidRequest("belief.blend_mass", f"expected a number in (0, 1], got {mass!r}")
-    if not _is_int(settings.blend_max_goals) or settings.blend_max_goals < 1:
+    max_goals = settings.blend_max_goals
+    if max_goals is not None and (not _is_int(max_goals) or max_goals < 1):
         raise InvalidRequest(
-            "belief.blend_max_goals", f"expected an integer >= 1, got {settings.blend_max_goals!r}"
+            "belief.blend_max_goals", f"expected null or an integer >= 1, got {max_goals!r}"
         )
 
 
@@ -149,7 +154,17 @@ def check_settings(settings: SessionSettings) -> CheckedSettings:
     initial_PG = np.asarray(
         [initial_log_belief(row, config) for row in log_prior_PG], dtype=np.float64
     ).reshape(log_prior_PG.shape)
-    return CheckedSettings(settings, runtime, goals, inferred, log_prior_PG, initial_PG)
+    announced = tuple(
+        None
+        if i in inferred
+        else check_partners((PartnerSpec(p.index, p.goal, p.goal_probs),), runtime, p.index + 1)[0]
+        for i, p in enumerate(partners)
+    )
+    return CheckedSettings(
+        settings, runtime, goals, inferred, log_prior_PG, initial_PG,
+        PreparedUpdate(log_prior_PG, config), tuple(partners[i].index for i in inferred),
+        announced,
+    )  # fmt: skip
 
 
 def check_observed(

@@ -49,8 +49,12 @@ class SessionSettings:
     alias: str = DEFAULT_ALIAS
     versions: Mapping[str, int] = field(default_factory=dict)
     belief: BeliefConfig = field(default_factory=BeliefConfig)
-    blend_mass: float = 0.99  # the belief mass the act pass blends impact networks over
-    blend_max_goals: int = 8  # at most this many goals per partner in the blend
+    # The act pass blends each inferred partner's impact networks by its belief
+    # (`policy.belief.blend_goal_probs`). Default: every goal, the exact expected impact Q and
+    # the same networks at every step. A smaller mass or a goal bound keeps only the top goals:
+    # fewer networks, but each new set of them costs the engine a new stacked group (~1 ms).
+    blend_mass: float = 1.0  # the belief mass whose most probable goals are blended, (0, 1]
+    blend_max_goals: int | None = None  # at most this many goals per partner (None: no bound)
 
     @property
     def inferred_indices(self) -> tuple[int, ...]:

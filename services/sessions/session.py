@@ -11,9 +11,11 @@ with the Boltzmann likelihood π_g(a_{t-1} | the partner's view of o_{t-1}) of e
 (eq. 2 of the paper, all task networks in one pass: `engine.goal_log_likelihoods` on the STORED
 previous observation), by `policy.belief.update_log_belief` (forgetting toward the prior, floor).
 It then acts on o_t with each inferred partner's goal distribution =
-`policy.belief.blend_goal_probs` of its new belief (the goals covering `blend_mass` of it);
-announced partners as given. A partner not in `observed` keeps its belief. With a seed, step t
-samples with seed + t (the `Episode` rule).
+`policy.belief.blend_goal_probs` of its new belief (default: every goal, in catalogue order, so
+the act's networks are the same at every step; `blend_mass` < 1 or `blend_max_goals` keep only
+the top goals, at the price of a new stacked group whenever that set changes); announced
+partners as given. A partner not in `observed` keeps its belief. With a seed, step t samples
+with seed + t (the `Episode` rule).
 
 A step is all or nothing: it computes the new belief and the action on copies and commits them
 (belief, previous observation, counters) only when everything succeeded, so a bad step changes
@@ -26,22 +28,28 @@ previous observation, the next step's index and per-partner counters.
 
 from __future__ import annotations
 
+import math
 import threading
 from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from policy.belief import belief_entropy, blend_goal_probs, top_goals, update_log_belief
+from policy.belief import belief_summary, blend_goal_weights
 from services.engine import (
     ActRequest,
     ActResult,
     EngineError,
     InferenceEngine,
     InvalidRequest,
-    PartnerSpec,
 )
-from services.engine.validation import check_observations
+from services.engine.goal_inference import checked_log_likelihoods
+from services.engine.validation import (
+    CheckedPartner,
+    CheckedRequest,
+    check_observations,
+    check_partner_index,
+)
 from services.sessions.checks import check_observed, check_settings
 from services.sessions.errors import StepConflict
 from services.sessions.messages import (
@@ -73,8 +81,9 @@ class Session:
         self._updates = [0] * len(self._checked.inferred)
         self._last_actions: list[int | None] = [None] * len(self._checked.inferred)
         self._previous: np.ndarray | None = None  # (1, D) float32
+        self._previous_agents = 0  # the agents `_previous` holds
         if previous_observation is not None:
-            self._previous = self._observation(previous_observation)
+            self._previous, self._previous_agents = self._observation(previous_observation)
         self._next_step = first_step
 
     # --- read ------------------------------------------------------------------------------
@@ -111,15 +120,15 @@ class Session:
                 if expected_step != t:
                     raise StepConflict(self.session_id, expected_step, t)
             checked = self._checked
-            obs_1D = self._observation(observation)
-            indices = [checked.settings.partners[i].index for i in checked.inferred]
+            obs_1D, n_agents = self._observation(observation)
+            indices = checked.inferred_indices
             n_actions = checked.runtime.domain.n_actions
             entries = check_observed(observed, indices, t, self._previous is not None, n_actions)
             log_belief_PG, updates, actions = self._updated(entries, obs_1D, indices)
-            result = self._act(obs_1D, log_belief_PG, t)
+            result = self._act(obs_1D, n_agents, log_belief_PG, t)
             # everything succeeded: commit
             self._log_belief_PG, self._updates, self._last_actions = log_belief_PG, updates, actions
-            self._previous = obs_1D
+            self._previous, self._previous_agents = obs_1D, n_agents
             self._next_step = t + 1
             beliefs = self._beliefs(log_belief_PG, updates, actions)
         return SessionStepResult(self.session_id, t, result, beliefs)
@@ -147,8 +156,9 @@ class Session:
                 self._previous = None
 
     # --- helpers ---------------------------------------------------------------------------
-    def _observation(self, observation: object) -> np.ndarray:
-        """The ego's observation as float32 (1, D), checked as /v1/act checks it."""
+    def _observation(self, observation: object) -> tuple[np.ndarray, int]:
+        """The ego's observation as float32 (1, D), checked as /v1/act checks it, and the
+        number of agents it holds."""
         try:
             obs = np.asarray(observation, dtype=np.float64)
         except (TypeError, ValueError):
@@ -160,10 +170,9 @@ class Session:
                 "observation", f"expected one row of numbers, got shape {obs.shape}"
             )
         try:
-            obs_1D, _ = check_observations(obs[None, :], self._checked.runtime, max_batch=1)
+            return check_observations(obs[None, :], self._checked.runtime, max_batch=1)
         except EngineError as err:
             raise err.renamed("observation") from None
-        return obs_1D
 
     def _updated(
         self, entries: Sequence[Observed], obs_1D: np.ndarray, indices: Sequence[int]
@@ -178,22 +187,29 @@ class Session:
         actions = [e.action for e in entries]
         self._recover(entries, actions, obs_1D)
         partners = [e.index for e in entries]
-        try:
-            log_lik_EG = self.engine.goal_log_likelihoods(
-                settings.env, self._previous[0], partners, actions,  # type: ignore[arg-type]
-                alias=settings.alias, versions=settings.versions,
-                temperature=settings.belief.temperature,
-            )  # fmt: skip
-        except EngineError as err:  # the engine counts partners in the order given: ours
-            field = err.field or ""
-            if field.startswith("partners["):
-                raise err.renamed("observed[" + field.removeprefix("partners[")) from None
-            raise
+        n_agents = self._previous_agents  # the actions are judged on the previous observation
+        for j, index in enumerate(partners):
+            if index >= n_agents:
+                expected = f"1..{n_agents - 1}" if n_agents > 1 else "none (only the ego)"
+                raise InvalidRequest(
+                    f"observed[{j}].index",
+                    f"{index} out of range: the previous observation holds {n_agents} "
+                    f"agent(s), expected {expected}",
+                )
+        # = engine.goal_log_likelihoods(env, previous, partners, actions, ...) without its
+        # checks: the settings were checked at creation, the observation and `observed` above
+        log_lik_EG = checked_log_likelihoods(
+            self.engine.cache, checked.runtime, self._previous[0], n_agents, partners,
+            np.array(actions, dtype=np.int64), alias=settings.alias, versions=settings.versions,
+            temperature=settings.belief.temperature,
+        )  # fmt: skip
         rows = [indices.index(e.index) for e in entries]
-        log_belief_PG = self._log_belief_PG.copy()
-        log_belief_PG[rows] = update_log_belief(
-            log_belief_PG[rows], log_lik_EG, checked.log_prior_PG[rows], settings.belief
-        )
+        # = update_log_belief(log_belief_PG[rows], log_lik_EG, log_prior_PG[rows], belief)
+        if rows == list(range(count)):  # every inferred partner, in order: no copies
+            log_belief_PG = checked.update(self._log_belief_PG, log_lik_EG)
+        else:
+            log_belief_PG = self._log_belief_PG.copy()
+            log_belief_PG[rows] = checked.update(log_belief_PG[rows], log_lik_EG, rows)
         updates = list(self._updates)
         for row, action in zip(rows, actions, strict=True):
             updates[row] += 1
@@ -225,27 +241,42 @@ class Session:
         for j, action in zip(missing, recovered, strict=True):
             actions[j] = int(action)
 
-    def _act(self, obs_1D: np.ndarray, log_belief_PG: np.ndarray, t: int) -> ActResult:
+    def _act(
+        self, obs_1D: np.ndarray, n_agents: int, log_belief_PG: np.ndarray, t: int
+    ) -> ActResult:
+        """`engine.act` of the request with each inferred partner's `goal_probs` =
+        `blend_goal_probs` of its belief. The request's parts were checked (settings at
+        creation, the observation in `step`, the partner indices here) and the distribution is
+        built as `check_request` builds it from such a mapping (renormalised by its sum), so
+        the engine takes it as checked (`act_checked`): the same result, without a per-goal
+        check of 35 numbers the belief produced."""
         checked, settings = self._checked, self._checked.settings
-        rows = {i: r for r, i in enumerate(checked.inferred)}
-        specs = []
-        for i, partner in enumerate(settings.partners):
-            row = rows.get(i)
-            if row is None:
-                specs.append(PartnerSpec(partner.index, partner.goal, partner.goal_probs))
-                continue
-            probs = blend_goal_probs(
-                log_belief_PG[row], checked.goals, settings.blend_mass, settings.blend_max_goals
-            )
-            specs.append(PartnerSpec(partner.index, goal_probs=probs))
+        partners, row = [], 0
+        for i, (partner, fixed) in enumerate(
+            zip(settings.partners, checked.announced, strict=True)
+        ):
+            check_partner_index(partner.index, n_agents, f"partners[{i}].index")
+            if fixed is None:  # inferred
+                kept, probs = blend_goal_weights(
+                    log_belief_PG[row], settings.blend_mass, settings.blend_max_goals
+                )
+                goals = checked.goals
+                if len(kept) < len(goals):
+                    goals = tuple(goals[g] for g in kept)
+                total = math.fsum(probs)
+                fixed = CheckedPartner(partner.index, goals, tuple([p / total for p in probs]))
+                row += 1
+            partners.append(fixed)
+        # the partners are in `ready` (`act_checked` reads them, and the observation, there)
         request = ActRequest(
             env=settings.env, ego_goal=settings.ego_goal, observations=obs_1D,
-            partners=tuple(specs), method=settings.method, temperature=settings.temperature,
+            method=settings.method, temperature=settings.temperature,
             seed=None if settings.seed is None else settings.seed + t, alias=settings.alias,
             versions=settings.versions,
         )  # fmt: skip
+        ready = CheckedRequest(checked.runtime, obs_1D, n_agents, tuple(partners))
         try:
-            return self.engine.act(request)[0]
+            return self.engine.act_checked(request, ready)[0]
         except EngineError as err:
             if err.field is not None and err.field.startswith("observations"):
                 raise err.renamed("observation") from None
@@ -255,13 +286,8 @@ class Session:
         self, log_belief_PG: np.ndarray, updates: Sequence[int], actions: Sequence[int | None]
     ) -> tuple[PartnerBelief, ...]:
         checked = self._checked
-        return tuple(
-            PartnerBelief(
-                index=checked.settings.partners[i].index,
-                top=tuple(top_goals(log_belief_PG[r], checked.goals, k=TOP_GOALS)),
-                entropy=float(belief_entropy(log_belief_PG[r])),
-                observed_action=actions[r],
-                updates=updates[r],
-            )
-            for r, i in enumerate(checked.inferred)
-        )
+        beliefs = []
+        for r, index in enumerate(checked.inferred_indices):
+            top, entropy = belief_summary(log_belief_PG[r], checked.goals, k=TOP_GOALS)
+            beliefs.append(PartnerBelief(index, tuple(top), entropy, actions[r], updates[r]))
+        return tuple(beliefs)

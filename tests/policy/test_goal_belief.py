@@ -25,6 +25,7 @@ from policy.maths import boltzmann
 
 GOALS3 = ("x", "y", "z")
 LN3 = math.log(3.0)
+LN2 = math.log(2.0)
 # α = 1, two actions: π_x = [3/4, 1/4], π_y = [1/2, 1/2], π_z = [1/4, 3/4]
 Q_3GOALS_1GA = np.array([[[LN3, 0.0], [0.0, 0.0], [0.0, LN3]]])
 BAYES = BeliefConfig(forgetting=1.0, floor=0.0)
@@ -328,14 +329,24 @@ def test_top_goals_entropy_and_cross_entropy() -> None:
 
 def test_blend_goal_probs_covers_the_mass_and_renormalises() -> None:
     goals = ("a", "b", "c", "d", "e")
-    b = np.log([0.05, 0.6, 0.3, 0.04, 0.01])
+    probs = [0.05, 0.6, 0.3, 0.04, 0.01]
+    b = np.log(probs)
+    # default: the whole belief, in the order of `goals` (exact, the same set at every step)
+    whole = blend_goal_probs(b, goals)
+    assert list(whole) == list(goals)
+    assert list(whole.values()) == pytest.approx(probs, rel=1e-12)
+    assert blend_goal_probs(b, goals, mass=1.0, max_goals=5) == whole
     assert blend_goal_probs(b, goals, mass=0.5) == {"b": 1.0}
     got = blend_goal_probs(b, goals, mass=0.9)  # 0.6 + 0.3 reaches 0.9
     assert list(got) == ["b", "c"]
     assert got["b"] == pytest.approx(0.6 / 0.9) and got["c"] == pytest.approx(0.3 / 0.9)
-    got = blend_goal_probs(b, goals, mass=0.99, max_goals=3)
-    assert list(got) == ["b", "c", "a"] and math.fsum(got.values()) == pytest.approx(1.0, abs=1e-15)
-    assert len(blend_goal_probs(_uniform(35), [f"g{i}" for i in range(35)])) == 8
+    got = blend_goal_probs(b, goals, mass=0.99, max_goals=3)  # the top 3, in goal order
+    assert list(got) == ["a", "b", "c"] and math.fsum(got.values()) == pytest.approx(1.0, abs=1e-15)
+    goals35 = [f"g{i}" for i in range(35)]
+    assert len(blend_goal_probs(_uniform(35), goals35)) == 35
+    assert len(blend_goal_probs(_uniform(35), goals35, mass=0.99, max_goals=8)) == 8
+    # a goal of probability 0 (only without a floor) is left out
+    assert list(blend_goal_probs(np.array([-LN2, -np.inf, -LN2]), GOALS3)) == ["x", "z"]
     with pytest.raises(ValueError, match=r"^mass:"):
         blend_goal_probs(b, goals, mass=0.0)
     with pytest.raises(ValueError, match=r"^max_goals:"):

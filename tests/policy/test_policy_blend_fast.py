@@ -163,9 +163,9 @@ def test_blend_takes_rows_or_the_vectorised_path_by_size(monkeypatch) -> None:
     taken: list[int] = []
     row = blend_module.blend_row
 
-    def spy(*args):
+    def spy(*args, **kwargs):
         taken.append(1)
-        return row(*args)
+        return row(*args, **kwargs)
 
     monkeypatch.setattr(blend_module, "blend_row", spy)
     rng = np.random.default_rng(0)

@@ -104,6 +104,28 @@ def test_hot_reload_swaps_to_the_new_version(tiny_zoo) -> None:
         _act(engine)
 
 
+def test_fixed_sets_serve_repeated_requests_and_follow_a_reload(tiny_zoo) -> None:
+    """A request shape asked again resolves its networks as one fixed set (the per-name
+    counters); a group evicted from the stack LRU is stacked again; a reload voids the set."""
+    store = tiny_zoo.store
+    engine = InferenceEngine(store, stack_cache_size=1)
+    probs = {"a2": 0.2, "b3": 0.3, "c1": 0.5}
+    request = ActRequest("particle", "a2", OBS, (PartnerSpec(1, goal_probs=probs),), seed=3)
+    [first] = engine.act(request)
+    hits, stack_hits = engine.stats.resolve_hits, engine.stats.stack_hits
+    assert engine.act(request) == [first]
+    assert (engine.stats.resolve_hits, engine.stats.stack_hits) == (hits + 4, stack_hits + 1)
+    _act(engine, goal="c1", method="sl")  # another group evicts this one (one stack slot)
+    misses, loads = engine.stats.stack_misses, engine.stats.loads
+    assert engine.act(request) == [first]
+    assert (engine.stats.stack_misses, engine.stats.loads) == (misses + 1, loads)
+    store.set_alias(TASK_A2, "production", 2)
+    assert _versions(engine.act(request)[0])[TASK_A2] == 1  # cached until the refresh
+    assert engine.refresh() is True
+    [after] = engine.act(request)
+    assert _versions(after)[TASK_A2] == 2 and after.probs != first.probs
+
+
 def test_hot_reload_under_a_concurrent_reader(tiny_zoo) -> None:
     store = tiny_zoo.store
     engine = InferenceEngine(store)

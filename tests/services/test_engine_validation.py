@@ -66,6 +66,7 @@ CASES: list[tuple[str, dict[str, Any], str, str]] = [
     ("probs: negative", {"partners": (PartnerSpec(1, goal_probs={"b3": 1.5, "c": -0.5}),)}, "partners[0].goal_probs", ">= 0"),
     ("probs: NaN", {"partners": (PartnerSpec(1, goal_probs={"b3": float("nan")}),)}, "partners[0].goal_probs", "finite"),
     ("probs: sum", {"partners": (PartnerSpec(1, goal="c"), PartnerSpec(2, goal_probs={"b3": 0.5, "c": 0.49}))}, "partners[1].goal_probs", "sum to 0.99"),
+    ("probs: sum overflows", {"partners": (PartnerSpec(1, goal_probs={"b3": 1e308, "c": 1e308}),)}, "partners[0].goal_probs", "sum to inf"),
     ("probs: empty", {"partners": (PartnerSpec(1, goal_probs={}),)}, "partners[0].goal_probs", "non-empty"),
     ("probs: not numbers", {"partners": (PartnerSpec(1, goal_probs={"b3": "1"}),)}, "partners[0].goal_probs", "finite"),  # type: ignore[dict-item]
     ("partners not a list", {"partners": "b3"}, "partners", "list"),
@@ -139,3 +140,43 @@ def test_observations_from_states() -> None:
     with pytest.raises(InvalidRequest) as err:
         observations_from_states("atari", [state], 0)
     assert err.value.field == "env"
+
+
+def _goal_probs_outcome(probs: dict[Any, Any]) -> tuple[Any, ...]:
+    from services.engine import validation
+
+    runtime = validation.env_runtime("particle")
+    try:
+        return ("ok", validation._check_goal_probs(probs, runtime, "f"))
+    except InvalidRequest as err:
+        return ("error", err.field, err.message)
+
+
+def test_goal_probs_whole_collection_checks_equal_the_per_goal_loop(monkeypatch) -> None:
+    """The fast check of a usual distribution (35 floats) answers as the per-goal loop does:
+    the same goals and bits when clean, the same error otherwise (it defers to the loop)."""
+    from envs.particle.goals import GOAL_IDS
+    from services.engine import validation
+
+    rng = np.random.default_rng(9)
+    cases: list[dict[Any, Any]] = []
+    for _ in range(200):
+        goals = list(rng.choice(GOAL_IDS, int(rng.integers(1, len(GOAL_IDS) + 1)), False))
+        cases.append(dict(zip(goals, rng.dirichlet(np.ones(len(goals))).tolist(), strict=True)))
+    cases += [
+        {"b3": 0.5 + 4e-7, "c": 0.5},
+        {"b3": 0.5, "c": 0.5, "a2": 0.0},  # a zero: the loop drops it
+        {"b3": np.float64(0.5), "c": 0.5},  # numpy floats: the loop
+        {"b3": 1, "c": 0.0},  # an int
+        {"b3": 0.5, "c": float("nan")},
+        {"b3": float("inf"), "c": 0.5},
+        {"b3": 1e308, "c": 1e308},  # fsum overflows
+        {"b3": 0.5, "zz": 0.5},
+        {"b3": 0.6, "c": 0.6},
+        {"b3": 1.5, "c": -0.5},
+        {3: 1.0},
+    ]
+    fast = [_goal_probs_outcome(c) for c in cases]
+    monkeypatch.setattr(validation, "_clean_goal_probs", lambda probs, runtime: None)
+    assert fast == [_goal_probs_outcome(c) for c in cases]
+    assert sum(o[0] == "ok" for o in fast) >= 200

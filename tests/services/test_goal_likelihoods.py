@@ -171,6 +171,29 @@ def test_pinned_versions_and_aliases_are_honoured(
     np.testing.assert_allclose(pinned[0, 1:], production[0, 1:], atol=1e-12)
 
 
+def test_a_reload_reaches_the_fixed_set_of_task_networks(
+    engine: InferenceEngine, store: SqlModelStore
+) -> None:
+    """The 35 names resolve as one fixed set after the first call (one look-up, the per-name
+    counters); moving an alias and refreshing voids it, so the new version is used at once."""
+    name = task_model_name("particle", PINNED_GOAL)
+    obs = _obs(np.random.default_rng(4), 2)
+    before = engine.goal_log_likelihoods("particle", obs, [1], [3])
+    hits = engine.stats.resolve_hits
+    np.testing.assert_array_equal(engine.goal_log_likelihoods("particle", obs, [1], [3]), before)
+    assert engine.stats.resolve_hits == hits + G
+    store.set_alias(name, "production", 2)
+    try:
+        assert engine.refresh() is True
+        moved = engine.goal_log_likelihoods("particle", obs, [1], [3])
+    finally:
+        store.set_alias(name, "production", 1)
+    pinned = engine.goal_log_likelihoods("particle", obs, [1], [3], versions={name: 2})
+    np.testing.assert_array_equal(moved, pinned)
+    assert moved[0, 0] != before[0, 0]
+    np.testing.assert_array_equal(moved[0, 1:], before[0, 1:])
+
+
 def test_no_partners_gives_an_empty_table(engine: InferenceEngine) -> None:
     got = engine.goal_log_likelihoods("particle", np.zeros(8), [], [])
     assert got.shape == (0, G)

@@ -79,9 +79,12 @@ def test_create_step_get_delete(client: TestClient) -> None:
         {"index": 1, "goal": None, "goal_probs": None, "infer": True}
     ]
     assert body["settings"]["belief"]["forgetting"] == 0.95
+    belief = body["settings"]["belief"]  # the default blend: every goal of the belief
+    assert (belief["blend_mass"], belief["blend_max_goals"]) == (1.0, None)
 
     first = client.post(f"/v1/sessions/{sid}/steps", json={"observation": [0.1] * 8}).json()
     assert first["step"] == 0 and first["session_id"] == sid
+    assert sum(m["role"] == "impact" for m in first["models"]) == 35
     assert len(first["probs"]) == 5 and first["action_meaning"]
     assert first["diagnostics"]["partner_weights"][0]["index"] == 1
     second = client.post(
@@ -238,6 +241,7 @@ def test_observed_at_step_0_is_a_422(client: TestClient) -> None:
         ("belief.forgetting", {"belief": {"forgetting": 0}}),
         ("belief.floor", {"belief": {"floor": 0.2}}),
         ("belief.blend_mass", {"belief": {"blend_mass": 1.5}}),
+        ("belief.blend_max_goals", {"belief": {"blend_max_goals": 0}}),
         ("belief.speed", {"belief": {"speed": 1}}),
         ("partners[0].goal", {"partners": [{"index": 1, "goal": "zz", "infer": True}]}),
         ("partners[0].infer", {"partners": [{"index": 1, "infer": "maybe"}]}),

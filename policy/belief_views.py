@@ -1,0 +1,148 @@
+"""What a goal belief says, from its log-probabilities (G,): the summaries a session returns and
+the goal distribution the act pass blends impact networks by. Part of `policy.belief` (which
+re-exports every name here); pure numpy, no I/O.
+
+| function              | what                                                        | result       |
+|-----------------------|-------------------------------------------------------------|--------------|
+| `top_goals`           | the k most probable goals (ties: goal order)                | list         |
+| `belief_entropy`      | entropy in nats                                             | float        |
+| `belief_summary`      | both of the above with one exp (a session's every step)     | list, float  |
+| `belief_cross_entropy`| -log b(g*) for the true goal g*                             | float        |
+| `blend_goal_probs`    | the blend's goal distribution (default: the whole belief)   | dict         |
+| `blend_goal_weights`  | the same as goal indices and probabilities                  | lists        |
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+__all__ = [
+    "belief_cross_entropy",
+    "belief_entropy",
+    "belief_summary",
+    "blend_goal_probs",
+    "blend_goal_weights",
+    "top_goals",
+]
+
+
+def _is_real(value: object) -> bool:
+    return isinstance(value, int | float | np.integer | np.floating) and not isinstance(
+        value, bool | np.bool_
+    )
+
+
+def _belief_vector(log_belief_G: np.ndarray) -> np.ndarray:
+    log_b = np.asarray(log_belief_G, dtype=np.float64)
+    if log_b.ndim != 1 or log_b.size == 0:
+        raise ValueError(f"log_belief_G: expected shape (G,) with G >= 1, got {log_b.shape}")
+    return log_b
+
+
+def top_goals(
+    log_belief_G: np.ndarray, goals: Sequence[str], k: int = 3
+) -> list[tuple[str, float]]:
+    """The k most probable goals with their probabilities, highest first (ties: goal order)."""
+    log_b = _belief_vector(log_belief_G)
+    if len(goals) != log_b.size:
+        raise ValueError(f"goals: expected {log_b.size} goals, got {len(goals)}")
+    if k < 1:
+        raise ValueError(f"k: expected >= 1, got {k}")
+    order = np.argsort(-log_b, kind="stable")[:k]
+    probs = np.exp(log_b[order])
+    return [(goals[g], float(p)) for g, p in zip(order.tolist(), probs.tolist(), strict=True)]
+
+
+def belief_entropy(log_belief_G: np.ndarray) -> float:
+    """Entropy of the belief in nats (0 when certain, log G when uniform)."""
+    log_b = _belief_vector(log_belief_G)
+    b = np.exp(log_b)
+    terms = np.where(b > 0, b * np.where(b > 0, log_b, 0.0), 0.0)  # 0 log 0 = 0
+    return max(0.0, float(-terms.sum()))
+
+
+def belief_summary(
+    log_belief_G: np.ndarray, goals: Sequence[str], k: int = 3
+) -> tuple[list[tuple[str, float]], float]:
+    """`top_goals(log_belief_G, goals, k)` and `belief_entropy(log_belief_G)` in one pass (one
+    exp): the same numbers, for a caller that summarises a belief at every step."""
+    log_b = _belief_vector(log_belief_G)
+    if len(goals) != log_b.size:
+        raise ValueError(f"goals: expected {log_b.size} goals, got {len(goals)}")
+    if k < 1:
+        raise ValueError(f"k: expected >= 1, got {k}")
+    b = np.exp(log_b)
+    order = np.argsort(-log_b, kind="stable")[:k].tolist()
+    probs = b.tolist()
+    positive = b.min() > 0  # the floor's usual case: no 0 log 0 terms to mask
+    terms = b * log_b if positive else np.where(b > 0, b * np.where(b > 0, log_b, 0.0), 0.0)
+    return [(goals[g], probs[g]) for g in order], max(0.0, float(-terms.sum()))
+
+
+def belief_cross_entropy(log_belief_G: np.ndarray, true_index: int) -> float:
+    """-log b(g*), in nats, for the true goal's index g* (inf when the belief rules it out)."""
+    log_b = _belief_vector(log_belief_G)
+    if isinstance(true_index, bool) or not 0 <= true_index < log_b.size:
+        raise ValueError(f"true_index: expected 0..{log_b.size - 1}, got {true_index!r}")
+    return float(-log_b[true_index])
+
+
+def blend_goal_probs(
+    log_belief_G: np.ndarray,
+    goals: Sequence[str],
+    mass: float = 1.0,
+    max_goals: int | None = None,
+) -> dict[str, float]:
+    """The goal distribution the act pass blends impact networks by (§3.2: the expected impact
+    Q under the belief), renormalised to sum to 1, in the order of `goals`.
+
+    Default: the whole belief, every goal of probability > 0 (all G with a floor). The blend is
+    then exact, and the goal set, hence the set of impact networks, is the same at every step:
+    the engine reuses one stacked group and one row layout. `mass` < 1 or `max_goals` < G keep
+    the most probable goals until they cover `mass` (at most `max_goals`): fewer networks per
+    forward pass, but the set changes as the belief moves, and every new set costs the engine a
+    new stacked group (a copy of the networks' weights) and row layout, ~1 ms at 8-128-128-5,
+    where an impact network's forward costs ~1.5 µs. The order of `goals` (not by probability)
+    keeps a request's shape, and the engine's cached plans, fixed while the set is."""
+    log_b = _belief_vector(log_belief_G)
+    if len(goals) != log_b.size:
+        raise ValueError(f"goals: expected {log_b.size} goals, got {len(goals)}")
+    kept, probs = blend_goal_weights(log_b, mass, max_goals)
+    return {goals[g]: p for g, p in zip(kept, probs, strict=True)}
+
+
+def blend_goal_weights(
+    log_belief_G: np.ndarray, mass: float = 1.0, max_goals: int | None = None
+) -> tuple[list[int], list[float]]:
+    """`blend_goal_probs` as the kept goals' indices (ascending) and their probabilities."""
+    log_b = _belief_vector(log_belief_G)
+    n_goals = log_b.size
+    if not _is_real(mass) or not 0 < mass <= 1:
+        raise ValueError(f"mass: expected a number in (0, 1], got {mass!r}")
+    if max_goals is not None and (
+        isinstance(max_goals, bool) or not isinstance(max_goals, int | np.integer) or max_goals < 1
+    ):
+        raise ValueError(f"max_goals: expected null or an integer >= 1, got {max_goals!r}")
+    probs = np.exp(log_b).tolist()
+    if mass >= 1 and (max_goals is None or max_goals >= n_goals):
+        kept = [g for g, p in enumerate(probs) if p > 0]
+    else:
+        order = np.argsort(-log_b, kind="stable")[: None if max_goals is None else int(max_goals)]
+        kept, covered = [], 0.0
+        for g in order.tolist():
+            if probs[g] <= 0:
+                break
+            kept.append(g)
+            covered += probs[g]
+            if covered >= mass * (1 - 1e-12):  # rounding must not add a goal for 1e-16 of mass
+                break
+        kept.sort()
+    if not kept:
+        raise ValueError("log_belief_G: every goal has probability 0")
+    if len(kept) < n_goals:
+        probs = [probs[g] for g in kept]
+    total = math.fsum(probs)
+    return kept, [p / total for p in probs]
