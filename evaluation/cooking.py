@@ -21,15 +21,21 @@ every method, so AAIL and SL differ by policy, not by sampling luck; the paired 
 completion ratios is McNemar's. All M x E episodes step in one batched kitchen; per step there is
 one `engine.act` per method (its active rows) and one for the right cooks of every method.
 
+The policies come from a `PolicyBackend` (`evaluation.backend`): the inference engine in-process
+(an `InferenceEngine` is wrapped in one) or a running server, so `coexist eval --suite cooking
+--server URL` plays the same episodes through REST or gRPC. `evaluation.cooking_report` writes
+the files of `reports/cooking` and the cooking section of the paper report.
+
 `temperature` (default None: the engine serves at the task network's training α) sets the left
-cook's Boltzmann temperature for every method. It is a sensitivity knob, not part of the paper's
-protocol: at α a blended policy that prefers a no-op (walking into a counter that takes nothing)
-repeats it forever, since the state does not change; a warmer policy walks out of such loops.
+cook's Boltzmann temperature for every method (in-process only: the server backend sends none).
+It is a sensitivity knob, not part of the paper's protocol: at α a blended policy that prefers a
+no-op (walking into a counter that takes nothing) repeats it forever, since the state does not
+change; a warmer policy walks out of such loops.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -45,9 +51,10 @@ from envs.cooking import (
     save_gif,
     scripted_actions,
 )
+from evaluation.backend import EngineBackend, ModelRecord, PolicyBackend
 from evaluation.stats import MeanSE, mcnemar_p, mean_se
 from model_store.store import ModelStore
-from services.engine import ActRequest, InferenceEngine, ModelNotFound, PartnerSpec
+from services.engine import ActRequest, InferenceEngine, PartnerSpec
 
 LAYOUT = "coexistence"
 RECIPES = ("TomatoLettuceSalad", "CarrotBanana")  # left cook (controlled), right cook
@@ -140,10 +147,16 @@ def _inverse_cdf(probs_BA: np.ndarray, u_B: np.ndarray) -> np.ndarray:
     return np.minimum(picked, probs_BA.shape[1] - 1)
 
 
-def _probs(engine: InferenceEngine, request: ActRequest) -> tuple[np.ndarray, list[str]]:
-    results = engine.act(request)
-    used = [f"{m.name}/{m.version}" for m in results[0].models]
-    return np.asarray([r.probs for r in results]), used
+_ROLE_ORDER = {"task": 0, "impact": 1, "joint": 2}
+
+
+def _probs(backend: PolicyBackend, request: ActRequest) -> tuple[np.ndarray, list[str]]:
+    probs_BA, records = backend.probs(request)
+    return probs_BA, [f"{m.name}/{m.version}" for m in sorted(records, key=_model_order)]
+
+
+def _model_order(record: ModelRecord) -> tuple[int, str]:
+    return _ROLE_ORDER.get(record.role, 3), record.name
 
 
 def _partner_request(obs_BD: np.ndarray, alias: str) -> ActRequest:
@@ -153,33 +166,53 @@ def _partner_request(obs_BD: np.ndarray, alias: str) -> ActRequest:
 
 
 def evaluate_cooking(
-    engine: InferenceEngine,
+    policies: InferenceEngine | PolicyBackend,
     store: ModelStore | None = None,
     *,
     episodes: int = 100,
     seed: int = 0,
     methods: Sequence[str] = ("aail", "sl"),
     max_steps: int = 400,
+    alias: str = "production",
     partner_alias: str = "partners",
     record: str | None = "aail",
     temperature: float | None = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> CookingResults:
     """Run `episodes` paired episodes per method (module docstring); `record` keeps the states
-    of the first episode of that method (for `save_cooking_gif`). `store` is not needed by the
-    rollout itself (the engine reads it); it is accepted for the report's uniform call."""
+    of the first episode of that method (for `save_cooking_gif`). `policies`: an engine or any
+    `PolicyBackend`; the left cook's networks resolve by `alias`, the right cook's by
+    `partner_alias`. `store` is not needed by the rollout itself (the backend reads it); it is
+    accepted for the report's uniform call. `progress(step, running episodes)` after each step.
+    A LookupError, before any episode, when the left cook's networks are not served."""
     del store
     if episodes < 1 or max_steps < 1:
         raise ValueError(f"episodes, max_steps: expected >= 1, got {episodes}, {max_steps}")
+    backend = EngineBackend(policies) if isinstance(policies, InferenceEngine) else policies
+    if temperature is not None and not isinstance(backend, EngineBackend):
+        raise ValueError(
+            "temperature: only the in-process engine takes a temperature here "
+            f"({backend.description} serves at the networks' α); leave it None"
+        )
     methods = tuple(methods)
     n_methods, n_rows = len(methods), len(methods) * episodes
     world = BatchedCookingWorld(LAYOUT, np.array([RECIPES] * n_rows), max_steps=max_steps)
     u_TEN = np.random.default_rng(np.random.SeedSequence([seed, 9])).random(
         (max_steps, episodes, 2)
     )
-    try:
-        _probs(engine, _partner_request(world.observe()[:1, 1], partner_alias))
+    left_request = ActRequest(
+        env="cooking", ego_goal=RECIPES[0], observations=world.observe()[:1, 0],
+        partners=(PartnerSpec(index=1, goal=RECIPES[1]),), alias=alias,
+    )  # fmt: skip
+    if not backend.has_models(left_request):
+        raise LookupError(
+            f"the left cook's networks are not served: cooking/task/{RECIPES[0]} and "
+            f"cooking/impact/{RECIPES[1]} at alias {alias!r} ({backend.description}); train them "
+            "with `coexist train zoo --env cooking --goals TomatoLettuceSalad,CarrotBanana`"
+        )
+    if backend.has_models(_partner_request(world.observe()[:1, 1], partner_alias)):
         right_cook = f"learned task network, alias {partner_alias!r}"
-    except ModelNotFound:
+    else:
         right_cook = "scripted cook (no partner-population network registered)"
     scripted = [None, ScriptedCook(RECIPES[1])]
 
@@ -207,13 +240,14 @@ def evaluate_cooking(
                 method=method,  # type: ignore[arg-type]
                 temperature=temperature,
                 seed=seed,
+                alias=alias,
             )
-            probs_BA, models[method] = _probs(engine, request)
+            probs_BA, models[method] = _probs(backend, request)
             actions_BN[rows, 0] = _inverse_cdf(probs_BA, u_BN[rows, 0])
         rows = np.flatnonzero(active_B)
         if right_cook.startswith("learned"):
             probs_BA, models["partner"] = _probs(
-                engine, _partner_request(obs_BND[rows, 1], partner_alias)
+                backend, _partner_request(obs_BND[rows, 1], partner_alias)
             )
             actions_BN[rows, 1] = _inverse_cdf(probs_BA, u_BN[rows, 1])
         else:
@@ -230,6 +264,8 @@ def evaluate_cooking(
         obs_BND = result.next_obs_BND
         if record_row is not None and active_B[record_row]:
             trajectory.append(world.state.select(record_row))
+        if progress is not None:
+            progress(t + 1, int((~np.all(served.reshape(n_rows, 2), axis=1)).sum()))
     return CookingResults(
         methods, seed, max_steps, right_cook, served, steps, returns, models, trajectory,
         temperature,
@@ -279,55 +315,10 @@ def save_cooking_gif(results: CookingResults, path: str | Path, fps: int = 6) ->
     return save_gif(frames, path, fps=fps)
 
 
-def write_cooking_report(
-    store_url: str,
-    out_dir: str | Path,
-    *,
-    episodes: int = 100,
-    seed: int = 0,
-    temperature: float | None = None,
-) -> CookingResults:
-    """Evaluate the store's cooking zoo; write results.md, results.json, the plot and the GIF."""
-    import json
-
-    from model_store.defaults import open_store
-
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    with open_store(store_url) as store:
-        engine = InferenceEngine(store)
-        results = evaluate_cooking(
-            engine, store, episodes=episodes, seed=seed, temperature=temperature
-        )
-    plot_cooking(results, out / "fig9_cooking.png")
-    save_cooking_gif(results, out / "aail_episode.gif")
-    (out / "results.md").write_text(results.to_markdown() + "\n", encoding="utf-8")
-    summary = {
-        f"{method}/{agent}": {
-            "completion": results.completion(method, a).mean,
-            "completion_se": results.completion(method, a).se,
-            "return": results.mean_return(method, a).mean,
-            "return_se": results.mean_return(method, a).se,
-        }
-        for method in results.methods
-        for a, agent in enumerate(("left", "right"))
-    }
-    payload = {"episodes": episodes, "seed": seed, "temperature": temperature,
-               "right_cook": results.right_cook, "models": results.models,
-               "summary": summary}  # fmt: skip
-    (out / "results.json").write_text(json.dumps(payload, indent=1), encoding="utf-8")
-    return results
-
-
-if (
-    __name__ == "__main__"
-):  # python -m evaluation.cooking STORE_URL OUT_DIR [EPISODES [TEMPERATURE]]
+# python -m evaluation.cooking STORE_URL OUT_DIR [EPISODES [TEMPERATURE]]
+if __name__ == "__main__":
     import sys
 
-    import torch
+    from evaluation.cooking_report import main
 
-    torch.set_num_threads(1)
-    args = sys.argv[1:]
-    n = int(args[2]) if len(args) > 2 else 100
-    temp = float(args[3]) if len(args) > 3 else None
-    print(write_cooking_report(args[0], args[1], episodes=n, temperature=temp).to_markdown())
+    main(sys.argv[1:])

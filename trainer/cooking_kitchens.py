@@ -31,6 +31,13 @@ learning Montezuma's Revenge from one demonstration): a dish 20-50 steps away is
 Boltzmann exploration from scratch, but from a state a few steps before it, it is; the value then
 propagates back to the earlier states. Only the learner's own actions are stored for learning.
 Gates and evaluation always start plainly.
+
+The recorded episodes cover more than one way to cook: the focal cook first wanders for 0 to
+`pool_idle_max` steps (random actions), and in a share `pool_other_order_prob` of them it waits
+for the handed-over ingredient and prepares it first (`ScriptedCook(first=...)`). A learner that
+waits for the carrot then finds the rest of the recipe demonstrated from there. The training
+reward also charges `spoil_penalty` per needed ingredient newly wasted on a plate
+(`trainer.cooking_shaping`).
 """
 
 from __future__ import annotations
@@ -44,6 +51,7 @@ from envs.cooking import COOKING, DISH_REWARD, TIME_PENALTY, BatchedCookingWorld
 from envs.cooking.recipes import recipe_index
 from envs.cooking.world import CookingState, start_states
 from trainer.cooking_config import CookingConfig
+from trainer.cooking_shaping import wasted_items
 
 
 @dataclass(frozen=True)
@@ -144,27 +152,47 @@ class Kitchens:
         explore_B = self.rng.random(self.n_envs) < random_prob
         return np.where(explore_B, self.rng.integers(0, COOKING.n_actions, self.n_envs), actions_B)
 
-    def scripted_focal(self) -> np.ndarray:
-        """Actions (E,) of the scripted cook of the recipe at the focal seat (gate reference)."""
+    def scripted_focal(self, other_order_B: np.ndarray | None = None) -> np.ndarray:
+        """Actions (E,) of the scripted cook of the recipe at the focal seat (gate reference);
+        in the kitchens of `other_order_B` it prepares the handed-over ingredient first."""
         state, cook = self.world.state, ScriptedCook(self.recipe)
-        return np.array(
-            [cook.act(self.world.layout, state, b, self.focal, None) for b in range(self.n_envs)]
-        )
+        waiter = ScriptedCook(self.recipe, first=self.kitchen.handover)
+        cooks = [
+            waiter if other_order_B is not None and other_order_B[b] else cook
+            for b in range(self.n_envs)
+        ]
+        layout = self.world.layout
+        return np.array([c.act(layout, state, b, self.focal, None) for b, c in enumerate(cooks)])
 
     def step(self, actions_BN: np.ndarray) -> KitchenStep:
         """Step every kitchen, then restart the finished ones (when `auto_reset`)."""
-        waiting_BN = ~self.world.state.delivered
+        before = self.world.state
+        waiting_BN = ~before.delivered
         result = self.world.step(actions_BN)
         self.steps_B += 1
-        served_BN = self.world.state.delivered & waiting_BN
+        after = self.world.state
+        served_BN = after.delivered & waiting_BN
         unshaped_BN = DISH_REWARD * served_BN - TIME_PENALTY * waiting_BN
+        rewards_BN = result.rewards_BN - self._penalties(before, after, actions_BN) * waiting_BN
         first_B = served_BN[:, self.focal]
         self.served_at_B[first_B] = self.steps_B[first_B]
         served_B = self.served_at_B >= 0
         lingered_B = served_B & (self.steps_B - self.served_at_B >= self.config.linger_steps)
         done_B = ((self.steps_B >= self.config.episode_steps) | lingered_B) & self.auto_reset
         self.obs_BND = self._restart(done_B) if done_B.any() else result.next_obs_BND
-        return KitchenStep(result.rewards_BN, unshaped_BN, result.next_obs_BND, done_B)
+        return KitchenStep(rewards_BN, unshaped_BN, result.next_obs_BND, done_B)
+
+    def _penalties(
+        self, before: CookingState, after: CookingState, actions_BN: np.ndarray
+    ) -> np.ndarray:
+        """(E, 2) training penalties of the step: `spoil_penalty` per newly wasted ingredient
+        (`trainer.cooking_shaping`)."""
+        if not self.config.spoil_penalty:
+            return np.zeros(np.shape(actions_BN))
+        layout, recipes_BN = self.world.layout, self.world.recipes
+        wasted_BN = wasted_items(layout, after, recipes_BN)
+        new_BN = np.maximum(wasted_BN - wasted_items(layout, before, recipes_BN), 0)
+        return self.config.spoil_penalty * new_BN
 
     def _restart(self, mask_B: np.ndarray) -> np.ndarray:
         """Restart the masked kitchens (module docstring); returns the new observations."""
@@ -217,6 +245,12 @@ def _scripted_pool(kitchens: Kitchens, config: CookingConfig) -> _Pool:
         scripted_starts=False,
     )
     states, steps, delays = [], [], []
+    n_pool = config.pool_episodes
+    rng = recorder.rng
+    idle_E = rng.integers(0, config.pool_idle_max + 1, n_pool) if config.pool_idle_max else None
+    other_order_E = None
+    if config.pool_other_order_prob > 0 and kitchens.kitchen.handover is not None:
+        other_order_E = rng.random(n_pool) < config.pool_other_order_prob
     for t in range(config.pool_steps):
         keep_E = ~recorder.world.state.delivered[:, recorder.focal]
         if not keep_E.any():
@@ -224,8 +258,12 @@ def _scripted_pool(kitchens: Kitchens, config: CookingConfig) -> _Pool:
         states.append(recorder.world.state.select(np.flatnonzero(keep_E)))
         steps.append(np.full(int(keep_E.sum()), t))
         delays.append(recorder.delay_B[keep_E])
-        actions_BN = np.zeros((config.pool_episodes, 2), dtype=np.int64)
-        actions_BN[:, recorder.focal] = recorder.scripted_focal()
+        actions_BN = np.zeros((n_pool, 2), dtype=np.int64)
+        focal_E = recorder.scripted_focal(other_order_E)
+        if idle_E is not None:
+            wander_E = rng.integers(0, COOKING.n_actions, n_pool)
+            focal_E = np.where(t < idle_E, wander_E, focal_E)
+        actions_BN[:, recorder.focal] = focal_E
         actions_BN[:, recorder.other] = recorder.scripted_other(config.partner_random_prob)
         recorder.step(actions_BN)
     stacked = CookingState(*(np.concatenate(f) for f in zip(*states, strict=True)))

@@ -2,6 +2,12 @@
 
 Order matters: an impact network for partner goal h is trained against the *registered* task
 network of h (its `production` version, else `latest`), and names that version as its parent.
+In the kitchen (env `cooking`) it must be the `production` version: a goal whose task network
+failed every gate attempt gets no impact network (`run_impacts` skips it with a warning, and a
+later `--resume` or `coexist train impact` trains it once a task network has passed). An impact
+network learned beside a task network that cannot cook learns to help a partner that fails
+anyway (the first cooking zoo did: parent `latest`, a 75 % CarrotBanana network). The particle
+world keeps the fallback: its quick tiny zoos (`--fast`, tests) serve networks that fail gates.
 Work is done in batches of goals; a run directory records finished batches, so an interrupted
 run resumes where it stopped (`--resume`) instead of starting again.
 """
@@ -10,6 +16,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import logging
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -29,6 +36,7 @@ from trainer.publish import publish_batch
 
 # (description, total steps) -> per-step progress callback
 ProgressFactory = Callable[[str, int], ProgressFn]
+log = logging.getLogger(__name__)
 
 
 def load_task_nets(
@@ -153,13 +161,29 @@ def run_impacts(
     run: RunState,
     progress: ProgressFactory,
     env: str = "particle",
+    production_parents_only: bool | None = None,
 ) -> list[TrainedBatch]:
+    """Impact networks in batches, each against its partner goal's registered task network.
+    `production_parents_only` (default: in the kitchen only, module docstring) skips goals whose
+    task network has no `production` version instead of using `latest`."""
     check_config_env(config, env)
+    strict = env == "cooking" if production_parents_only is None else production_parents_only
     batches = []
     for i, chunk in enumerate(chunked(goals, goals_per_batch)):
         key = f"impact:{','.join(chunk)}"
         if key in run.done:
             continue
+        unserved = goals_without(store, env, "task", chunk, "production") if strict else []
+        if unserved:
+            log.warning(
+                "impact %s: skipped, the task network has no 'production' version (every gate "
+                "attempt failed); train a passing one, then `coexist train impact --env %s`",
+                ",".join(unserved), env,
+            )  # fmt: skip
+            chunk = [g for g in chunk if g not in unserved]
+            key = f"impact:{','.join(chunk)}"
+            if not chunk or key in run.done:
+                continue
         partner_nets, task_versions = load_task_nets(store, env, chunk)
         batch = train_impacts(
             chunk,

@@ -21,6 +21,10 @@ walk into next and walks there (`navigation`). Its plan for recipe R, first matc
 A *usable* plate lies on a counter and holds only items of R; the plate R is built on is the usable
 plate holding the most items of R (ties: the nearest). Only cells the cook can reach count.
 
+With `first="carrot"` the cook prepares that ingredient before the recipe's others: while it is
+still raw (or not yet within reach) the other raw ingredients are left alone and the cook waits.
+This gives the other order of a recipe (the trainer records both, `trainer.cooking_kitchens`).
+
 With `handover="carrot"` the cook is also a *helper*: once its own dish is served (or at once with
 `handover_first=True`, or when its own plan is stuck) it carries a carrot it can reach to an empty
 counter that the partner can reach too, unless the partner can already reach one.
@@ -100,13 +104,13 @@ class ScriptedCook:
     handover: str | None = None
     partner: int = 1
     handover_first: bool = False
+    first: str | None = None  # the ingredient this cook prepares first (module docstring)
 
     def __post_init__(self) -> None:
         recipe_index(self.recipe)
-        if self.handover is not None and self.handover not in INGREDIENTS:
-            raise ValueError(
-                f"handover: expected one of {', '.join(INGREDIENTS)}, got {self.handover!r}"
-            )
+        for name, value in (("handover", self.handover), ("first", self.first)):
+            if value is not None and value not in INGREDIENTS:
+                raise ValueError(f"{name}: expected one of {', '.join(INGREDIENTS)}, got {value!r}")
 
     def __call__(self, env: Any, agent: int) -> int:
         """Partner-policy form for `CookingSingleAgentEnv`: act in `env.world`'s first kitchen."""
@@ -132,13 +136,13 @@ class ScriptedCook:
         )
         if help_now and (self.handover_first or k.delivered[agent]):
             return _handover_target(k, agent, self.handover or "", self.partner)
-        own = None if k.delivered[agent] else _recipe_target(k, agent, self.recipe)
+        own = None if k.delivered[agent] else _recipe_target(k, agent, self.recipe, self.first)
         if own is None and help_now:
             return _handover_target(k, agent, self.handover or "", self.partner)
         return own
 
 
-def _recipe_target(k: _Kitchen, agent: int, recipe: str) -> Cell | None:
+def _recipe_target(k: _Kitchen, agent: int, recipe: str, first: str | None) -> Cell | None:
     items = set(RECIPES[recipe_index(recipe)].items)
     me = k.agents[agent]
 
@@ -206,6 +210,11 @@ def _recipe_target(k: _Kitchen, agent: int, recipe: str) -> Cell | None:
         and k.cell_kind(k.rc[o]) == COUNTER
         and any((k.kinds[o], s) in missing for s in (CHOPPED, BLENDED))
     ]
+    if first is not None:
+        kind = INGREDIENTS.index(first)
+        prepared = any(k.kinds[o] == kind and k.item_state[o] != RAW for o in range(len(k.kinds)))
+        if not prepared and any(i_kind == kind for i_kind, _ in missing):
+            raw = [o for o in raw if k.kinds[o] == kind]  # none within reach yet: wait
     found = closest(raw)
     return None if found is None else k.rc[found]
 

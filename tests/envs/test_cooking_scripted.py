@@ -75,6 +75,23 @@ def test_coexistence_needs_the_carrot_handover() -> None:
     assert run("coexistence", recipes, [helper_first, right])[0] == [29, 28]
 
 
+def test_a_cook_can_prepare_the_handed_over_ingredient_first() -> None:
+    recipes = ("TomatoLettuceSalad", "CarrotBanana")
+    helper_first = ScriptedCook(recipes[0], handover="carrot", handover_first=True)
+    waiter = ScriptedCook(recipes[1], first="carrot")
+    world = BatchedCookingWorld("coexistence", np.array([recipes]))
+    assert waiter.target(world.layout, world.state, 0, 1) is None  # no carrot in reach: wait
+    assert ScriptedCook(recipes[1]).target(world.layout, world.state, 0, 1) == (0, 8)  # banana
+    served, _ = run("coexistence", recipes, [helper_first, waiter])
+    assert served[0] == 29 and served[1] is not None and served[1] > 28  # later, but served
+    # with no carrot to wait for (nobody hands it over) the waiter never touches its banana
+    world = BatchedCookingWorld("coexistence", np.array([recipes]), max_steps=60)
+    for _ in range(60):
+        world.step(scripted_actions(world.layout, world.state, [None, waiter]))
+    banana = int(np.flatnonzero(world.layout.object_kinds_O == 4)[0])
+    assert world.state.obj_holder[0, banana] == -1 and world.state.obj_state[0, banana] == 0
+
+
 def test_a_cook_walks_round_others_or_waits() -> None:
     layout = get_layout("###=#\n=0..#\n#.#.#\n#...#\n#####")
     # the short way to the counter at (0, 3) is blocked at (1, 2): down and round the pillar
@@ -89,6 +106,8 @@ def test_bad_cooks() -> None:
         ScriptedCook("Pizza")
     with pytest.raises(ValueError, match="handover"):
         ScriptedCook("ChoppedTomato", handover="steak")
+    with pytest.raises(ValueError, match="first: expected one of"):
+        ScriptedCook("ChoppedTomato", first="steak")
     world = BatchedCookingWorld("open", np.array([["ChoppedTomato"] * 2]))
     with pytest.raises(ValueError, match="cooks"):
         scripted_actions(world.layout, world.state, [None])

@@ -16,6 +16,7 @@ from typer.testing import CliRunner
 
 from cli.main import app
 from envs.cooking import BatchedCookingWorld
+from model_store.errors import NotFound
 from model_store.sql.sql_store import SqlModelStore
 from policy.qnet import QNetSpec, StackedQNet
 from services.engine import ActRequest, InferenceEngine, PartnerSpec
@@ -50,7 +51,9 @@ def test_cooking_pipeline_registers_networks_the_engine_serves(tmp_path: Path) -
     common: dict[str, Any] = dict(progress=_no_progress, env="cooking", goals_per_batch=5)
     run = RunState.open(tmp_path / "run", "fp", resume=False)
     tasks = run_tasks(store, FIG8, task_cfg, seed=0, run=run, gate_retries=0, **common)
-    impacts = run_impacts(store, ["CarrotBanana"], impact_cfg, seed=0, run=run, **common)
+    # tiny task networks fail their gates: train the impact network against `latest` anyway
+    impacts = run_impacts(store, ["CarrotBanana"], impact_cfg, seed=0, run=run,
+                          production_parents_only=False, **common)  # fmt: skip
     partners = RunState.open(tmp_path / "partners", "fp2", resume=False)
     run_tasks(store, ["CarrotBanana"], task_cfg, seed=1, run=partners, serve_alias="partners",
               gate_retries=0, **common)  # fmt: skip
@@ -151,9 +154,14 @@ def test_train_zoo_cli_for_the_kitchen(tmp_path: Path, monkeypatch: pytest.Monke
     result = CliRunner().invoke(app, args)
     assert result.exit_code == 0, result.output
     store = SqlModelStore(url)
-    for name in ("task/TomatoLettuceSalad", "task/CarrotBanana", "impact/CarrotBanana"):
+    for name in ("task/TomatoLettuceSalad", "task/CarrotBanana"):
         v = store.resolve(f"cooking/{name}@latest")
         assert v.lineage.config["total_steps"] == 12
+    # the tiny task networks failed their gates: no impact network against them (trainer.zoo)
+    assert max(v.version for v in store.list_versions("cooking/task/CarrotBanana")) == 2  # retry
+    with pytest.raises(NotFound):
+        store.resolve("cooking/impact/CarrotBanana@latest")
+    assert "impact networks train only against `production`" in " ".join(result.output.split())
     store.close()
     refused = CliRunner().invoke(app, ["train", "joint", "--env", "cooking", "--combos",
                                        "TomatoLettuceSalad+CarrotBanana"])  # fmt: skip

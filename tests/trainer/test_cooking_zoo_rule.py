@@ -1,0 +1,73 @@
+"""In the kitchen an impact network trains only against a `production` task network; the
+training summary shows the kitchen's gate figures and says why an impact network is missing."""
+
+from __future__ import annotations
+
+import io
+import logging
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import pytest
+from rich.console import Console
+
+from model_store.errors import NotFound
+from model_store.sql.sql_store import SqlModelStore
+from trainer.cooking_config import CookingImpactConfig, CookingTaskConfig
+from trainer.report import KITCHEN_NOTE, print_summary
+from trainer.zoo import RunState, run_impacts, run_tasks
+
+TINY: dict[str, Any] = dict(
+    total_steps=20, warmup_steps=5, envs_per_net=2, batch_size=16, hidden=(16,),
+    replay_size=500, eval_episodes=2, eval_steps=10, pool_episodes=2, pool_steps=5,
+    episode_steps=20,
+)  # fmt: skip
+GOAL = "CarrotBanana"
+
+
+def _no_progress(description: str, total: int) -> Any:
+    return lambda done, total_: None
+
+
+def _summary(batches: list[Any]) -> str:
+    console = Console(file=io.StringIO(), width=200)
+    print_summary(batches, console)
+    return console.file.getvalue()  # type: ignore[attr-defined]
+
+
+def test_no_impact_network_beside_a_failed_task_network(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    store = SqlModelStore(f"sqlite:///{tmp_path / 'models.db'}")
+    common: dict[str, Any] = dict(progress=_no_progress, env="cooking", goals_per_batch=5)
+    task_cfg = replace(CookingTaskConfig(), **TINY)
+    impact_cfg = replace(CookingImpactConfig(), **TINY)
+    run = RunState.open(tmp_path / "run", "fp", resume=False)
+    tasks = run_tasks(store, [GOAL], task_cfg, seed=0, run=run, gate_retries=0, **common)
+    assert tasks[0].gate_passed(0) is False  # 10-step gate episodes: no dish, no production
+    text = _summary(tasks)
+    assert "failed" in text and "0% in -" in text and "(scripted)" in text
+    assert KITCHEN_NOTE.split(",")[0] in text.replace("\n", " ")
+
+    with caplog.at_level(logging.WARNING, logger="trainer.zoo"):
+        skipped = run_impacts(store, [GOAL], impact_cfg, seed=0, run=run, **common)
+    assert skipped == []
+    assert "impact CarrotBanana: skipped" in caplog.text and "'production'" in caplog.text
+    with pytest.raises(NotFound):
+        store.resolve(f"cooking/impact/{GOAL}@latest")
+
+    # asked explicitly, the old fallback to `latest` still trains it (the particle default)
+    loose = run_impacts(store, [GOAL], impact_cfg, seed=0, run=run, production_parents_only=False,
+                        **common)  # fmt: skip
+    assert store.resolve(f"cooking/impact/{GOAL}@latest").lineage.parents == (
+        f"cooking/task/{GOAL}/1",
+    )
+    assert "partner" in _summary(loose) and "(resting ego)" in _summary(loose)
+
+    # once a task network serves as `production`, the kitchen's zoo trains against it
+    store.set_alias(f"cooking/task/{GOAL}", "production", 1)
+    fresh = RunState.open(tmp_path / "run2", "fp2", resume=False)
+    [batch] = run_impacts(store, [GOAL], impact_cfg, seed=0, run=fresh, **common)
+    assert batch.goals == [(GOAL,)]
+    store.close()
