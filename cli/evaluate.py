@@ -1,4 +1,6 @@
-"""`coexist eval --suite paper`: reproduce the paper's particle experiments and write a report.
+"""`coexist eval --suite paper`: reproduce the paper's particle experiments and write a report
+(`--suite inference`: the online goal-inference experiments, `cli.evaluate_inference`;
+`--suite cooking`: the kitchen experiment of Fig. 9, `cli.evaluate_cooking`).
 
     coexist eval --suite paper [--server URL] [--episodes N] [--pairs K] [--out reports/paper]
                  [--store-url URL] [--fast]
@@ -90,7 +92,12 @@ def _command(
 
 
 def evaluate(
-    suite: Annotated[str, typer.Option(help="Which suite to run (only 'paper').")] = "paper",
+    suite: Annotated[
+        str,
+        typer.Option(
+            help="'paper' (§4.2), 'inference' (online goal inference) or 'cooking' (Fig. 9)."
+        ),
+    ] = "paper",
     server: ServerOpt = None,
     episodes: CountOpt = None,
     five_agent_episodes: Annotated[
@@ -135,8 +142,31 @@ def evaluate(
     from model_store.defaults import open_store
     from services.engine import InferenceEngine
 
+    if suite == "inference":
+        from cli.evaluate_inference import evaluate_inference
+
+        evaluate_inference(
+            server=server, store_url=store_url, out=out, seed=seed, fast=fast, episodes=episodes,
+            pairs=pairs, pair_episodes=pair_episodes, max_steps=max_steps, alias=alias,
+            partner_alias=partner_alias,
+        )  # fmt: skip
+        return
+    if suite == "cooking":
+        from cli.evaluate_cooking import evaluate_cooking_suite
+
+        paper_only = {"five_agent_episodes": five_agent_episodes, "pairs": pairs,
+                      "pair_episodes": pair_episodes, "timing_log": timing_log,
+                      "run_dir": run_dir, "fast": fast}  # fmt: skip
+        evaluate_cooking_suite(
+            server=server, store_url=store_url, out=out, seed=seed, episodes=episodes,
+            max_steps=max_steps, alias=alias, partner_alias=partner_alias, paper_only=paper_only,
+        )  # fmt: skip
+        return
     if suite != "paper":
-        raise typer.BadParameter(f"unknown suite {suite!r}; expected 'paper'", param_hint="--suite")
+        raise typer.BadParameter(
+            f"unknown suite {suite!r}; expected 'paper', 'inference' or 'cooking'",
+            param_hint="--suite",
+        )
     base = fast_config() if fast else SuiteConfig()
     overrides: dict[str, Any] = {
         "episodes": episodes, "five_agent_episodes": five_agent_episodes, "pairs": pairs,

@@ -17,4 +17,5 @@
 | `suite`      | everything in order                                                        |
 | `prepare`    | a tiny zoo trained on the fly for `--fast`                                 |
 | `cooking`    | the cooking experiment (§4.4)                                              |
+| `inference*` | online goal inference (issue 9): accuracy vs k, value, report              |
 """

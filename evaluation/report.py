@@ -6,7 +6,9 @@ so re-running the evaluation never loses it.
 
 | file                      | content                                                    |
 |---------------------------|------------------------------------------------------------|
-| `REPORT.md`               | verdicts per claim, setup, tables, figures, models, discussion |
+| `REPORT.md`               | verdicts per claim, setup, tables, figures, models, discussion, |
+|                           | and a summary of the goal-inference report (`../inference/`)    |
+|                           | and of the cooking experiment (`../cooking/`, `evaluation.cooking_report`) |
 | `results.json`            | every episode's numbers per scenario and method            |
 | `fig5_two_agents.png`     | Fig. 5: aligned and non-aligned returns                    |
 | `fig7_five_agents.png`    | Fig. 7: five-agent returns                                 |
@@ -34,7 +36,9 @@ from evaluation.claims import (
     claim_non_aligned_pairs,
     claim_scaling,
 )
+from evaluation.cooking_report import COOKING_HEADING, cooking_section
 from evaluation.directions import box_centre
+from evaluation.inference_report import paper_section
 from evaluation.pairs import pair_groups
 from evaluation.stats import compare_cells, summarise_cell
 from evaluation.suite import SuiteResult, results_json
@@ -64,6 +68,8 @@ SECTIONS = (
     "## Episode strip",
     "## Models used",
     "## Discussion",
+    "## Online goal inference (issue 9)",
+    COOKING_HEADING,
 )
 FIGURE_NAMES = {
     "aligned": "Fig. 5 left",
@@ -327,6 +333,9 @@ def write_report(
         _models_section(result),
         SECTIONS[10],
         discussion,
+        SECTIONS[11],
+        paper_section(out),  # from reports/inference/*.json (`coexist eval --suite inference`)
+        cooking_section(out.parent / "cooking", out),  # `coexist eval --suite cooking`
     ]
     path = out / "REPORT.md"
     path.write_text("\n\n".join(parts) + "\n")

@@ -56,7 +56,7 @@ def test_fast_suite_writes_every_section(tmp_path: Path) -> None:
 
 
 def test_unknown_suite_is_refused() -> None:
-    result = CliRunner().invoke(app, ["eval", "--suite", "cooking"])
+    result = CliRunner().invoke(app, ["eval", "--suite", "atari"])
     assert result.exit_code != 0
     assert "unknown suite" in result.output
 

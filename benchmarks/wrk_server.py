@@ -1,0 +1,102 @@
+"""The load-test plumbing of `benchmarks/session_bench.py`: the real server as a child process
+pinned to one CPU, and `wrk` on the other posting a list of JSON bodies in turn (a Lua script).
+
+| function       | what                                                                  |
+|----------------|-----------------------------------------------------------------------|
+| `start_server` | `coexist serve --no-bootstrap` (REST only) on `taskset -c SERVER_CPU`, |
+|                | waits for `/readyz`                                                   |
+| `lua_script`   | a wrk script POSTing the bodies in turn (one wrk thread: a counter)   |
+| `run_wrk`      | 1 s of warm-up, then the timed run, c = 1, on `taskset -c LOAD_CPU`   |
+| `parse_wrk`    | requests, seconds, p50/p90/p99 and failures from `wrk --latency`      |
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import socket
+import subprocess
+import time
+from pathlib import Path
+
+import httpx
+
+ROOT = Path(__file__).resolve().parents[1]
+SERVER_CPU, LOAD_CPU = "0", "1"
+UNIT_MS = {"us": 1e-3, "ms": 1.0, "s": 1000.0}
+
+
+def lua_script(path: str, bodies: list[bytes]) -> str:
+    """A wrk script POSTing `bodies` to `path` in turn (one wrk thread: a plain counter)."""
+    items = ",\n".join(f"[==[{b.decode()}]==]" for b in bodies)
+    return (
+        "local bodies = {\n" + items + "\n}\n"
+        "local i = 0\n"
+        "local headers = {['Content-Type'] = 'application/json'}\n"
+        "request = function()\n"
+        "  i = i % #bodies + 1\n"
+        f"  return wrk.format('POST', '{path}', headers, bodies[i])\n"
+        "end\n"
+    )
+
+
+def parse_wrk(out: str) -> dict[str, float]:
+    """requests, seconds, p50/p90/p99 in ms and failures from `wrk --latency` output."""
+    found = re.search(r"(\d+) requests in ([\d.]+)(ms|s|m)", out)
+    if found is None:
+        raise ValueError(f"wrk output without a request count:\n{out}")
+    seconds = float(found.group(2)) * {"ms": 1e-3, "s": 1.0, "m": 60.0}[found.group(3)]
+    parsed = {"requests": float(found.group(1)), "seconds": seconds}
+    for q in (50, 90, 99):
+        value = re.search(rf"^\s*{q}%\s+([\d.]+)(us|ms|s)\s*$", out, re.MULTILINE)
+        if value is None:
+            raise ValueError(f"wrk output without a {q}% latency (run with --latency):\n{out}")
+        parsed[f"p{q}_ms"] = float(value.group(1)) * UNIT_MS[value.group(2)]
+    failed = re.search(r"Non-2xx or 3xx responses: (\d+)", out)
+    errors = re.search(r"Socket errors: (.*)", out)
+    parsed["failed"] = float(failed.group(1)) if failed else 0.0
+    if errors:
+        parsed["failed"] += sum(int(n) for n in re.findall(r"\d+", errors.group(1)))
+    return parsed
+
+
+def run_wrk(
+    base: str, path: str, bodies: list[bytes], duration: float, tmp: Path
+) -> tuple[dict[str, float], int]:
+    """The timed run's figures and the requests of both runs (warm-up included)."""
+    script = tmp / "bench.lua"
+    script.write_text(lua_script(path, bodies))
+    command = ["taskset", "-c", LOAD_CPU, "wrk", "-t1", "-c1", "--timeout", "10s",
+               "-s", str(script), "--latency"]  # fmt: skip
+    runs = []
+    for seconds in (1, round(duration)):  # warm-up, then the timed run
+        done = subprocess.run([*command, f"-d{seconds}s", base], check=True,
+                              capture_output=True, text=True)  # fmt: skip
+        runs.append(parse_wrk(done.stdout))
+    return runs[1], int(runs[0]["requests"] + runs[1]["requests"])
+
+
+def free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+def start_server(url: str, port: int) -> subprocess.Popen[bytes]:
+    env = {**os.environ, "COEXIST_DEV_MODE": "1", "COEXIST_LOG_LEVEL": "warning"}
+    command = ["taskset", "-c", SERVER_CPU, str(ROOT / ".venv/bin/coexist"), "serve",
+               "--no-bootstrap", "--host", "127.0.0.1", "--http-port", str(port),
+               "--grpc-port", "0", "--store-url", url]  # fmt: skip
+    server = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL)
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline:
+        if server.poll() is not None:
+            raise SystemExit(f"the server exited with {server.returncode}")
+        try:
+            if httpx.get(f"http://127.0.0.1:{port}/readyz", timeout=1).status_code == 200:
+                return server
+        except httpx.HTTPError:
+            pass
+        time.sleep(0.3)
+    server.kill()
+    raise SystemExit("the server did not become ready within 120 s")
