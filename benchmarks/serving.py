@@ -30,15 +30,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import re
 import shutil
-import socket
 import statistics
 import subprocess
 import sys
 import tempfile
-import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -48,11 +45,12 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from wrk_server import LOAD_CPU, SERVER_CPU, UNIT_MS, free_port, start_server  # noqa: E402
+
 from envs.particle.scenarios import FIVE_AGENTS  # noqa: E402
 
 EGO, PARTNERS = FIVE_AGENTS
 BATCH = 256
-SERVER_CPU, LOAD_CPU = "0", "1"
 ACT = "/coexist.v1.PolicyService/Act"
 ACT_BATCH = "/coexist.v1.PolicyService/ActBatch"
 HEALTH = "/grpc.health.v1.Health/Check"
@@ -115,32 +113,6 @@ def grpc_bodies() -> dict[str, bytes]:
     return {name: frame(m.SerializeToString()) for name, m in messages.items()}
 
 
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return int(sock.getsockname()[1])
-
-
-def start_server(url: str, http_port: int, grpc_port: int, log_level: str) -> subprocess.Popen:
-    env = {**os.environ, "COEXIST_DEV_MODE": "1", "COEXIST_LOG_LEVEL": log_level}
-    command = ["taskset", "-c", SERVER_CPU, str(ROOT / ".venv/bin/coexist"), "serve",
-               "--no-bootstrap", "--host", "127.0.0.1", "--http-port", str(http_port),
-               "--grpc-port", str(grpc_port), "--store-url", url]  # fmt: skip
-    server = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL)
-    deadline = time.monotonic() + 120
-    while time.monotonic() < deadline:
-        if server.poll() is not None:
-            raise SystemExit(f"the server exited with {server.returncode}")
-        try:
-            if httpx.get(f"http://127.0.0.1:{http_port}/readyz", timeout=1).status_code == 200:
-                return server
-        except httpx.HTTPError:
-            pass
-        time.sleep(0.3)
-    server.kill()
-    raise SystemExit("the server did not become ready within 120 s")
-
-
 def check_payloads(http_port: int, grpc_port: int, rest: dict[str, bytes]) -> None:
     """One correct answer per payload before anything is timed."""
     import grpc
@@ -182,9 +154,6 @@ class Case:
     @property
     def actions_per_s(self) -> float:
         return self.rps * self.rows
-
-
-UNIT_MS = {"us": 1e-3, "ms": 1.0, "s": 1000.0}
 
 
 def run_wrk(url: str, body: bytes | None, concurrency: int, duration: float, tmp: Path) -> Case:
@@ -305,7 +274,7 @@ def main() -> None:
         url = f"sqlite:///{tmp}/models.db"
         build_store(url)
         http_port, grpc_port = free_port(), free_port()
-        server = start_server(url, http_port, grpc_port, args.log_level)
+        server = start_server(url, http_port, grpc_port=grpc_port, log_level=args.log_level)
         try:
             check_payloads(http_port, grpc_port, rest_bodies())
             print(f"server on CPU {SERVER_CPU}, load generators on CPU {LOAD_CPU}, "

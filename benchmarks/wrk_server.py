@@ -82,11 +82,14 @@ def free_port() -> int:
         return int(sock.getsockname()[1])
 
 
-def start_server(url: str, port: int) -> subprocess.Popen[bytes]:
-    env = {**os.environ, "COEXIST_DEV_MODE": "1", "COEXIST_LOG_LEVEL": "warning"}
+def start_server(
+    url: str, port: int, *, grpc_port: int = 0, log_level: str = "warning"
+) -> subprocess.Popen[bytes]:
+    """`coexist serve` on CPU `SERVER_CPU` (gRPC too when `grpc_port` > 0), ready to answer."""
+    env = {**os.environ, "COEXIST_DEV_MODE": "1", "COEXIST_LOG_LEVEL": log_level}
     command = ["taskset", "-c", SERVER_CPU, str(ROOT / ".venv/bin/coexist"), "serve",
                "--no-bootstrap", "--host", "127.0.0.1", "--http-port", str(port),
-               "--grpc-port", "0", "--store-url", url]  # fmt: skip
+               "--grpc-port", str(grpc_port), "--store-url", url]  # fmt: skip
     server = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL)
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline:

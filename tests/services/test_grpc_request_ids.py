@@ -12,31 +12,14 @@ import grpc
 import pytest
 from grpc_health.v1 import health_pb2, health_pb2_grpc
 from grpc_live_server import LiveServer, live_grpc_server
+from test_services_logging import captured_logs
 
 from model_store.sql import SqlModelStore
 from services.engine import ActRequest, ActResult
 from services.grpc_api.gen.coexist.v1 import policy_pb2 as pb
-from services.logging import JsonFormatter, RequestIdFilter
 
 OBS_2 = [0.1, 0.4, 0.0, 0.0, 0.7, 0.6, 0.1, -0.1]
 handler_log = logging.getLogger("coexist.test.grpc_handler")
-
-
-@pytest.fixture
-def captured() -> Iterator[io.StringIO]:
-    buffer = io.StringIO()
-    handler = logging.StreamHandler(buffer)
-    handler.addFilter(RequestIdFilter())
-    handler.setFormatter(JsonFormatter())
-    root = logging.getLogger()
-    old_level = root.level
-    root.addHandler(handler)
-    root.setLevel(logging.DEBUG)
-    try:
-        yield buffer
-    finally:
-        root.removeHandler(handler)
-        root.setLevel(old_level)
 
 
 @pytest.fixture
@@ -55,6 +38,9 @@ def live(tiny_zoo_store: SqlModelStore, monkeypatch: pytest.MonkeyPatch) -> Iter
 def _records(buffer: io.StringIO) -> list[dict]:
     lines = [json.loads(line) for line in buffer.getvalue().splitlines()]
     return [rec for rec in lines if rec["logger"].startswith("coexist.")]
+
+
+captured = pytest.fixture(captured_logs)  # root logger output as the server formats it
 
 
 def _request(env: str = "particle") -> pb.ActRequest:

@@ -23,9 +23,9 @@ from services.logging import (
 handler_log = logging.getLogger("coexist.test.handler")
 
 
-@pytest.fixture
-def captured() -> Iterator[io.StringIO]:
-    """Root logger output, formatted as the server formats it (JSON, request-id filter)."""
+def captured_logs() -> Iterator[io.StringIO]:
+    """Root logger output, formatted as the server formats it (JSON, request-id filter); a
+    fixture here and in test_grpc_request_ids.py."""
     buffer = io.StringIO()
     handler = logging.StreamHandler(buffer)
     handler.addFilter(RequestIdFilter())
@@ -39,6 +39,9 @@ def captured() -> Iterator[io.StringIO]:
     finally:
         root.removeHandler(handler)
         root.setLevel(old_level)
+
+
+captured = pytest.fixture(captured_logs)
 
 
 def _records(buffer: io.StringIO) -> list[dict]:
