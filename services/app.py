@@ -21,6 +21,7 @@ has the id (`services.logging`).
 
 from __future__ import annotations
 
+import gc
 import logging
 from collections.abc import AsyncIterator, Sequence
 from contextlib import asynccontextmanager
@@ -97,6 +98,10 @@ def create_app(
             grpc_server.start()
             app.state.grpc_port = grpc_server.port
             log.info("gRPC listening on %s:%d", settings.host, grpc_server.port)
+        # Everything alive now (torch, numpy, the loaded networks: millions of objects) lives as
+        # long as the server: keep it out of the garbage collector's scans, which otherwise
+        # walked it on every full collection triggered by request garbage.
+        gc.freeze()
         try:
             yield
         finally:

@@ -32,6 +32,7 @@ from services.engine import (
 )
 from services.engine.environments import env_runtime
 from services.rest.errors import ACT_ERROR_RESPONSES
+from services.rest.json_body import FastJsonRoute
 from services.rest.schemas import (
     ActBatchBody,
     ActBatchResponse,
@@ -41,7 +42,7 @@ from services.rest.schemas import (
     EnvsResponse,
 )
 
-router = APIRouter(prefix="/v1", tags=["inference"])
+router = APIRouter(prefix="/v1", tags=["inference"], route_class=FastJsonRoute)
 
 
 def _engine(request: Request) -> InferenceEngine:

@@ -29,6 +29,7 @@ from policy.belief import BeliefConfig
 from services.engine import EngineError, InvalidRequest, PartnerSpec, observations_from_states
 from services.rest.act_api import _encoder, _engine, _models
 from services.rest.errors import SESSION_ERROR_RESPONSES
+from services.rest.json_body import FastJsonRoute
 from services.rest.session_schemas import (
     SessionBody,
     SessionOut,
@@ -45,7 +46,7 @@ from services.sessions import (
     SessionsUnavailable,
 )
 
-router = APIRouter(prefix="/v1/sessions", tags=["sessions"])
+router = APIRouter(prefix="/v1/sessions", tags=["sessions"], route_class=FastJsonRoute)
 
 
 def session_store(request: Request) -> SessionStore:

@@ -1,0 +1,47 @@
+"""`services.rest.json_body`: request bodies go through orjson, and through the standard parser
+only where orjson would read them differently (NaN / Infinity literals, huge integers)."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from services.rest import json_body
+
+JSON = {"content-type": "application/json"}
+BODY = {"env": "particle", "ego_goal": "a2", "observation": [0.1, 0.4, 0, 0, 0.7, 0.6, 0, 0],
+        "partners": [{"index": 1, "goal": "b3"}], "seed": 3}  # fmt: skip
+
+
+def _refuse_stdlib(monkeypatch: pytest.MonkeyPatch) -> list[bytes]:
+    seen: list[bytes] = []
+
+    def loads(body: bytes) -> object:
+        seen.append(body)
+        return json.loads(body)
+
+    monkeypatch.setattr(json_body, "standard_loads", loads)
+    return seen
+
+
+def test_a_plain_body_is_parsed_by_orjson(act_client, monkeypatch) -> None:
+    seen = _refuse_stdlib(monkeypatch)
+    response = act_client.post("/v1/act", content=json.dumps(BODY), headers=JSON)
+    assert response.status_code == 200 and not seen
+
+
+def test_nan_literals_and_huge_integers_take_the_standard_parser(act_client, monkeypatch) -> None:
+    seen = _refuse_stdlib(monkeypatch)
+    nan = json.dumps(BODY).replace("0.1", "NaN", 1)
+    assert act_client.post("/v1/act", content=nan, headers=JSON).status_code == 422
+    huge = json.dumps({**BODY, "versions": {"particle/task/a2": 10**30}})  # orjson: 1e30
+    answer = act_client.post("/v1/act", content=huge, headers=JSON)
+    assert answer.status_code == 422
+    assert answer.json()["error"]["field"] == "versions[particle/task/a2]"  # the engine's check
+    assert len(seen) == 2
+
+
+def test_malformed_json_is_still_a_422_naming_the_body(act_client) -> None:
+    answer = act_client.post("/v1/act", content=b'{"env": "particle",', headers=JSON)
+    assert answer.status_code == 422 and answer.json()["error"]["field"] == "body"
