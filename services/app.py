@@ -36,7 +36,7 @@ from model_store.store import ModelStore
 from services.engine import InferenceEngine
 from services.jobs_api import router as jobs_router
 from services.logging import RequestIdMiddleware
-from services.metrics import EngineCollector, HttpMetrics
+from services.metrics import EngineCollector, HttpMetrics, SessionCollector
 from services.registry import router as registry_router
 from services.registry.errors import install_error_handlers as install_registry_errors
 from services.rest import install_error_handlers as install_act_errors
@@ -136,6 +136,7 @@ def create_app(
 
     registry = CollectorRegistry()
     registry.register(EngineCollector(lambda: app.state.engine))
+    registry.register(SessionCollector(lambda: getattr(app.state, "sessions", None)))
     http_metrics = HttpMetrics(registry)
     app.add_middleware(_AsgiWrapper, wrap=http_metrics.middleware)
     app.add_middleware(RequestIdMiddleware)  # outermost: the id is set before anything logs

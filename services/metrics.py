@@ -7,6 +7,8 @@
 | `coexist_engine_*_total` | counter | | engine counters (rows, errors, cache hits/misses, loads, reloads ...) |
 | `coexist_engine_models_loaded` | gauge | | networks in the weights cache |
 | `coexist_model_version_served` | gauge | model (name@alias) | the version each alias resolves to now |
+| `coexist_sessions_live` | gauge | | goal-inference sessions held (expired ones purged first) |
+| `coexist_sessions_max` | gauge | | the limit (`COEXIST_MAX_SESSIONS`) |
 
 The engine's counters are read when Prometheus scrapes (a collector), so the request path pays
 nothing for them. Each process keeps its own registry: with several uvicorn workers a scrape
@@ -26,6 +28,7 @@ from prometheus_client.registry import Collector
 
 from services.engine import InferenceEngine
 from services.logging import route_template
+from services.sessions import SessionStore
 
 # Latency buckets from 50 µs to 1 s: single acts take well under a millisecond.
 LATENCY_BUCKETS = (5e-5, 1e-4, 2e-4, 5e-4, 1e-3, 2e-3, 5e-3, 1e-2, 2.5e-2, 0.1, 0.25, 1.0)
@@ -56,6 +59,25 @@ class EngineCollector(Collector):
         for ref, version in sorted(status.versions_served.items()):
             served.add_metric([ref], version)
         yield served
+
+
+class SessionCollector(Collector):
+    """Exports how many sessions this process holds, at scrape time."""
+
+    def __init__(self, store_of: Callable[[], SessionStore | None]) -> None:
+        self.store_of = store_of
+
+    def collect(self) -> Iterator[Metric]:
+        store = self.store_of()
+        if store is None:
+            return
+        store.purge_expired()  # an expired session is gone: do not count it
+        live = GaugeMetricFamily("coexist_sessions_live", "goal-inference sessions held")
+        live.add_metric([], len(store))
+        yield live
+        limit = GaugeMetricFamily("coexist_sessions_max", "the most sessions this process holds")
+        limit.add_metric([], store.max_sessions)
+        yield limit
 
 
 class HttpMetrics:
