@@ -37,7 +37,6 @@ import numpy as np
 from envs.particle.batched import BatchedParticleWorld
 from envs.particle.goals import GOAL_IDS, goal_indices
 from envs.particle.scenarios import start_states
-from envs.particle.world import in_target
 from evaluation.backend import EngineBackend
 from evaluation.config import Scenario, SuiteConfig, pair_scenarios, paper_scenarios
 from evaluation.inference import (
@@ -47,7 +46,14 @@ from evaluation.inference import (
     partner_probs,
 )
 from evaluation.pairs import pair_means
-from evaluation.rollout import Cell, CellResult, run_cells, sample_actions, uniforms
+from evaluation.rollout import (
+    Cell,
+    CellResult,
+    EpisodeTally,
+    run_cells,
+    sample_actions,
+    uniforms,
+)
 from evaluation.stats import MeanSE, mean_se, paired_diff, wilcoxon_p
 from policy.belief import BeliefConfig, initial_log_belief, prior_log_probs, update_log_belief
 from services.engine import InferenceEngine
@@ -120,19 +126,12 @@ def run_inferred(
     obs_BND = world.reset(starts)
     log_prior_G = prior_log_probs(GOAL_IDS)
     belief_BG = np.tile(initial_log_belief(log_prior_G, belief_cfg), (n_rows, 1))
-    returns_BN = np.zeros((n_rows, 2))
-    reached_BN = np.zeros((n_rows, 2), dtype=bool)
-    success_BN = np.zeros((n_rows, 2), dtype=bool)
-    length_B = np.zeros(n_rows, dtype=np.int64)
-    solved_B = np.zeros(n_rows, dtype=bool)
-    done_B = np.zeros(n_rows, dtype=bool)
+    tally = EpisodeTally(starts, bounds[:-1].tolist())  # each scenario's first episode is recorded
     updates_B = np.zeros(n_rows, dtype=np.int64)
-    record_rows = bounds[:-1]
-    trajectories: list[list[np.ndarray]] = [[starts[r]] for r in record_rows]
     previous: tuple[np.ndarray, np.ndarray] | None = None  # (ego observations, partner actions)
 
     for t in range(config.max_steps):
-        active = np.flatnonzero(~done_B)
+        active = np.flatnonzero(~tally.done_B)
         if active.size == 0:
             break
         if progress is not None:
@@ -159,30 +158,14 @@ def run_inferred(
             actions_BN[r, 0] = sample_actions(probs[None], u_TBN[t, r : r + 1, 0])[0]
         previous = (obs_BND[:, 0].copy(), actions_BN[:, 1].copy())
         step = world.step(actions_BN)
-        inside_BN = in_target(world.state, goals_BN)
-        active_B = ~done_B
-        returns_BN[active_B] += step.rewards_BN[active_B]
-        reached_BN |= inside_BN & active_B[:, None]
-        length_B[active_B] += 1
-        finished_B = active_B & (step.terminated_B | step.truncated_B)
-        success_BN[finished_B] = inside_BN[finished_B]
-        solved_B[finished_B] = step.terminated_B[finished_B]
-        done_B |= finished_B
-        state_BN4 = world.state
-        for k, r in enumerate(record_rows):
-            if active_B[r]:
-                trajectories[k].append(state_BN4[r])
+        tally.record(step, world.state, goals_BN)
         obs_BND = step.next_obs_BND
 
     top_B = belief_BG.argmax(axis=1)
     cells = []
     for k, s in enumerate(scenarios):
         rows = np.arange(bounds[k], bounds[k + 1])
-        result = CellResult(
-            scenario=s, method=INFERRED, returns_EN=returns_BN[rows],
-            success_EN=success_BN[rows], reached_EN=reached_BN[rows], length_E=length_B[rows],
-            solved_E=solved_B[rows], trajectory_TN4=np.stack(trajectories[k]),
-        )  # fmt: skip
+        result = tally.result(k, s, INFERRED, rows)
         cells.append(InferredCell(result, top_B[rows] == goals_BN[rows, 1], updates_B[rows]))
     return cells
 

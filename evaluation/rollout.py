@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from envs.particle.batched import BatchedParticleWorld
+from envs.particle.batched import BatchedParticleWorld, StepResult
 from envs.particle.goals import goal_indices
 from envs.particle.scenarios import start_states
 from envs.particle.world import in_target
@@ -68,6 +68,46 @@ class RunOutput:
     results: list[CellResult]
     models: set[tuple[str, ModelRecord]] = field(default_factory=set)  # (alias, model)
     backend_calls: int = 0
+
+
+class EpisodeTally:
+    """The per-row bookkeeping of a batched rollout (the arrays of the module docstring), shared
+    by `run_cells` and the inferred-goal rollout of `evaluation.inference_value`."""
+
+    def __init__(self, starts_BN4: np.ndarray, record_rows: Sequence[int]) -> None:
+        n_rows, n_agents = starts_BN4.shape[:2]
+        self.returns_BN = np.zeros((n_rows, n_agents))
+        self.reached_BN = np.zeros((n_rows, n_agents), dtype=bool)
+        self.success_BN = np.zeros((n_rows, n_agents), dtype=bool)
+        self.length_B = np.zeros(n_rows, dtype=np.int64)
+        self.solved_B = np.zeros(n_rows, dtype=bool)
+        self.done_B = np.zeros(n_rows, dtype=bool)
+        self.record_rows = [int(r) for r in record_rows]
+        self.trajectories = [[starts_BN4[r]] for r in self.record_rows]
+
+    def record(self, step: StepResult, state_BN4: np.ndarray, goals_BN: np.ndarray) -> None:
+        """Account one `world.step` result to the rows that were still running."""
+        inside_BN = in_target(state_BN4, goals_BN)
+        active_B = ~self.done_B
+        self.returns_BN[active_B] += step.rewards_BN[active_B]
+        self.reached_BN |= inside_BN & active_B[:, None]
+        self.length_B[active_B] += 1
+        finished_B = active_B & (step.terminated_B | step.truncated_B)
+        self.success_BN[finished_B] = inside_BN[finished_B]
+        self.solved_B[finished_B] = step.terminated_B[finished_B]
+        self.done_B |= finished_B
+        for k, r in enumerate(self.record_rows):
+            if active_B[r]:
+                self.trajectories[k].append(state_BN4[r])
+
+    def result(self, k: int, scenario: Scenario, method: str, rows: np.ndarray) -> CellResult:
+        """Cell k's result: its `rows`, its recorded episode."""
+        return CellResult(
+            scenario=scenario, method=method, returns_EN=self.returns_BN[rows],
+            success_EN=self.success_BN[rows], reached_EN=self.reached_BN[rows],
+            length_E=self.length_B[rows], solved_E=self.solved_B[rows],
+            trajectory_TN4=np.stack(self.trajectories[k]),
+        )  # fmt: skip
 
 
 def sample_actions(probs_BA: np.ndarray, u_B: np.ndarray) -> np.ndarray:
@@ -133,14 +173,9 @@ def run_cells(
     n_rows, n_agents = layout.n_rows, layout.n_agents
     world = BatchedParticleWorld(layout.goals_BN, max_steps=max_steps)
     obs_BND = world.reset(layout.starts_BN4)
-    returns_BN = np.zeros((n_rows, n_agents))
-    reached_BN = np.zeros((n_rows, n_agents), dtype=bool)
-    success_BN = np.zeros((n_rows, n_agents), dtype=bool)
-    length_B = np.zeros(n_rows, dtype=np.int64)
-    solved_B = np.zeros(n_rows, dtype=bool)
-    done_B = np.zeros(n_rows, dtype=bool)
-    record_rows = [rows[min(record_episode, len(rows) - 1)] for rows in layout.rows]
-    trajectories = [[layout.starts_BN4[r]] for r in record_rows]
+    tally = EpisodeTally(
+        layout.starts_BN4, [rows[min(record_episode, len(rows) - 1)] for rows in layout.rows]
+    )
     out = RunOutput(results=[])
     ego_partners = [
         tuple(PartnerSpec(j, goal=g) for j, g in enumerate(c.scenario.partner_goals, start=1))
@@ -154,7 +189,7 @@ def run_cells(
         return probs_BA
 
     for t in range(max_steps):
-        active_B = ~done_B
+        active_B = ~tally.done_B
         if not active_B.any():
             break
         if progress is not None:
@@ -189,32 +224,9 @@ def run_cells(
                 actions_BN[rows, slot] = sample_actions(part, layout.u_TBN[t, rows, slot])
                 start += rows.size
         step = world.step(actions_BN)
-        inside_BN = in_target(world.state, layout.goals_BN)
-        returns_BN[active_B] += step.rewards_BN[active_B]
-        reached_BN |= inside_BN & active_B[:, None]
-        length_B[active_B] += 1
-        finished_B = active_B & (step.terminated_B | step.truncated_B)
-        success_BN[finished_B] = inside_BN[finished_B]
-        solved_B[finished_B] = step.terminated_B[finished_B]
-        done_B |= finished_B
-        state_BN4 = world.state
-        for k, r in enumerate(record_rows):
-            if active_B[r]:
-                trajectories[k].append(state_BN4[r])
+        tally.record(step, world.state, layout.goals_BN)
         obs_BND = step.next_obs_BND
 
     for k, cell in enumerate(cells):
-        rows = layout.rows[k]
-        out.results.append(
-            CellResult(
-                scenario=cell.scenario,
-                method=cell.method,
-                returns_EN=returns_BN[rows],
-                success_EN=success_BN[rows],
-                reached_EN=reached_BN[rows],
-                length_E=length_B[rows],
-                solved_E=solved_B[rows],
-                trajectory_TN4=np.stack(trajectories[k]),
-            )
-        )
+        out.results.append(tally.result(k, cell.scenario, cell.method, layout.rows[k]))
     return out
