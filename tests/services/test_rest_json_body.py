@@ -45,3 +45,10 @@ def test_nan_literals_and_huge_integers_take_the_standard_parser(act_client, mon
 def test_malformed_json_is_still_a_422_naming_the_body(act_client) -> None:
     answer = act_client.post("/v1/act", content=b'{"env": "particle",', headers=JSON)
     assert answer.status_code == 422 and answer.json()["error"]["field"] == "body"
+
+
+def test_only_scalars_outside_number_vectors_are_checked_for_huge_integers() -> None:
+    assert json_body.has_huge_scalar({"versions": {"particle/task/a2": 1e30}})
+    assert json_body.has_huge_scalar({"observed": [{"index": 1, "action": -1e19}]})
+    assert not json_body.has_huge_scalar({"observations": [[1e30, 0.5], [0.1, 0.2]]})
+    assert not json_body.has_huge_scalar({"seed": 2**62, "temperature": 0.05})
