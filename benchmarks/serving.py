@@ -9,15 +9,18 @@ generators are C programs pinned to CPU 1: `wrk` for HTTP/1.1 and `h2load` for g
 HTTP/2: h2load posts the length-prefixed protobuf with `content-type: application/grpc`). Each
 case warms up for 1 s, then runs for `--duration` seconds on persistent connections.
 
-| case     | REST                         | gRPC                                    | per call       |
-|----------|------------------------------|-----------------------------------------|----------------|
-| no-op    | `GET /healthz`               | `grpc.health.v1.Health/Check`           | nothing: floor |
-| act      | `POST /v1/act`               | `coexist.v1.PolicyService/Act`          | AAIL, 1 ego +  |
-|          |                              |                                         | 4 partners     |
-| batch    | `POST /v1/act:batch`, 256    | `PolicyService/ActBatch`, 256 rows      | the same x 256 |
+| case       | REST                         | gRPC                                  | per call       |
+|------------|------------------------------|---------------------------------------|----------------|
+| no-op      | `GET /healthz`               | `grpc.health.v1.Health/Check`         | nothing: floor |
+| act        | `POST /v1/act`               | `coexist.v1.PolicyService/Act`        | AAIL, 1 ego +  |
+|            |                              |                                       | 4 partners     |
+| batch      | `POST /v1/act:batch`, 256    | `PolicyService/ActBatch`, 256 rows as | the same x 256 |
+|            | rows, `"format": "columns"`  | `observation_matrix`, COLUMNS answer  |                |
+| batch rows | the same, rows answer        | 256 `Vector`s, ROWS answer            | (c = 1 only)   |
 
 Targets (issue 5), per transport: act p50 at c=1 <= 2x the no-op p50; act throughput at c=32
->= 40 % of the no-op's; batch actions/s >= 30x the single-request rate (both at c=1).
+>= 40 % of the no-op's; batch actions/s >= 30x the single-request rate (both at c=1), with the
+columnar batch ("batch rows" is informational: the default format, one result per row).
 Every payload is checked once for a correct answer before it is timed; a run with any non-2xx
 HTTP answer or failed gRPC stream is reported as failed. The store is a temporary SQLite file
 with the FIVE_AGENTS networks (task a2; impact a0, b2, c4, e1) at the served size (hidden
@@ -38,6 +41,7 @@ import sys
 import tempfile
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import Any
 
 import httpx
 import numpy as np
@@ -89,8 +93,9 @@ def rest_bodies() -> dict[str, bytes]:
     partners = [{"index": i + 1, "goal": g} for i, g in enumerate(PARTNERS)]
     common = {"env": "particle", "ego_goal": EGO, "partners": partners, "method": "aail"}
     act = {**common, "observation": observations(1)[0].tolist()}
-    batch = {**common, "observations": observations(BATCH).tolist()}
-    return {"act": json.dumps(act).encode(), "batch": json.dumps(batch).encode()}
+    rows = {**common, "observations": observations(BATCH).tolist()}
+    bodies = {"act": act, "batch": {**rows, "format": "columns"}, "batch rows": rows}
+    return {name: json.dumps(body).encode() for name, body in bodies.items()}
 
 
 def grpc_bodies() -> dict[str, bytes]:
@@ -102,10 +107,15 @@ def grpc_bodies() -> dict[str, bytes]:
     partners = [pb.PartnerSpec(index=i + 1, goal=g) for i, g in enumerate(PARTNERS)]
     act = pb.ActRequest(env="particle", ego_goal=EGO, observation=observations(1)[0],
                         partners=partners, method="aail")  # fmt: skip
-    rows = [pb.Vector(values=row) for row in observations(BATCH)]
-    batch = pb.ActBatchRequest(env="particle", ego_goal=EGO, observations=rows,
-                               partners=partners, method="aail")  # fmt: skip
-    messages = {"noop": health_pb2.HealthCheckRequest(), "act": act, "batch": batch}
+    obs_BD = observations(BATCH)
+    matrix = pb.Matrix(rows=BATCH, cols=obs_BD.shape[1], values=obs_BD.ravel())
+    batch = pb.ActBatchRequest(env="particle", ego_goal=EGO, observation_matrix=matrix,
+                               partners=partners, method="aail",
+                               format=pb.BATCH_FORMAT_COLUMNS)  # fmt: skip
+    rows = pb.ActBatchRequest(env="particle", ego_goal=EGO, partners=partners, method="aail",
+                              observations=[pb.Vector(values=row) for row in obs_BD])  # fmt: skip
+    messages = {"noop": health_pb2.HealthCheckRequest(), "act": act, "batch": batch,
+                "batch rows": rows}  # fmt: skip
 
     def frame(data: bytes) -> bytes:
         return b"\x00" + len(data).to_bytes(4, "big") + data
@@ -121,19 +131,27 @@ def check_payloads(http_port: int, grpc_port: int, rest: dict[str, bytes]) -> No
     from services.grpc_api.gen.coexist.v1 import policy_pb2_grpc as pb_grpc
 
     base = f"http://127.0.0.1:{http_port}"
-    for path, body, rows in (("/v1/act", rest["act"], 1), ("/v1/act:batch", rest["batch"], BATCH)):
+
+    def post(path: str, body: bytes) -> dict[str, Any]:
         reply = httpx.post(base + path, content=body, headers={"content-type": "application/json"})
         reply.raise_for_status()
-        got = reply.json()
-        got_rows = 1 if rows == 1 else len(got["results"])
-        assert got_rows == rows, f"{path}: {got_rows} results"
+        answer: dict[str, Any] = reply.json()
+        return answer
+
+    assert len(post("/v1/act", rest["act"])["probs"]) == 5
+    columns = post("/v1/act:batch", rest["batch"])
+    assert len(columns["actions"]) == len(columns["probs"]) == BATCH, "REST columns"
+    assert len(post("/v1/act:batch", rest["batch rows"])["results"]) == BATCH, "REST rows"
     with grpc.insecure_channel(f"127.0.0.1:{grpc_port}") as channel:
         stub = pb_grpc.PolicyServiceStub(channel)
         bodies = grpc_bodies()
         act = pb.ActRequest.FromString(bodies["act"][5:])
-        batch = pb.ActBatchRequest.FromString(bodies["batch"][5:])
         assert len(stub.Act(act).probs) == 5
-        assert len(stub.ActBatch(batch).results) == BATCH
+        answer = stub.ActBatch(pb.ActBatchRequest.FromString(bodies["batch"][5:])).columns
+        assert answer.rows == len(answer.actions) == BATCH, "gRPC columns"
+        assert len(answer.probs) == BATCH * answer.n_actions, "gRPC columns"
+        rows = pb.ActBatchRequest.FromString(bodies["batch rows"][5:])
+        assert len(stub.ActBatch(rows).results) == BATCH, "gRPC rows"
 
 
 @dataclass
@@ -225,23 +243,30 @@ def parse_h2load(out: str, log_text: str) -> tuple[int, float, float, int]:
 def measure(http_port: int, grpc_port: int, duration: float) -> list[Case]:
     rest, grpc_b = rest_bodies(), grpc_bodies()
     http, h2 = f"http://127.0.0.1:{http_port}", f"http://127.0.0.1:{grpc_port}"
-    plan = [  # (transport, case, rows, runner)
-        ("REST", "no-op", 1, lambda c, t: run_wrk(http + "/healthz", None, c, duration, t)),
-        ("REST", "act", 1, lambda c, t: run_wrk(http + "/v1/act", rest["act"], c, duration, t)),
-        ("REST", "batch", BATCH,
+    both, one = (1, 32), (1,)
+    plan = [  # (transport, case, rows, concurrencies, runner)
+        ("REST", "no-op", 1, both, lambda c, t: run_wrk(http + "/healthz", None, c, duration, t)),
+        ("REST", "act", 1, both,
+         lambda c, t: run_wrk(http + "/v1/act", rest["act"], c, duration, t)),
+        ("REST", "batch", BATCH, both,
          lambda c, t: run_wrk(http + "/v1/act:batch", rest["batch"], c, duration, t)),
-        ("gRPC", "no-op", 1, lambda c, t: run_h2load(h2 + HEALTH, grpc_b["noop"], c, duration, t)),
-        ("gRPC", "act", 1, lambda c, t: run_h2load(h2 + ACT, grpc_b["act"], c, duration, t)),
-        ("gRPC", "batch", BATCH,
+        ("REST", "batch rows", BATCH, one,
+         lambda c, t: run_wrk(http + "/v1/act:batch", rest["batch rows"], c, duration, t)),
+        ("gRPC", "no-op", 1, both,
+         lambda c, t: run_h2load(h2 + HEALTH, grpc_b["noop"], c, duration, t)),
+        ("gRPC", "act", 1, both, lambda c, t: run_h2load(h2 + ACT, grpc_b["act"], c, duration, t)),
+        ("gRPC", "batch", BATCH, both,
          lambda c, t: run_h2load(h2 + ACT_BATCH, grpc_b["batch"], c, duration, t)),
+        ("gRPC", "batch rows", BATCH, one,
+         lambda c, t: run_h2load(h2 + ACT_BATCH, grpc_b["batch rows"], c, duration, t)),
     ]  # fmt: skip
     cases = []
     with tempfile.TemporaryDirectory() as tmp:
-        for transport, case, rows, runner in plan:
-            for concurrency in (1, 32):
+        for transport, case, rows, concurrencies, runner in plan:
+            for concurrency in concurrencies:
                 result = runner(concurrency, Path(tmp))
                 result.transport, result.case, result.rows = transport, case, rows
-                print(f"  {transport:4} {case:6} c={concurrency:<2} p50 {result.p50_ms:7.3f} ms "
+                print(f"  {transport:4} {case:10} c={concurrency:<2} p50 {result.p50_ms:7.3f} ms "
                       f"{result.rps:9,.0f} req/s  failed {result.failed}", flush=True)  # fmt: skip
                 cases.append(result)
     return cases

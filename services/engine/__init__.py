@@ -5,6 +5,8 @@
     [result] = engine.act(ActRequest(env="particle", ego_goal="a2", observations=obs_1D,
                                      partners=(PartnerSpec(index=1, goal="b3"),)))
     result.probs, result.action, result.greedy_action, result.models
+    columns = engine.act_columns(batch_request)   # ActColumns: one array per field, B rows
+    columns.probs, columns.actions, columns.rows() # rows(): the same as engine.act(batch_request)
 
 | module         | what                                                                   |
 |----------------|------------------------------------------------------------------------|
@@ -28,6 +30,7 @@ from services.engine.errors import EngineError, InvalidRequest, ModelNotFound, M
 from services.engine.messages import (
     DEFAULT_TEMPERATURE,
     METHODS,
+    ActColumns,
     ActRequest,
     ActResult,
     EngineStats,
@@ -41,6 +44,7 @@ from services.engine.messages import (
 __all__ = [
     "DEFAULT_TEMPERATURE",
     "METHODS",
+    "ActColumns",
     "ActRequest",
     "ActResult",
     "EngineError",

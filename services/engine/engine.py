@@ -19,7 +19,9 @@ One engine per server process, shared by the REST and gRPC transports.
 
 A single observation row with sl, nail or aail takes `fastpath.act_row` after the stack step:
 the same steps with few numpy calls and Python floats (3-4x faster at batch 1; numbers
-equal up to float32 rounding). The networks a request shape needs (`_plan_members`) are
+equal up to float32 rounding). The general path builds its answer as arrays (`ActColumns`, what
+`act_columns` returns; `act` makes the rows of them); the fast path's row becomes columns by
+`ActColumns.from_results`. The networks a request shape needs (`_plan_members`) are
 remembered; resolution and stacking go through `model_cache` on every request (a remembered
 plan as one fixed set: `ModelCache.resolve_group`), so hot reload, the stacks' LRU order and the
 cache counters are those of the general path.
@@ -55,6 +57,7 @@ from services.engine.fastpath import act_row
 from services.engine.goal_inference import goal_log_likelihoods, recover_partner_actions
 from services.engine.messages import (
     DEFAULT_TEMPERATURE,
+    ActColumns,
     ActRequest,
     ActResult,
     EngineStats,
@@ -108,21 +111,37 @@ class InferenceEngine:
         """One result per observation row; `EngineError` on bad input or missing models."""
         return self.act_checked(request, None)
 
+    def act_columns(self, request: ActRequest) -> ActColumns:
+        """`act`'s results as columns (one array per field, the models once): the same values,
+        sampled actions, errors and stats; `act_columns(r).rows()` equals `act(r)`."""
+        answer = self._counted(request, None)
+        return answer if isinstance(answer, ActColumns) else ActColumns.from_results(answer)
+
     def act_checked(self, request: ActRequest, checked: CheckedRequest | None) -> list[ActResult]:
         """`act`, given what `check_request(request)` would return (None: check it here).
         Internal, for a caller that checked the request's parts itself and builds `checked`
         from them (a session: settings once, the observation and its belief's distribution on
         each step); `request.observations` and `request.partners` are then not read."""
+        answer = self._counted(request, checked)
+        return answer if isinstance(answer, list) else answer.rows()
+
+    def _counted(
+        self, request: ActRequest, checked: CheckedRequest | None
+    ) -> list[ActResult] | ActColumns:
         try:
-            results = self._act(request, checked)
+            answer = self._act(request, checked)
         except EngineError:
             self.stats.errors += 1
             raise
         self.stats.requests += 1
-        self.stats.rows += len(results)
-        return results
+        self.stats.rows += len(answer)
+        return answer
 
-    def _act(self, request: ActRequest, checked: CheckedRequest | None) -> list[ActResult]:
+    def _act(
+        self, request: ActRequest, checked: CheckedRequest | None
+    ) -> list[ActResult] | ActColumns:
+        """The single-row fast path's rows, else the general path's columns (each converts to
+        the other only when asked for it: `act` wants rows, `act_columns` columns)."""
         if checked is None:
             checked = check_request(request, self.max_batch)
         domain, method = checked.runtime.domain, request.method
@@ -152,18 +171,17 @@ class InferenceEngine:
         if blend_method == "sl":  # no impact network was evaluated: every partner weighs 0
             partner_weights_BP = np.zeros((batch, len(checked.partners)))
         rng = self._rng if request.seed is None else np.random.default_rng(request.seed)
-        actions = sample_actions(blended.probs_BA, rng).tolist()
-        greedy = blended.probs_BA.argmax(axis=1).tolist()
-        probs, entropy = blended.probs_BA.tolist(), blended.task_entropy_B.tolist()
-        w_task, w_partners = blended.task_weight_B.tolist(), partner_weights_BP.tolist()
-        models = models_used(checked, members, group)
-        return [
-            ActResult(
-                probs[b], actions[b], greedy[b], method, entropy[b], w_task[b], w_partners[b],
-                list(models),
-            )
-            for b in range(batch)
-        ]  # fmt: skip
+        probs_BA = np.asarray(blended.probs_BA, dtype=np.float64)
+        return ActColumns(
+            method=method,
+            models=models_used(checked, members, group),
+            probs=probs_BA,
+            actions=sample_actions(probs_BA, rng).astype(np.int64, copy=False),
+            greedy_actions=probs_BA.argmax(axis=1).astype(np.int64, copy=False),
+            task_entropies=np.asarray(blended.task_entropy_B, dtype=np.float64),
+            task_weights=np.asarray(blended.task_weight_B, dtype=np.float64),
+            partner_weights=np.asarray(partner_weights_BP, dtype=np.float64),
+        )
 
     def _resolve_members(
         self, request: ActRequest, checked: CheckedRequest

@@ -9,6 +9,8 @@
 | `ModelUsed`    | one network a result was computed with (name, version, sha256, role)   |
 | `ActResult`    | one per observation row: probabilities, sampled and greedy action,     |
 |                | blend diagnostics, models used                                         |
+| `ActColumns`   | the same for a whole batch as arrays, one per field (method and models |
+|                | once): `rows()` gives the `ActResult`s                                 |
 | `EnvInfo`      | one environment as `GET /v1/envs` describes it                         |
 | `EngineStatus` | readiness: store reachable, models loaded, versions served             |
 | `EngineStats`  | counters for metrics (cache hits and misses, loads, reloads ...)       |
@@ -16,7 +18,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -70,6 +72,56 @@ class ActResult:  # much, 0.24 ms of a 256-row batch (benchmarks/serving.py)
     task_weight: float  # w_t (1 for sl and jl)
     partner_weights: list[float]  # one per partner, in `partners` order
     models: list[ModelUsed]
+
+
+@dataclass(frozen=True, eq=False)  # eq=False: the fields are arrays
+class ActColumns:
+    """A batch's results as columns: B rows, A actions, P partners (`InferenceEngine.act_columns`)."""
+
+    method: str
+    models: list[ModelUsed]  # every row was computed with these
+    probs: np.ndarray  # (B, A) float64
+    actions: np.ndarray  # (B,) int64, sampled from `probs`
+    greedy_actions: np.ndarray  # (B,) int64, arg max of `probs` (the first on ties)
+    task_entropies: np.ndarray  # (B,) float64
+    task_weights: np.ndarray  # (B,) float64
+    partner_weights: np.ndarray  # (B, P) float64, partners in request order
+
+    def __len__(self) -> int:
+        return len(self.probs)
+
+    def rows(self) -> list[ActResult]:
+        """One `ActResult` per row (each with its own copy of the model list)."""
+        probs, actions = self.probs.tolist(), self.actions.tolist()
+        greedy, entropy = self.greedy_actions.tolist(), self.task_entropies.tolist()
+        w_task, w_partners = self.task_weights.tolist(), self.partner_weights.tolist()
+        method, models = self.method, self.models
+        return [
+            ActResult(
+                probs[b], actions[b], greedy[b], method, entropy[b], w_task[b], w_partners[b],
+                list(models),
+            )
+            for b in range(len(probs))
+        ]  # fmt: skip
+
+    @classmethod
+    def from_results(cls, results: Sequence[ActResult]) -> ActColumns:
+        """The columns of `results` (at least one; the first row's method and models)."""
+        if not results:
+            raise ValueError("results: expected at least one row")
+        first = results[0]
+        return cls(
+            method=first.method,
+            models=list(first.models),
+            probs=np.array([r.probs for r in results], dtype=np.float64),
+            actions=np.array([r.action for r in results], dtype=np.int64),
+            greedy_actions=np.array([r.greedy_action for r in results], dtype=np.int64),
+            task_entropies=np.array([r.task_entropy for r in results], dtype=np.float64),
+            task_weights=np.array([r.task_weight for r in results], dtype=np.float64),
+            partner_weights=np.array(
+                [r.partner_weights for r in results], dtype=np.float64
+            ).reshape(len(results), len(first.partner_weights)),
+        )
 
 
 @dataclass(frozen=True)

@@ -3,20 +3,25 @@
 | function                 | from                                  | to                            |
 |--------------------------|---------------------------------------|-------------------------------|
 | `act_request`            | `ActRequest`                          | engine `ActRequest` (B = 1)   |
+| `batch_source`           | `ActBatchRequest`                     | which input form it uses      |
 | `act_batch_request`      | `ActBatchRequest`                     | engine `ActRequest` (B rows)  |
 | `episode_request`        | `EpisodeSettings` + `EpisodeStep`, t  | engine `ActRequest`, seed + t |
 | `act_response`           | engine `ActResult`                    | `ActResponse`                 |
 | `act_batch_response`     | engine `ActResult`s                   | `ActBatchResponse`            |
+| `act_columns_response`   | engine `ActColumns`                   | `ActBatchResponse.columns`    |
 | `infers_goals`           | `EpisodeSettings`                     | whether a partner is inferred |
 | `session_settings`       | `EpisodeSettings`                     | `SessionSettings` (sessions)  |
 | `session_step_inputs`    | `EpisodeStep`                         | observation (1, D), observed  |
 | `session_response`       | `SessionStepResult`                   | `ActResponse` with `beliefs`  |
 | `env_info`               | engine `EnvInfo`                      | `EnvInfo`                     |
 | `renamed_for_transport`  | an `EngineError`                      | the same, blaming the field   |
-|                          |                                       | the client actually sent      |
+| `renamed_for_batch`      |                                       | the client actually sent      |
 
 Field names follow the REST API: a single request's rows are `observation` / `state` (the engine
-calls them `observations[0]`), a batch of states is `states[b]`. Unset proto3 fields take the REST
+calls them `observations[0]`), a batch of states is `states[b]`, a row of a batch's
+`observation_matrix` is `observation_matrix[b]`. A matrix and the columns are read into and
+filled from numpy in one call each (`np.array(values)`, `extend(ndarray)`): microseconds for a
+256-row batch, where reading one `Vector` message per row costs about 1 µs a row. Unset proto3 fields take the REST
 defaults: method "aail", alias "production", no temperature, no seed; an unset belief field the
 `SessionSettings` / `BeliefConfig` default. `infer` is refused outside an Episode (a unary call
 has no history of the partner's actions).
@@ -25,17 +30,20 @@ has no history of the partner's actions).
 from __future__ import annotations
 
 from collections.abc import Sequence
+from itertools import chain
 from typing import Any
 
 import numpy as np
 
 from policy.belief import BeliefConfig
 from services.engine import (
+    ActColumns,
     ActRequest,
     ActResult,
     EngineError,
     EnvInfo,
     InvalidRequest,
+    ModelUsed,
     PartnerSpec,
     observations_from_states,
 )
@@ -89,13 +97,35 @@ def check_one_input(message: Rows) -> bool:
     """Whether the rows come as states; `InvalidRequest` when both forms are given (checked
     before the engine runs, so the REST API's field names apply unchanged)."""
     if isinstance(message, pb.ActBatchRequest):
-        if message.states and message.observations:
-            raise InvalidRequest("observations", "give exactly one of observations and states")
-        return bool(message.states)
+        return batch_source(message) == "states"
     from_state = message.HasField("state")
     if from_state and len(message.observation):
         raise InvalidRequest("observation", "give exactly one of observation and state")
     return from_state
+
+
+BATCH_SOURCES = ("observations", "states", "observation_matrix")
+
+
+def batch_source(message: pb.ActBatchRequest) -> str:
+    """The one input form of a batch: `observations` (also when none is given: the engine then
+    reports an empty batch), `states` or `observation_matrix`; `InvalidRequest` for two."""
+    given = [
+        name
+        for name, present in zip(
+            BATCH_SOURCES,
+            (message.observations, message.states, message.HasField("observation_matrix")),
+            strict=True,
+        )
+        if present
+    ]
+    if len(given) > 1:
+        field = "observation_matrix" if "observation_matrix" in given else "observations"
+        raise InvalidRequest(
+            field,
+            f"give exactly one of observations, states and observation_matrix, got {given}",
+        )
+    return given[0] if given else "observations"
 
 
 def _single_observation(env: str, message: pb.ActRequest | pb.EpisodeStep) -> np.ndarray:
@@ -115,16 +145,36 @@ def episode_request(settings: pb.EpisodeSettings, step: pb.EpisodeStep, t: int) 
 
 
 def act_batch_request(message: pb.ActBatchRequest) -> ActRequest:
-    if message.states:
+    """The engine request of a batch in any of its three input forms (`batch_source`)."""
+    source = batch_source(message)
+    if source == "observation_matrix":
+        return _request(message, _matrix(message.observation_matrix))
+    if source == "states":
         states = [_rows(s) for s in message.states]
         return _request(message, observations_from_states(message.env, states, message.ego_index))
-    lengths = {len(row.values) for row in message.observations}
+    rows = [row.values for row in message.observations]
+    lengths = set(map(len, rows))
     if len(lengths) > 1:
         raise InvalidRequest("observations", f"rows of different lengths {sorted(lengths)}")
     width = lengths.pop() if lengths else 0
-    flat = [x for row in message.observations for x in row.values]
-    obs_BD = np.asarray(flat, dtype=np.float64).reshape(len(message.observations), width)
-    return _request(message, obs_BD)
+    # one pass over the rows' containers, no list in between: 0.22 ms for 256 rows of 20
+    # against 0.35 ms for a flat list comprehension
+    flat = np.fromiter(chain.from_iterable(rows), dtype=np.float64, count=len(rows) * width)
+    return _request(message, flat.reshape(len(rows), width))
+
+
+def _matrix(matrix: pb.Matrix) -> np.ndarray:
+    """The (rows, cols) observations of an `observation_matrix`, its shape checked."""
+    for name, value in (("rows", matrix.rows), ("cols", matrix.cols)):
+        if value < 1:
+            raise InvalidRequest(f"observation_matrix.{name}", f"expected >= 1, got {value}")
+    if matrix.rows * matrix.cols != len(matrix.values):
+        raise InvalidRequest(
+            "observation_matrix.values",
+            f"expected rows x cols = {matrix.rows} x {matrix.cols} = "
+            f"{matrix.rows * matrix.cols} values, got {len(matrix.values)}",
+        )
+    return np.array(matrix.values, dtype=np.float64).reshape(matrix.rows, matrix.cols)
 
 
 def _is_inferred(partner: pb.PartnerSpec) -> bool:
@@ -193,21 +243,34 @@ def renamed_for_transport(err: EngineError, *, single: bool, from_state: bool) -
     field = err.field
     if field is None or not field.startswith(("observations", "states")):
         return err
-    rest = field.removeprefix("observations").removeprefix("states")
     if single:
         return err.renamed("state" if from_state else "observation")
-    return err.renamed(("states" if from_state else "observations") + rest)
+    return renamed_for_batch(err, "states" if from_state else "observations")
+
+
+def renamed_for_batch(err: EngineError, source: str) -> EngineError:
+    """Blame the batch's input form `source` (`batch_source`): the engine's `observations[b]`
+    becomes `states[b]` or `observation_matrix[b]`, its `observations` the whole input."""
+    field = err.field
+    if field is None or not field.startswith(("observations", "states")):
+        return err
+    rest = field.removeprefix("observations").removeprefix("states")
+    return err.renamed(source + rest)
 
 
 def _models(result: ActResult) -> list[pb.ModelUsed]:
-    models = []
-    for m in result.models:
+    return _model_messages(result.models)
+
+
+def _model_messages(models: Sequence[ModelUsed]) -> list[pb.ModelUsed]:
+    out = []
+    for m in models:
         model = pb.ModelUsed(role=m.role, name=m.name, version=m.version, sha256=m.sha256)
         model.goal = m.goal
         if m.partner_index is not None:
             model.partner_index = m.partner_index
-        models.append(model)
-    return models
+        out.append(model)
+    return out
 
 
 def _fill(
@@ -251,6 +314,25 @@ def act_batch_response(request: ActRequest, results: Sequence[ActResult]) -> pb.
         shared = _shared(request, results)
         for result in results:
             _fill(batch.results.add(), result, *shared)
+    return batch
+
+
+def act_columns_response(request: ActRequest, columns: ActColumns) -> pb.ActBatchResponse:
+    """The batch as one `ActColumns` message: each array written with one `extend`."""
+    batch = pb.ActBatchResponse()
+    out = batch.columns
+    out.method = columns.method
+    out.models.extend(_model_messages(columns.models))
+    out.rows, out.n_actions = columns.probs.shape
+    out.probs.extend(columns.probs.ravel())
+    out.actions.extend(columns.actions)
+    out.greedy_actions.extend(columns.greedy_actions)
+    meanings = env_runtime(request.env).info.action_meanings
+    out.action_meanings.extend([meanings[a] for a in columns.actions.tolist()])
+    out.task_entropies.extend(columns.task_entropies)
+    out.task_weights.extend(columns.task_weights)
+    out.partner_indices.extend([p.index for p in request.partners])
+    out.partner_weights.extend(columns.partner_weights.ravel())
     return batch
 
 

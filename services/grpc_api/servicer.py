@@ -4,7 +4,8 @@ maps errors (`errors`); the engine does the work, exactly as for the REST routes
 | rpc        | engine call                           | notes                                    |
 |------------|---------------------------------------|------------------------------------------|
 | `Act`      | `engine.act` with one row             | `state` + `ego_index` -> observation     |
-| `ActBatch` | `engine.act` with B rows              | one vectorised pass                      |
+| `ActBatch` | `engine.act` with B rows, or          | one vectorised pass; `observations`,     |
+|            | `engine.act_columns` (COLUMNS format) | `states` or `observation_matrix`         |
 | `ListEnvs` | `engine.envs()`                       |                                          |
 | `Episode`  | `engine.act` per received step        | settings from the first message (or the  |
 |            |                                       | latest that carried them); seed + t      |
@@ -65,10 +66,21 @@ class PolicyServicer(pb_grpc.PolicyServiceServicer):
     def ActBatch(
         self, request: pb.ActBatchRequest, context: grpc.ServicerContext
     ) -> pb.ActBatchResponse:
-        act_request, results = self._run(
-            request, partial(convert.act_batch_request, request), single=False
-        )
-        return convert.act_batch_response(act_request, results)
+        """Rows or columns (`format`); errors blame the input form the client sent."""
+        if request.format not in (pb.BATCH_FORMAT_ROWS, pb.BATCH_FORMAT_COLUMNS):
+            raise InvalidRequest(
+                "format",
+                f"expected BATCH_FORMAT_ROWS or BATCH_FORMAT_COLUMNS, got {request.format}",
+            )
+        source = convert.batch_source(request)
+        try:
+            act_request = convert.act_batch_request(request)
+            if request.format == pb.BATCH_FORMAT_COLUMNS:
+                columns = self.engine.act_columns(act_request)
+                return convert.act_columns_response(act_request, columns)
+            return convert.act_batch_response(act_request, self.engine.act(act_request))
+        except EngineError as err:
+            raise convert.renamed_for_batch(err, source) from None
 
     @translate_errors
     def ListEnvs(

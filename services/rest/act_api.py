@@ -6,27 +6,31 @@
 
 The handlers are `async def` and call the engine directly (no thread-pool hop: a forward takes
 microseconds); they only translate JSON to an `ActRequest` and the results back, written with
-orjson. Field names in errors follow the body: a single request's `observation` (or `state`), a
-batch's `observations[i]` (or `states[i]`). A `state` is turned into the ego's observation by the
+orjson. A batch with `"format": "columns"` is answered from `engine.act_columns`: one array per
+field, written by orjson straight from numpy, and the models once instead of once per row.
+Field names in errors follow the body: a single request's `observation` (or `state`), a batch's
+`observations[i]` (or `states[i]`). A `state` is turned into the ego's observation by the
 environment's perspective transform (`services.engine.observations_from_states`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 import orjson
 from fastapi import APIRouter, Request, Response
 
 from services.engine import (
+    ActColumns,
     ActRequest,
     ActResult,
     EngineError,
     InferenceEngine,
     InvalidRequest,
     ModelUnavailable,
+    ModelUsed,
     PartnerSpec,
     observations_from_states,
 )
@@ -37,6 +41,7 @@ from services.rest.schemas import (
     ActBatchBody,
     ActBatchResponse,
     ActBody,
+    ActColumnsResponse,
     ActFields,
     ActResponse,
     EnvsResponse,
@@ -53,7 +58,10 @@ def _engine(request: Request) -> InferenceEngine:
 
 
 def _json(body: Any) -> Response:
-    return Response(orjson.dumps(body), media_type="application/json")
+    # OPT_SERIALIZE_NUMPY: arrays (C-contiguous, float64 / int64) written without a list copy
+    return Response(
+        orjson.dumps(body, option=orjson.OPT_SERIALIZE_NUMPY), media_type="application/json"
+    )
 
 
 def _rename(field: str | None, source: str, single: bool) -> str | None:
@@ -67,12 +75,14 @@ def _rename(field: str | None, source: str, single: bool) -> str | None:
 
 
 Encoder = Callable[[ActResult, list[dict[str, Any]]], dict[str, Any]]
+Answer = TypeVar("Answer", list[ActResult], ActColumns)
 
 
 def _act(
-    engine: InferenceEngine, body: ActFields, rows: Any, states: Any, single: bool
-) -> tuple[list[ActResult], Encoder]:
-    """Run the engine on the body's observations or states; errors name the body's fields."""
+    run: Callable[[ActRequest], Answer], body: ActFields, rows: Any, states: Any, single: bool
+) -> tuple[Answer, tuple[PartnerSpec, ...]]:
+    """`run` (`engine.act` or `engine.act_columns`) on the body's observations or states, and the
+    partners; errors name the body's fields."""
     obs_name, state_name = ("observation", "state") if single else ("observations", "states")
     if (rows is None) == (states is None):
         message = f"give exactly one of {obs_name} and {state_name} (with ego_index)"
@@ -95,12 +105,12 @@ def _act(
             method=body.method, temperature=body.temperature, seed=body.seed,
             alias=body.alias, versions=body.versions,
         )  # fmt: skip
-        results = engine.act(request)
+        answer = run(request)
     except EngineError as exc:
         raise exc.renamed(_rename(exc.field, source, single)) from None
     except ValueError as exc:  # ragged rows: np.asarray refuses them
         raise InvalidRequest(source, f"expected rows of equal length ({exc})") from None
-    return results, _encoder(body.env, partners)
+    return answer, partners
 
 
 def _encoder(env: str, partners: Sequence[PartnerSpec]) -> Encoder:
@@ -129,27 +139,59 @@ def _encoder(env: str, partners: Sequence[PartnerSpec]) -> Encoder:
 
 
 def _models(result: ActResult) -> list[dict[str, Any]]:
+    return _model_dicts(result.models)
+
+
+def _model_dicts(models: Sequence[ModelUsed]) -> list[dict[str, Any]]:
     return [
         {
             "role": m.role, "name": m.name, "version": m.version, "sha256": m.sha256,
             "partner_index": m.partner_index, "goal": m.goal,
         }
-        for m in result.models
+        for m in models
     ]  # fmt: skip
+
+
+def _columns(env: str, partners: Sequence[PartnerSpec], columns: ActColumns) -> dict[str, Any]:
+    """The `ActColumnsResponse` JSON; the arrays stay numpy (`_json` writes them)."""
+    meanings = env_runtime(env).info.action_meanings
+    return {
+        "format": "columns",
+        "method": columns.method,
+        "models": _model_dicts(columns.models),
+        "probs": np.ascontiguousarray(columns.probs),
+        "actions": np.ascontiguousarray(columns.actions),
+        "greedy_actions": np.ascontiguousarray(columns.greedy_actions),
+        "action_meanings": [meanings[a] for a in columns.actions.tolist()],
+        "task_entropies": np.ascontiguousarray(columns.task_entropies),
+        "task_weights": np.ascontiguousarray(columns.task_weights),
+        "partner_indices": [p.index for p in partners],
+        "partner_weights": np.ascontiguousarray(columns.partner_weights),
+    }
 
 
 @router.post("/act", response_model=ActResponse, responses=ACT_ERROR_RESPONSES)
 async def act(body: ActBody, request: Request) -> Response:
     """The blended action distribution for one ego observation (or global state + ego index)."""
-    results, encode = _act(_engine(request), body, body.observation, body.state, single=True)
-    return _json(encode(results[0], _models(results[0])))
+    engine = _engine(request)
+    results, partners = _act(engine.act, body, body.observation, body.state, single=True)
+    return _json(_encoder(body.env, partners)(results[0], _models(results[0])))
 
 
-@router.post("/act:batch", response_model=ActBatchResponse, responses=ACT_ERROR_RESPONSES)
+@router.post(
+    "/act:batch",
+    response_model=ActBatchResponse | ActColumnsResponse,
+    responses=ACT_ERROR_RESPONSES,
+)
 async def act_batch(body: ActBatchBody, request: Request) -> Response:
-    """One result per observation (or state), evaluated in one vectorised pass."""
-    results, encode = _act(_engine(request), body, body.observations, body.states, single=False)
-    models = _models(results[0])  # the same networks serve every row
+    """One result per observation (or state), evaluated in one vectorised pass; with
+    `"format": "columns"` one array per field instead (`ActColumnsResponse`)."""
+    engine, rows, states = _engine(request), body.observations, body.states
+    if body.format == "columns":
+        columns, partners = _act(engine.act_columns, body, rows, states, single=False)
+        return _json(_columns(body.env, partners, columns))
+    results, partners = _act(engine.act, body, rows, states, single=False)
+    encode, models = _encoder(body.env, partners), _models(results[0])  # shared by rows
     return _json({"results": [encode(r, models) for r in results]})
 
 

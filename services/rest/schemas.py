@@ -6,6 +6,7 @@
 | `ActBatchBody`    | POST /v1/act:batch   | many observations (or states) with shared goals     |
 | `ActResponse`     | POST /v1/act         | probabilities, sampled/greedy action, diagnostics   |
 | `ActBatchResponse`| POST /v1/act:batch   | `{"results": [ActResponse, ...]}`, one per row      |
+| `ActColumnsResponse` | POST /v1/act:batch | `"format": "columns"`: one array per field, B rows |
 | `EnvsResponse`    | GET /v1/envs         | every environment's goals, layouts, action meanings |
 
 The request models check only JSON types; the engine checks the values (lengths, goals, ranges)
@@ -75,6 +76,12 @@ class ActBatchBody(ActFields):
     states: list[list[list[float]]] | None = Field(
         default=None, description="instead of `observations`: global states"
     )
+    format: Literal["rows", "columns"] = Field(
+        default="rows",
+        description="the response's form: `rows`, one result per observation (`results`), or "
+        "`columns`, one array per field with the models listed once (tensors; far smaller "
+        "and faster for large batches)",
+    )
 
 
 class PartnerWeight(BaseModel):
@@ -109,6 +116,24 @@ class ActResponse(BaseModel):
 
 class ActBatchResponse(BaseModel):
     results: list[ActResponse]
+
+
+class ActColumnsResponse(BaseModel):
+    """A batch as columns: B rows, A actions, P partners; row b of each field is row b's answer."""
+
+    format: Literal["columns"]
+    method: MethodName
+    models: list[ModelUsedOut] = Field(description="the models every row was computed with")
+    probs: list[list[float]] = Field(description="B x A action probabilities")
+    actions: list[int] = Field(description="B actions, each sampled from its row of `probs`")
+    greedy_actions: list[int] = Field(description="B arg maxes of `probs`")
+    action_meanings: list[str] = Field(description="B meanings, one per sampled action")
+    task_entropies: list[float] = Field(description="B normalised task-policy entropies")
+    task_weights: list[float] = Field(description="B task weights w_t")
+    partner_indices: list[int] = Field(description="P partner indices, in request order")
+    partner_weights: list[list[float]] = Field(
+        description="B x P partner weights w_i, columns in `partner_indices` order"
+    )
 
 
 class EnvOut(BaseModel):

@@ -9,8 +9,10 @@
 
 Every client has `act(env, ego_goal, observation=None, *, state=None, ego_index=0, partners=None,
 method="aail", temperature=None, seed=None, alias="production", versions=None) -> Action`,
-`act_batch(...) -> list[Action]`, `envs() -> list[EnvInfo]`, `health() -> Health` and
-`episode(env, ego_goal, ...)` (a session whose `act(observation)` is one environment step).
+`act_batch(...) -> list[Action]`, `act_batch_columns(...) -> ActionColumns` (the same batch as
+numpy arrays, one per field: the server's columnar format, which `act_batch` also asks for),
+`envs() -> list[EnvInfo]`, `health() -> Health` and `episode(env, ego_goal, ...)` (a session
+whose `act(observation)` is one environment step).
 Partners: `{1: "b3"}`, `{1: {"b3": 0.7, "c": 0.3}}` or a list of PartnerSpec-like objects.
 
 Goals inferred online (issue 9): the HTTP clients' `create_session(env, ego_goal, partners={1:
@@ -44,6 +46,7 @@ from services.sdk.http_sessions import AsyncSession, Session
 from services.sdk.jobs import JobsClient as JobsClient  # the job API (services.sdk.jobs)
 from services.sdk.types import (
     Action,
+    ActionColumns,
     Diagnostics,
     EnvInfo,
     Health,
@@ -56,6 +59,7 @@ from services.sdk.types import (
 
 __all__ = [
     "Action",
+    "ActionColumns",
     "AsyncCoexistClient",
     "AsyncGrpcCoexistClient",
     "AsyncSession",

@@ -164,9 +164,12 @@ def act_batch_body(
     seed: int | None = None,
     alias: str = "production",
     versions: Mapping[str, int] | None = None,
+    columns: bool = False,
 ) -> dict[str, Any]:
-    """The JSON body of `POST /v1/act:batch`."""
+    """The JSON body of `POST /v1/act:batch`; `columns`: ask for the columnar answer."""
     body = _settings(env, ego_goal, partners, method, temperature, seed, alias, versions)
+    if columns:
+        body["format"] = "columns"
     if (observations is None) == (states is None):
         raise _bad("observations", "give exactly one of observations and states (+ ego_index)")
     if observations is not None:

@@ -33,7 +33,7 @@ from services.sdk.bodies import (
 )
 from services.sdk.errors import CoexistError
 from services.sdk.grpc_client import DEFAULT_TARGET, SERVICE_NAME, grpc_target, sdk_error
-from services.sdk.types import Action, EnvInfo, Health
+from services.sdk.types import Action, ActionColumns, EnvInfo, Health
 
 
 class AsyncGrpcCoexistClient:
@@ -96,9 +96,38 @@ class AsyncGrpcCoexistClient:
         body = act_batch_body(
             env, ego_goal, observations, states=states, ego_index=ego_index, partners=partners,
             method=method, temperature=temperature, seed=seed, alias=alias, versions=versions,
+            columns=True,
         )  # fmt: skip
-        response = await self._call(self._stub.ActBatch, proto.act_batch_request(body))
-        return [proto.action_from_proto(r) for r in response.results]
+        return (await self._columns(body)).to_actions()
+
+    async def act_batch_columns(
+        self,
+        env: str,
+        ego_goal: str,
+        observations: ArrayLike | None = None,
+        *,
+        states: ArrayLike | None = None,
+        ego_index: int = 0,
+        partners: Partners = None,
+        method: str = "aail",
+        temperature: float | None = None,
+        seed: int | None = None,
+        alias: str = "production",
+        versions: Mapping[str, int] | None = None,
+    ) -> ActionColumns:
+        body = act_batch_body(
+            env, ego_goal, observations, states=states, ego_index=ego_index, partners=partners,
+            method=method, temperature=temperature, seed=seed, alias=alias, versions=versions,
+            columns=True,
+        )  # fmt: skip
+        return await self._columns(body)
+
+    async def _columns(self, body: dict[str, Any]) -> ActionColumns:
+        try:
+            response = await self._call(self._stub.ActBatch, proto.act_batch_request(body))
+        except CoexistError as err:
+            raise proto.blame_observations(err) from None
+        return proto.columns_from_proto(response.columns)
 
     async def envs(self) -> list[EnvInfo]:
         response = await self._call(self._stub.ListEnvs, pb.ListEnvsRequest())

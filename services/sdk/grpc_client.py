@@ -7,9 +7,11 @@
         with client.episode("particle", "a2", partners={1: None}) as ep:  # goal inferred
             ep.act(obs_0); a = ep.act(obs_1, observed={1: 3})    # a.beliefs[0].top
 
-The same methods and results as the HTTP clients (`act`, `act_batch`, `envs`, `health`,
-`episode`); one persistent channel per client. Errors raise `services.sdk.errors` classes; the
-field comes from the server's `coexist-field` trailing metadata.
+The same methods and results as the HTTP clients (`act`, `act_batch`, `act_batch_columns`,
+`envs`, `health`, `episode`); one persistent channel per client. A batch travels as one
+`observation_matrix` and comes back as `ActColumns` (`act_batch` makes its `Action`s; errors
+about the matrix name `observations`, as over HTTP). Errors raise `services.sdk.errors` classes;
+the field comes from the server's `coexist-field` trailing metadata.
 """
 
 from __future__ import annotations
@@ -35,7 +37,7 @@ from services.sdk.bodies import (
     session_body,
 )
 from services.sdk.errors import CoexistError, error_for_grpc
-from services.sdk.types import Action, EnvInfo, Health
+from services.sdk.types import Action, ActionColumns, EnvInfo, Health
 
 SERVICE_NAME = "coexist.v1.PolicyService"
 FIELD_METADATA_KEY = "coexist-field"
@@ -115,9 +117,38 @@ class GrpcCoexistClient:
         body = act_batch_body(
             env, ego_goal, observations, states=states, ego_index=ego_index, partners=partners,
             method=method, temperature=temperature, seed=seed, alias=alias, versions=versions,
+            columns=True,
         )  # fmt: skip
-        response = self._call(self._stub.ActBatch, proto.act_batch_request(body))
-        return [proto.action_from_proto(r) for r in response.results]
+        return self._columns(body).to_actions()
+
+    def act_batch_columns(
+        self,
+        env: str,
+        ego_goal: str,
+        observations: ArrayLike | None = None,
+        *,
+        states: ArrayLike | None = None,
+        ego_index: int = 0,
+        partners: Partners = None,
+        method: str = "aail",
+        temperature: float | None = None,
+        seed: int | None = None,
+        alias: str = "production",
+        versions: Mapping[str, int] | None = None,
+    ) -> ActionColumns:
+        body = act_batch_body(
+            env, ego_goal, observations, states=states, ego_index=ego_index, partners=partners,
+            method=method, temperature=temperature, seed=seed, alias=alias, versions=versions,
+            columns=True,
+        )  # fmt: skip
+        return self._columns(body)
+
+    def _columns(self, body: dict[str, Any]) -> ActionColumns:
+        try:
+            response = self._call(self._stub.ActBatch, proto.act_batch_request(body))
+        except CoexistError as err:
+            raise proto.blame_observations(err) from None
+        return proto.columns_from_proto(response.columns)
 
     def envs(self) -> list[EnvInfo]:
         response = self._call(self._stub.ListEnvs, pb.ListEnvsRequest())

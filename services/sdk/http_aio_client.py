@@ -17,7 +17,7 @@ from services.sdk.bodies import Partners, act_batch_body, act_body, session_body
 from services.sdk.errors import CoexistError
 from services.sdk.http_client import DEFAULT_URL, checked_json, envs_from_json, unavailable_error
 from services.sdk.http_sessions import AsyncSession, new_affinity
-from services.sdk.types import Action, EnvInfo, Health, SessionInfo
+from services.sdk.types import Action, ActionColumns, EnvInfo, Health, SessionInfo
 
 
 class AsyncCoexistClient:
@@ -90,20 +90,36 @@ class AsyncCoexistClient:
         versions: Mapping[str, int] | None = None,
     ) -> list[Action]:
         body = act_batch_body(
-            env,
-            ego_goal,
-            observations,
-            states=states,
-            ego_index=ego_index,
-            partners=partners,
-            method=method,
-            temperature=temperature,
-            seed=seed,
-            alias=alias,
-            versions=versions,
-        )
-        data = await self._request("POST", "/v1/act:batch", body)
-        return [Action.from_json(r) for r in data["results"]]
+            env, ego_goal, observations, states=states, ego_index=ego_index, partners=partners,
+            method=method, temperature=temperature, seed=seed, alias=alias, versions=versions,
+            columns=True,
+        )  # fmt: skip
+        return (await self._columns(body)).to_actions()
+
+    async def act_batch_columns(
+        self,
+        env: str,
+        ego_goal: str,
+        observations: ArrayLike | None = None,
+        *,
+        states: ArrayLike | None = None,
+        ego_index: int = 0,
+        partners: Partners = None,
+        method: str = "aail",
+        temperature: float | None = None,
+        seed: int | None = None,
+        alias: str = "production",
+        versions: Mapping[str, int] | None = None,
+    ) -> ActionColumns:
+        body = act_batch_body(
+            env, ego_goal, observations, states=states, ego_index=ego_index, partners=partners,
+            method=method, temperature=temperature, seed=seed, alias=alias, versions=versions,
+            columns=True,
+        )  # fmt: skip
+        return await self._columns(body)
+
+    async def _columns(self, body: dict[str, Any]) -> ActionColumns:
+        return ActionColumns.from_json(await self._request("POST", "/v1/act:batch", body))
 
     async def envs(self) -> list[EnvInfo]:
         return envs_from_json(await self._request("GET", "/v1/envs"))

@@ -9,6 +9,7 @@
 |-------------------------|-------------------------|------------------|
 | `act(...)`              | `POST /v1/act`          | `Action`         |
 | `act_batch(...)`        | `POST /v1/act:batch`    | `list[Action]`   |
+| `act_batch_columns(...)`| `POST /v1/act:batch`    | `ActionColumns`  |
 | `envs()`                | `GET /v1/envs`          | `list[EnvInfo]`  |
 | `health()`              | `/healthz`, `/readyz`   | `Health`         |
 | `episode(...)`          | `POST /v1/act` per step | an episode session |
@@ -37,7 +38,7 @@ from services.sdk.bodies import (
 )
 from services.sdk.errors import CoexistError, Unavailable, error_for_http
 from services.sdk.http_sessions import Session, new_affinity
-from services.sdk.types import Action, EnvInfo, Health, SessionInfo
+from services.sdk.types import Action, ActionColumns, EnvInfo, Health, SessionInfo
 
 DEFAULT_URL = "http://127.0.0.1:8000"
 
@@ -135,20 +136,37 @@ class CoexistClient:
     ) -> list[Action]:
         """One action per observation (or per state), in order, from one vectorised request."""
         body = act_batch_body(
-            env,
-            ego_goal,
-            observations,
-            states=states,
-            ego_index=ego_index,
-            partners=partners,
-            method=method,
-            temperature=temperature,
-            seed=seed,
-            alias=alias,
-            versions=versions,
-        )
-        data = self._request("POST", "/v1/act:batch", body)
-        return [Action.from_json(r) for r in data["results"]]
+            env, ego_goal, observations, states=states, ego_index=ego_index, partners=partners,
+            method=method, temperature=temperature, seed=seed, alias=alias, versions=versions,
+            columns=True,
+        )  # fmt: skip
+        return self._columns(body).to_actions()
+
+    def act_batch_columns(
+        self,
+        env: str,
+        ego_goal: str,
+        observations: ArrayLike | None = None,
+        *,
+        states: ArrayLike | None = None,
+        ego_index: int = 0,
+        partners: Partners = None,
+        method: str = "aail",
+        temperature: float | None = None,
+        seed: int | None = None,
+        alias: str = "production",
+        versions: Mapping[str, int] | None = None,
+    ) -> ActionColumns:
+        """`act_batch`'s answer as arrays, one per field (the server's columnar format)."""
+        body = act_batch_body(
+            env, ego_goal, observations, states=states, ego_index=ego_index, partners=partners,
+            method=method, temperature=temperature, seed=seed, alias=alias, versions=versions,
+            columns=True,
+        )  # fmt: skip
+        return self._columns(body)
+
+    def _columns(self, body: dict[str, Any]) -> ActionColumns:
+        return ActionColumns.from_json(self._request("POST", "/v1/act:batch", body))
 
     def envs(self) -> list[EnvInfo]:
         return envs_from_json(self._request("GET", "/v1/envs"))

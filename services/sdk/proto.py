@@ -4,9 +4,13 @@
 |-----------------------|-----------------------------|-----------------------------------|
 | `act_request`         | `act_body(...)` dict        | `coexist.v1.ActRequest`           |
 | `act_batch_request`   | `act_batch_body(...)` dict  | `coexist.v1.ActBatchRequest`      |
+|                       |                             | (observations as one `Matrix`)    |
 | `episode_step`        | settings and/or observation,| `coexist.v1.EpisodeStep`          |
 |                       | observed actions            |                                   |
 | `action_from_proto`   | `coexist.v1.ActResponse`    | `services.sdk.types.Action`       |
+| `columns_from_proto`  | `coexist.v1.ActColumns`     | `services.sdk.types.ActionColumns`|
+| `blame_observations`  | an error naming             | the same naming `observations`    |
+|                       | `observation_matrix...`     | (the field the SDK user gave)     |
 | `env_from_proto`      | `coexist.v1.EnvInfo`        | `services.sdk.types.EnvInfo`      |
 """
 
@@ -14,10 +18,14 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+
 from services.grpc_api.gen.coexist.v1 import policy_pb2 as pb
-from services.sdk.errors import InvalidArgument
+from services.sdk.errors import CoexistError, InvalidArgument
 from services.sdk.types import (
+    COLUMN_FIELDS,
     Action,
+    ActionColumns,
     Diagnostics,
     EnvInfo,
     ModelUsed,
@@ -80,9 +88,15 @@ def act_request(body: dict[str, Any]) -> pb.ActRequest:
 
 
 def act_batch_request(body: dict[str, Any]) -> pb.ActBatchRequest:
+    """Observations travel as one `observation_matrix` (one flat array: far cheaper to encode
+    and decode than a `Vector` per row); `"format": "columns"` asks for `ActColumns`."""
     kwargs = _settings_kwargs(body)
+    if body.get("format") == "columns":
+        kwargs["format"] = pb.BATCH_FORMAT_COLUMNS
     if "observations" in body:
-        kwargs["observations"] = [pb.Vector(values=row) for row in body["observations"]]
+        obs_BD = np.asarray(body["observations"], dtype=np.float64)  # 2-D: act_batch_body
+        rows, cols = obs_BD.shape
+        kwargs["observation_matrix"] = pb.Matrix(rows=rows, cols=cols, values=obs_BD.ravel())
     else:
         kwargs["states"] = [_state(s) for s in body["states"]]
         kwargs["ego_index"] = body["ego_index"]
@@ -119,17 +133,7 @@ def action_from_proto(response: pb.ActResponse) -> Action:
             task_weight=d.task_weight,
             partner_weights=tuple(PartnerWeight(w.index, w.weight) for w in d.partner_weights),
         ),
-        models=tuple(
-            ModelUsed(
-                role=m.role,
-                name=m.name,
-                version=m.version,
-                sha256=m.sha256,
-                partner_index=m.partner_index if m.HasField("partner_index") else None,
-                goal=m.goal or None,
-            )
-            for m in response.models
-        ),
+        models=tuple(_model_from_proto(m) for m in response.models),
         beliefs=tuple(
             PartnerBelief(
                 index=b.index,
@@ -141,6 +145,40 @@ def action_from_proto(response: pb.ActResponse) -> Action:
             for b in response.beliefs
         ),
     )
+
+
+def _model_from_proto(m: pb.ModelUsed) -> ModelUsed:
+    return ModelUsed(
+        role=m.role,
+        name=m.name,
+        version=m.version,
+        sha256=m.sha256,
+        partner_index=m.partner_index if m.HasField("partner_index") else None,
+        goal=m.goal or None,
+    )
+
+
+def columns_from_proto(columns: pb.ActColumns) -> ActionColumns:
+    return ActionColumns.from_sequences(
+        rows=columns.rows,
+        method=columns.method,
+        models=[_model_from_proto(m) for m in columns.models],
+        **{name: getattr(columns, name) for name in COLUMN_FIELDS},
+    )
+
+
+def blame_observations(err: CoexistError) -> CoexistError:
+    """`err` naming `observations` where the server named the matrix the SDK sent them in:
+    `observation_matrix[b]` becomes `observations[b]`, the matrix or its shape `observations`."""
+    field = err.field
+    if field is None or not field.startswith("observation_matrix"):
+        return err
+    rest = field.removeprefix("observation_matrix")
+    renamed = "observations" + (rest if rest.startswith("[") else "")
+    message = err.message.removeprefix(f"{field}:")
+    if message != err.message:
+        message = f"{renamed}:{message}"
+    return type(err)(err.code, message, renamed)
 
 
 def env_from_proto(env: pb.EnvInfo) -> EnvInfo:

@@ -3,6 +3,7 @@
 | type            | what                                                                 |
 |-----------------|----------------------------------------------------------------------|
 | `Action`        | the blended action distribution for one observation                  |
+| `ActionColumns` | a batch's answer as arrays, one per field (`act_batch_columns`)      |
 | `Diagnostics`   | task entropy, task weight w_t (eq. 9), partner weights w_i (eq. 10)  |
 | `PartnerWeight` | one partner's weight, by its index in the ego's observation layout   |
 | `ModelUsed`     | a model the answer was computed with (name, version, sha256, role)   |
@@ -12,14 +13,17 @@
 | `EnvInfo`       | an environment the server knows (goals, layout, action meanings)     |
 | `Health`        | liveness and readiness of a server                                   |
 
-`from_json` builds each from the REST API's JSON; the gRPC client builds them from protobuf.
+`from_json` builds each from the REST API's JSON; the gRPC client builds them from protobuf
+(`ActionColumns.from_sequences` from either).
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
+
+import numpy as np
 
 
 @dataclass(frozen=True)
@@ -124,6 +128,101 @@ def _action_fields(data: Mapping[str, Any]) -> dict[str, Any]:
         "models": tuple(ModelUsed.from_json(m) for m in data.get("models", ())),
         "beliefs": tuple(PartnerBelief.from_json(b) for b in data.get("beliefs", ())),
     }
+
+
+# The per-row fields of a columns answer: the same names in the REST JSON and in protobuf.
+COLUMN_FIELDS = (
+    "probs", "actions", "greedy_actions", "action_meanings", "task_entropies", "task_weights",
+    "partner_indices", "partner_weights",
+)  # fmt: skip
+
+
+@dataclass(frozen=True, eq=False)  # eq=False: the fields are arrays
+class ActionColumns:
+    """A batch's answer as columns: B rows, A actions, P partners; row b of every field is
+    observation b's answer (`to_actions()` gives the `Action`s `act_batch` returns)."""
+
+    method: str
+    models: tuple[ModelUsed, ...]  # every row was computed with these
+    probs: np.ndarray  # (B, A) float64
+    actions: np.ndarray  # (B,) int64, sampled from `probs` (seeded by the request's seed)
+    greedy_actions: np.ndarray  # (B,) int64, arg max of `probs`
+    action_meanings: tuple[str, ...]  # B: the environment's name of each sampled action
+    task_entropies: np.ndarray  # (B,) float64
+    task_weights: np.ndarray  # (B,) float64, w_t
+    partner_indices: tuple[int, ...]  # P, in the request's partner order
+    partner_weights: np.ndarray  # (B, P) float64, w_i in `partner_indices` order
+
+    def __len__(self) -> int:
+        return len(self.probs)
+
+    @classmethod
+    def from_sequences(
+        cls,
+        *,
+        rows: int,
+        method: str,
+        models: Iterable[ModelUsed],
+        probs: Sequence[Any],
+        actions: Sequence[int],
+        greedy_actions: Sequence[int],
+        action_meanings: Iterable[str],
+        task_entropies: Sequence[float],
+        task_weights: Sequence[float],
+        partner_indices: Iterable[int],
+        partner_weights: Sequence[Any],
+    ) -> ActionColumns:
+        """From JSON lists (nested) or protobuf repeated fields (flat, row-major) of `rows` rows."""
+        indices = tuple(int(i) for i in partner_indices)
+        return cls(
+            method=str(method),
+            models=tuple(models),
+            probs=np.array(probs, dtype=np.float64).reshape(rows, -1),
+            actions=np.array(actions, dtype=np.int64),
+            greedy_actions=np.array(greedy_actions, dtype=np.int64),
+            action_meanings=tuple(str(m) for m in action_meanings),
+            task_entropies=np.array(task_entropies, dtype=np.float64),
+            task_weights=np.array(task_weights, dtype=np.float64),
+            partner_indices=indices,
+            partner_weights=np.array(partner_weights, dtype=np.float64).reshape(rows, len(indices)),
+        )
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> ActionColumns:
+        """From the REST API's `"format": "columns"` answer."""
+        return cls.from_sequences(
+            rows=len(data["actions"]),
+            method=data["method"],
+            models=[ModelUsed.from_json(m) for m in data["models"]],
+            **{name: data[name] for name in COLUMN_FIELDS},
+        )
+
+    def to_actions(self) -> list[Action]:
+        """One `Action` per row, as `act_batch` returns them."""
+        probs, actions = self.probs.tolist(), self.actions.tolist()
+        greedy, entropies = self.greedy_actions.tolist(), self.task_entropies.tolist()
+        task_weights, partner_weights = self.task_weights.tolist(), self.partner_weights.tolist()
+        return [
+            Action(
+                probs=tuple(probs[b]),
+                action=actions[b],
+                greedy_action=greedy[b],
+                action_meaning=self.action_meanings[b],
+                method=self.method,
+                diagnostics=Diagnostics(
+                    task_entropy=entropies[b],
+                    task_weight=task_weights[b],
+                    partner_weights=tuple(
+                        PartnerWeight(index, weight)
+                        for index, weight in zip(
+                            self.partner_indices, partner_weights[b], strict=True
+                        )
+                    ),
+                ),
+                models=self.models,
+            )
+            for b in range(len(probs))
+        ]
 
 
 @dataclass(frozen=True)

@@ -71,13 +71,25 @@ def test_verdicts_compare_each_transport_with_its_own_floor() -> None:
 
 
 def test_payloads_are_the_five_agent_scenario() -> None:
+    from services.grpc_api.gen.coexist.v1 import policy_pb2 as pb
+
     act = json.loads(serving.rest_bodies()["act"])
     assert act["ego_goal"] == serving.EGO and len(act["partners"]) == 4
     assert len(act["observation"]) == 20
     batch = json.loads(serving.rest_bodies()["batch"])
-    assert len(batch["observations"]) == serving.BATCH
+    assert len(batch["observations"]) == serving.BATCH and batch["format"] == "columns"
+    rows = json.loads(serving.rest_bodies()["batch rows"])
+    assert rows["observations"] == batch["observations"] and "format" not in rows
     framed = serving.grpc_bodies()["act"]
     assert framed[0] == 0 and int.from_bytes(framed[1:5], "big") == len(framed) - 5
+    grpc_batch = pb.ActBatchRequest.FromString(serving.grpc_bodies()["batch"][5:])
+    assert grpc_batch.format == pb.BATCH_FORMAT_COLUMNS and not grpc_batch.observations
+    assert (grpc_batch.observation_matrix.rows, grpc_batch.observation_matrix.cols) == (256, 20)
+    grpc_rows = pb.ActBatchRequest.FromString(serving.grpc_bodies()["batch rows"][5:])
+    assert grpc_rows.format == pb.BATCH_FORMAT_ROWS and len(grpc_rows.observations) == 256
+    assert list(grpc_rows.observations[3].values) == list(
+        grpc_batch.observation_matrix.values[60:80]
+    )
 
 
 @pytest.mark.slow
@@ -95,5 +107,6 @@ def test_a_short_real_run_answers_every_request(tmp_path: Path) -> None:
         check=True, timeout=300, cwd=ROOT,
     )  # fmt: skip
     figures = json.loads(out.read_text())
-    assert len(figures["cases"]) == 12 and len(figures["targets"]) == 6
+    assert len(figures["cases"]) == 14 and len(figures["targets"]) == 6  # batch rows: c = 1
+    assert {c["case"] for c in figures["cases"]} == {"no-op", "act", "batch", "batch rows"}
     assert all(c["failed"] == 0 and c["requests"] > 0 for c in figures["cases"])

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 import schemathesis
@@ -38,4 +39,20 @@ def engine_over_zoo(_tiny_zoo_template: Path) -> Iterator[None]:
 def test_inference_routes_never_fail_and_match_their_schema(case, engine_over_zoo) -> None:
     response = case.call()
     assert response.status_code < 500, response.text
+    case.validate_response(response, excluded_checks=[positive_data_acceptance])
+
+
+@pytest.mark.parametrize("fmt", ["rows", "columns"])
+def test_both_batch_answers_match_the_documented_schema(engine_over_zoo, fmt: str) -> None:
+    """Random bodies rarely get past the engine's checks: one valid batch in each format,
+    checked against the operation's schema (its `format` field and its anyOf answer)."""
+    operation = schema["/v1/act:batch"]["POST"]
+    body: dict[str, Any] = {
+        "env": "particle", "ego_goal": "a2", "partners": [{"index": 1, "goal": "b3"}],
+        "observations": [[0.1, 0.4, 0, 0, 0.7, 0.6, 0, 0]] * 3, "seed": 1, "format": fmt,
+    }  # fmt: skip
+    case = operation.Case(body=body, media_type="application/json")
+    response = case.call()
+    assert response.status_code == 200, response.text
+    assert ("format" in response.json()) == (fmt == "columns")
     case.validate_response(response, excluded_checks=[positive_data_acceptance])

@@ -1,10 +1,18 @@
 from google.protobuf.internal import containers as _containers
+from google.protobuf.internal import enum_type_wrapper as _enum_type_wrapper
 from google.protobuf import descriptor as _descriptor
 from google.protobuf import message as _message
 from collections.abc import Iterable as _Iterable, Mapping as _Mapping
 from typing import ClassVar as _ClassVar, Optional as _Optional, Union as _Union
 
 DESCRIPTOR: _descriptor.FileDescriptor
+
+class BatchFormat(int, metaclass=_enum_type_wrapper.EnumTypeWrapper):
+    __slots__ = ()
+    BATCH_FORMAT_ROWS: _ClassVar[BatchFormat]
+    BATCH_FORMAT_COLUMNS: _ClassVar[BatchFormat]
+BATCH_FORMAT_ROWS: BatchFormat
+BATCH_FORMAT_COLUMNS: BatchFormat
 
 class Vector(_message.Message):
     __slots__ = ("values",)
@@ -84,8 +92,18 @@ class ActRequest(_message.Message):
     versions: _containers.ScalarMap[str, int]
     def __init__(self, env: _Optional[str] = ..., ego_goal: _Optional[str] = ..., observation: _Optional[_Iterable[float]] = ..., state: _Optional[_Union[State, _Mapping]] = ..., ego_index: _Optional[int] = ..., partners: _Optional[_Iterable[_Union[PartnerSpec, _Mapping]]] = ..., method: _Optional[str] = ..., temperature: _Optional[float] = ..., seed: _Optional[int] = ..., alias: _Optional[str] = ..., versions: _Optional[_Mapping[str, int]] = ...) -> None: ...
 
+class Matrix(_message.Message):
+    __slots__ = ("rows", "cols", "values")
+    ROWS_FIELD_NUMBER: _ClassVar[int]
+    COLS_FIELD_NUMBER: _ClassVar[int]
+    VALUES_FIELD_NUMBER: _ClassVar[int]
+    rows: int
+    cols: int
+    values: _containers.RepeatedScalarFieldContainer[float]
+    def __init__(self, rows: _Optional[int] = ..., cols: _Optional[int] = ..., values: _Optional[_Iterable[float]] = ...) -> None: ...
+
 class ActBatchRequest(_message.Message):
-    __slots__ = ("env", "ego_goal", "observations", "states", "ego_index", "partners", "method", "temperature", "seed", "alias", "versions")
+    __slots__ = ("env", "ego_goal", "observations", "states", "ego_index", "partners", "method", "temperature", "seed", "alias", "versions", "observation_matrix", "format")
     class VersionsEntry(_message.Message):
         __slots__ = ("key", "value")
         KEY_FIELD_NUMBER: _ClassVar[int]
@@ -104,6 +122,8 @@ class ActBatchRequest(_message.Message):
     SEED_FIELD_NUMBER: _ClassVar[int]
     ALIAS_FIELD_NUMBER: _ClassVar[int]
     VERSIONS_FIELD_NUMBER: _ClassVar[int]
+    OBSERVATION_MATRIX_FIELD_NUMBER: _ClassVar[int]
+    FORMAT_FIELD_NUMBER: _ClassVar[int]
     env: str
     ego_goal: str
     observations: _containers.RepeatedCompositeFieldContainer[Vector]
@@ -115,7 +135,9 @@ class ActBatchRequest(_message.Message):
     seed: int
     alias: str
     versions: _containers.ScalarMap[str, int]
-    def __init__(self, env: _Optional[str] = ..., ego_goal: _Optional[str] = ..., observations: _Optional[_Iterable[_Union[Vector, _Mapping]]] = ..., states: _Optional[_Iterable[_Union[State, _Mapping]]] = ..., ego_index: _Optional[int] = ..., partners: _Optional[_Iterable[_Union[PartnerSpec, _Mapping]]] = ..., method: _Optional[str] = ..., temperature: _Optional[float] = ..., seed: _Optional[int] = ..., alias: _Optional[str] = ..., versions: _Optional[_Mapping[str, int]] = ...) -> None: ...
+    observation_matrix: Matrix
+    format: BatchFormat
+    def __init__(self, env: _Optional[str] = ..., ego_goal: _Optional[str] = ..., observations: _Optional[_Iterable[_Union[Vector, _Mapping]]] = ..., states: _Optional[_Iterable[_Union[State, _Mapping]]] = ..., ego_index: _Optional[int] = ..., partners: _Optional[_Iterable[_Union[PartnerSpec, _Mapping]]] = ..., method: _Optional[str] = ..., temperature: _Optional[float] = ..., seed: _Optional[int] = ..., alias: _Optional[str] = ..., versions: _Optional[_Mapping[str, int]] = ..., observation_matrix: _Optional[_Union[Matrix, _Mapping]] = ..., format: _Optional[_Union[BatchFormat, str]] = ...) -> None: ...
 
 class EpisodeSettings(_message.Message):
     __slots__ = ("env", "ego_goal", "partners", "method", "temperature", "seed", "alias", "versions", "belief")
@@ -244,11 +266,41 @@ class ActResponse(_message.Message):
     beliefs: _containers.RepeatedCompositeFieldContainer[PartnerBelief]
     def __init__(self, probs: _Optional[_Iterable[float]] = ..., action: _Optional[int] = ..., greedy_action: _Optional[int] = ..., action_meaning: _Optional[str] = ..., method: _Optional[str] = ..., diagnostics: _Optional[_Union[Diagnostics, _Mapping]] = ..., models: _Optional[_Iterable[_Union[ModelUsed, _Mapping]]] = ..., beliefs: _Optional[_Iterable[_Union[PartnerBelief, _Mapping]]] = ...) -> None: ...
 
+class ActColumns(_message.Message):
+    __slots__ = ("method", "models", "rows", "n_actions", "probs", "actions", "greedy_actions", "action_meanings", "task_entropies", "task_weights", "partner_indices", "partner_weights")
+    METHOD_FIELD_NUMBER: _ClassVar[int]
+    MODELS_FIELD_NUMBER: _ClassVar[int]
+    ROWS_FIELD_NUMBER: _ClassVar[int]
+    N_ACTIONS_FIELD_NUMBER: _ClassVar[int]
+    PROBS_FIELD_NUMBER: _ClassVar[int]
+    ACTIONS_FIELD_NUMBER: _ClassVar[int]
+    GREEDY_ACTIONS_FIELD_NUMBER: _ClassVar[int]
+    ACTION_MEANINGS_FIELD_NUMBER: _ClassVar[int]
+    TASK_ENTROPIES_FIELD_NUMBER: _ClassVar[int]
+    TASK_WEIGHTS_FIELD_NUMBER: _ClassVar[int]
+    PARTNER_INDICES_FIELD_NUMBER: _ClassVar[int]
+    PARTNER_WEIGHTS_FIELD_NUMBER: _ClassVar[int]
+    method: str
+    models: _containers.RepeatedCompositeFieldContainer[ModelUsed]
+    rows: int
+    n_actions: int
+    probs: _containers.RepeatedScalarFieldContainer[float]
+    actions: _containers.RepeatedScalarFieldContainer[int]
+    greedy_actions: _containers.RepeatedScalarFieldContainer[int]
+    action_meanings: _containers.RepeatedScalarFieldContainer[str]
+    task_entropies: _containers.RepeatedScalarFieldContainer[float]
+    task_weights: _containers.RepeatedScalarFieldContainer[float]
+    partner_indices: _containers.RepeatedScalarFieldContainer[int]
+    partner_weights: _containers.RepeatedScalarFieldContainer[float]
+    def __init__(self, method: _Optional[str] = ..., models: _Optional[_Iterable[_Union[ModelUsed, _Mapping]]] = ..., rows: _Optional[int] = ..., n_actions: _Optional[int] = ..., probs: _Optional[_Iterable[float]] = ..., actions: _Optional[_Iterable[int]] = ..., greedy_actions: _Optional[_Iterable[int]] = ..., action_meanings: _Optional[_Iterable[str]] = ..., task_entropies: _Optional[_Iterable[float]] = ..., task_weights: _Optional[_Iterable[float]] = ..., partner_indices: _Optional[_Iterable[int]] = ..., partner_weights: _Optional[_Iterable[float]] = ...) -> None: ...
+
 class ActBatchResponse(_message.Message):
-    __slots__ = ("results",)
+    __slots__ = ("results", "columns")
     RESULTS_FIELD_NUMBER: _ClassVar[int]
+    COLUMNS_FIELD_NUMBER: _ClassVar[int]
     results: _containers.RepeatedCompositeFieldContainer[ActResponse]
-    def __init__(self, results: _Optional[_Iterable[_Union[ActResponse, _Mapping]]] = ...) -> None: ...
+    columns: ActColumns
+    def __init__(self, results: _Optional[_Iterable[_Union[ActResponse, _Mapping]]] = ..., columns: _Optional[_Union[ActColumns, _Mapping]] = ...) -> None: ...
 
 class ListEnvsRequest(_message.Message):
     __slots__ = ()

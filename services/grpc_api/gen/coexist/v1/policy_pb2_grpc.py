@@ -70,7 +70,8 @@ class PolicyServiceServicer:
 
     def ActBatch(self, request, context):
         """Many observations of one ego goal and one partner set, evaluated in one vectorised pass
-        (REST: POST /v1/act:batch). Results come back in the order of the observations.
+        (REST: POST /v1/act:batch). Results come back in the order of the observations: one
+        ActResponse per row, or with `format` BATCH_FORMAT_COLUMNS one ActColumns (tensors).
         """
         context.set_code(grpc.StatusCode.UNIMPLEMENTED)
         context.set_details('Method not implemented!')
