@@ -49,11 +49,13 @@ from services.engine import (
 )
 from services.engine.environments import env_runtime
 from services.engine.messages import DEFAULT_ALIAS
+from services.grpc_api import repeated
 from services.grpc_api.gen.coexist.v1 import policy_pb2 as pb
 from services.sessions import Observed, SessionPartner, SessionSettings, SessionStepResult
 
 Settings = pb.ActRequest | pb.ActBatchRequest | pb.EpisodeSettings
 Rows = pb.ActRequest | pb.ActBatchRequest | pb.EpisodeStep  # messages carrying observations
+_NO_ROWS = np.empty((0, 0))  # a settings template's observations (`repeated.request_with`)
 
 
 def _partners(specs: Sequence[pb.PartnerSpec]) -> tuple[PartnerSpec, ...]:
@@ -136,12 +138,17 @@ def _single_observation(env: str, message: pb.ActRequest | pb.EpisodeStep) -> np
 
 
 def act_request(message: pb.ActRequest) -> ActRequest:
-    return _request(message, _single_observation(message.env, message))
+    """The engine request of one `Act` call (its settings converted once: `repeated`)."""
+    observation = _single_observation(message.env, message)
+    seed = message.seed if message.HasField("seed") else None
+    return repeated.request_with(message, lambda: _request(message, _NO_ROWS), observation, seed)
 
 
 def episode_request(settings: pb.EpisodeSettings, step: pb.EpisodeStep, t: int) -> ActRequest:
     """Step t of an episode: the episode's settings, this step's observation, seed + t."""
-    return _request(settings, _single_observation(settings.env, step), seed_offset=t)
+    observation = _single_observation(settings.env, step)
+    seed = settings.seed + t if settings.HasField("seed") else None
+    return repeated.request_with(settings, lambda: _request(settings, _NO_ROWS), observation, seed)
 
 
 def act_batch_request(message: pb.ActBatchRequest) -> ActRequest:
@@ -303,7 +310,8 @@ def _shared(request: ActRequest, results: Sequence[ActResult]) -> tuple[bytes, l
 
 def act_response(request: ActRequest, result: ActResult) -> pb.ActResponse:
     message = pb.ActResponse()
-    _fill(message, result, *_shared(request, [result]))
+    head = repeated.head_for(request, result, lambda: _shared(request, [result]))
+    _fill(message, result, head.shared, head.partner_indices, head.action_meanings)
     return message
 
 
