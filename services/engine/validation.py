@@ -210,7 +210,7 @@ def check_request(request: ActRequest, max_batch: int) -> CheckedRequest:
             "method", f"unknown method {request.method!r}, expected one of {METHODS}"
         )
     obs_BD, n_agents = check_observations(request.observations, runtime, max_batch)
-    partners = check_partners(request.partners, runtime, n_agents)
+    partners = _remembered_partners(request.partners, runtime, n_agents)
     if request.method == "jl":
         if not partners:
             raise InvalidRequest("partners", "method jl needs at least one partner")
@@ -231,6 +231,30 @@ def check_request(request: ActRequest, max_batch: int) -> CheckedRequest:
     check_alias(request.alias)
     check_versions(request.versions)
     return CheckedRequest(runtime, obs_BD, n_agents, partners)
+
+
+# A transport that converts a client's repeated settings once (`services.grpc_api.repeated`)
+# passes the same partners tuple on every call: its check is kept, keyed by the tuple's identity
+# (the entry holds the tuple, so the id cannot be reused while the entry lives). ~3 µs a call.
+_CHECKED_PARTNERS: dict[tuple[int, str, int], tuple[object, tuple[CheckedPartner, ...]]] = {}
+PARTNERS_MEMO_MAX = 256
+
+
+def _remembered_partners(
+    partners: object, runtime: EnvRuntime, n_agents: int
+) -> tuple[CheckedPartner, ...]:
+    key = (id(partners), runtime.domain.name, n_agents)
+    hit = _CHECKED_PARTNERS.get(key)
+    if hit is not None and hit[0] is partners:
+        return hit[1]
+    checked = check_partners(partners, runtime, n_agents)
+    # kept only when nothing in it can change: a tuple of announced goals (a goal_probs
+    # mapping could be edited between calls; a list could be)
+    if type(partners) is tuple and all(c.probs is None for c in checked):
+        if len(_CHECKED_PARTNERS) >= PARTNERS_MEMO_MAX:
+            _CHECKED_PARTNERS.clear()
+        _CHECKED_PARTNERS[key] = (partners, checked)
+    return checked
 
 
 _GOOD_ALIASES: set[str] = set()

@@ -1,0 +1,52 @@
+"""services.engine.validation: the check of a partners tuple a transport passes again on every
+call is kept (by identity), and only where nothing in it can change."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from services.engine import ActRequest, InvalidRequest, PartnerSpec
+from services.engine.validation import check_request
+
+OBS_3 = np.zeros((1, 12))  # three particle agents
+
+
+def _request(partners: object) -> ActRequest:
+    return ActRequest("particle", "a2", OBS_3, partners)  # type: ignore[arg-type]
+
+
+def test_the_same_tuple_of_announced_goals_is_checked_once() -> None:
+    partners = (PartnerSpec(1, "b3"), PartnerSpec(2, "c0"))
+    first, second = check_request(_request(partners), 8), check_request(_request(partners), 8)
+    assert first.partners is second.partners
+    other = check_request(_request((PartnerSpec(1, "b3"), PartnerSpec(2, "c0"))), 8)
+    assert other.partners == first.partners
+
+
+def test_lists_and_goal_distributions_are_checked_every_time() -> None:
+    as_list = [PartnerSpec(1, "b3")]
+    assert (
+        check_request(_request(as_list), 8).partners
+        is not check_request(_request(as_list), 8).partners
+    )
+    probs = {"b3": 0.5, "c0": 0.5}
+    spec = (PartnerSpec(1, goal_probs=probs),)
+    check_request(_request(spec), 8)
+    probs["c0"] = 0.7  # edited between calls: the next check sees it
+    with pytest.raises(InvalidRequest, match="sum to"):
+        check_request(_request(spec), 8)
+
+
+def test_the_agent_count_is_part_of_the_check() -> None:
+    partners = (PartnerSpec(2, "b3"),)
+    check_request(_request(partners), 8)
+    with pytest.raises(InvalidRequest, match="out of range"):
+        check_request(ActRequest("particle", "a2", np.zeros((1, 8)), partners), 8)
+
+
+def test_a_refused_tuple_is_refused_every_time() -> None:
+    partners = (PartnerSpec(1, "zz"),)
+    for _ in range(2):
+        with pytest.raises(InvalidRequest, match="unknown goal"):
+            check_request(_request(partners), 8)
