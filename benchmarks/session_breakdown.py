@@ -16,8 +16,13 @@ Run: `OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/session_breakdown.py --
 | act, top-8 sets of a session  | `engine.act` cycling through the 8-goal sets that session    |
 |                               | blended on the episode (they change as the belief moves:     |
 |                               | every new set is a new stacked group)                        |
+| REST act, in-process          | `POST /v1/act` (the "act, 1 announced" body) through the     |
+|                               | ASGI app of the REST routers, no server and no socket        |
+| REST step, in-process         | `POST /v1/sessions/{id}/steps` (server defaults, with the    |
+|                               | partner's previous action) the same way                      |
 
-Each part: median of `calls` calls after 100 warm-up calls.
+Each part: median of `calls` calls after 100 warm-up calls. The two REST rows minus "act, 1
+announced" and "session step" are the routes' own cost (parsing, validation, answer).
 """
 
 from __future__ import annotations
@@ -26,8 +31,9 @@ import argparse
 import statistics
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, MutableMapping
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -101,6 +107,63 @@ def breakdown(url: str, obs_TD: np.ndarray, actions_TP: np.ndarray, calls: int) 
     out[f"act, top-8 sets of that session ({len(seen)} distinct)"] = _median_ms(
         lambda i: act(seen[i % len(seen)], i), calls
     )
+    out |= _rest_in_process(engine, obs_TD, actions_TP, calls)
+    return out
+
+
+def _rest_in_process(
+    engine: object, obs_TD: np.ndarray, actions_TP: np.ndarray, calls: int
+) -> dict[str, float]:
+    """The REST rows of the module docstring: `session_bench`'s bodies, through the ASGI app."""
+    import asyncio
+    import json
+
+    from fastapi import FastAPI
+    from session_bench import act_bodies, step_bodies
+
+    from services.rest import install_error_handlers, router, sessions_router
+
+    app = FastAPI()
+    app.include_router(router)
+    app.include_router(sessions_router)
+    install_error_handlers(app)
+    app.state.engine = engine
+    loop = asyncio.new_event_loop()
+
+    def post(path: str, body: bytes) -> bytes:
+        """One request through the ASGI app; the answer's body (SystemExit unless 200/201)."""
+        scope = {"type": "http", "asgi": {"version": "3.0"}, "http_version": "1.1",
+                 "method": "POST", "scheme": "http", "path": path, "raw_path": path.encode(),
+                 "query_string": b"", "root_path": "", "client": ("127.0.0.1", 1),
+                 "server": ("127.0.0.1", 80),
+                 "headers": [(b"host", b"bench"), (b"content-type", b"application/json"),
+                             (b"content-length", str(len(body)).encode())]}  # fmt: skip
+        messages = [{"type": "http.request", "body": body, "more_body": False}]
+        sent: list[dict[str, Any]] = []
+
+        async def receive() -> dict[str, Any]:
+            return messages.pop() if messages else {"type": "http.disconnect"}
+
+        async def send(message: MutableMapping[str, Any]) -> None:
+            sent.append(dict(message))
+
+        loop.run_until_complete(app(scope, receive, send))
+        answer = b"".join(m.get("body", b"") for m in sent[1:])
+        if sent[0]["status"] not in (200, 201):
+            raise SystemExit(f"{path}: status {sent[0]['status']}: {answer!r}")
+        return answer
+
+    steps = len(obs_TD)
+    acts, bodies = act_bodies(obs_TD, ("b3",)), step_bodies(obs_TD, actions_TP, observed=True)
+    out = {"REST act, in-process": _median_ms(lambda i: post("/v1/act", acts[i % steps]), calls)}
+    created = post("/v1/sessions", json.dumps({"env": "particle", "ego_goal": "a2",
+                                               "partners": [{"index": 1, "infer": True}]}).encode())  # fmt: skip
+    path = f"/v1/sessions/{json.loads(created)['session_id']}/steps"
+    post(path, step_bodies(obs_TD[:1], actions_TP[:1], observed=False)[0])  # step 0
+    out["REST step, in-process"] = _median_ms(
+        lambda i: post(path, bodies[i % (steps - 1) + 1]), calls
+    )
+    loop.close()
     return out
 
 

@@ -25,9 +25,9 @@ kept in log space, with two changes a deployment needs (`BeliefConfig`):
 | `PreparedUpdate`             | the same for fixed priors, checked once (faster) | (E, G)       |
 | `evidence_rows`              | which likelihood rows count as evidence          | (P,)/()      |
 
-What a belief says (`top_goals`, `belief_entropy`, `belief_summary`, `belief_cross_entropy`, and
-the blend's goal distribution `blend_goal_probs` / `blend_goal_weights`) lives in
-`policy.belief_views` and is re-exported here.
+What a belief says (`top_goals`, `belief_entropy`, `belief_summary`, `belief_cross_entropy`, the
+blend's goal distribution `blend_goal_probs` / `blend_goal_weights`, and both for every row at
+once, `belief_views`) lives in `policy.belief_views` and is re-exported here.
 
 Stability: the likelihood subtracts max Q before dividing by α (so Q ~ 1e4 with α ~ 1e-6 gives
 large finite negatives, never NaN) and normalisation uses logsumexp. A likelihood row that holds
@@ -46,9 +46,11 @@ import numpy as np
 
 from policy._validate import PROB_SUM_TOL
 from policy.belief_views import (
+    BeliefView,
     belief_cross_entropy,
     belief_entropy,
     belief_summary,
+    belief_views,
     blend_goal_probs,
     blend_goal_weights,
     top_goals,
@@ -56,10 +58,12 @@ from policy.belief_views import (
 
 __all__ = [
     "BeliefConfig",
+    "BeliefView",
     "PreparedUpdate",
     "belief_cross_entropy",
     "belief_entropy",
     "belief_summary",
+    "belief_views",
     "blend_goal_probs",
     "blend_goal_weights",
     "boltzmann_log_likelihoods",

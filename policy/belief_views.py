@@ -10,19 +10,24 @@ re-exports every name here); pure numpy, no I/O.
 | `belief_cross_entropy`| -log b(g*) for the true goal g*                             | float        |
 | `blend_goal_probs`    | the blend's goal distribution (default: the whole belief)   | dict         |
 | `blend_goal_weights`  | the same as goal indices and probabilities                  | lists        |
+| `belief_views`        | per row of (P, G): `blend_goal_weights` + `belief_summary`, | `BeliefView`s|
+|                       | one exp and one sort for all rows (a session's every step)  |              |
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import NamedTuple
 
 import numpy as np
 
 __all__ = [
+    "BeliefView",
     "belief_cross_entropy",
     "belief_entropy",
     "belief_summary",
+    "belief_views",
     "blend_goal_probs",
     "blend_goal_weights",
     "top_goals",
@@ -33,6 +38,15 @@ def _is_real(value: object) -> bool:
     return isinstance(value, int | float | np.integer | np.floating) and not isinstance(
         value, bool | np.bool_
     )
+
+
+def _check_blend(mass: float, max_goals: int | None) -> None:
+    if not _is_real(mass) or not 0 < mass <= 1:
+        raise ValueError(f"mass: expected a number in (0, 1], got {mass!r}")
+    if max_goals is not None and (
+        isinstance(max_goals, bool) or not isinstance(max_goals, int | np.integer) or max_goals < 1
+    ):
+        raise ValueError(f"max_goals: expected null or an integer >= 1, got {max_goals!r}")
 
 
 def _belief_vector(log_belief_G: np.ndarray) -> np.ndarray:
@@ -119,20 +133,29 @@ def blend_goal_weights(
 ) -> tuple[list[int], list[float]]:
     """`blend_goal_probs` as the kept goals' indices (ascending) and their probabilities."""
     log_b = _belief_vector(log_belief_G)
-    n_goals = log_b.size
-    if not _is_real(mass) or not 0 < mass <= 1:
-        raise ValueError(f"mass: expected a number in (0, 1], got {mass!r}")
-    if max_goals is not None and (
-        isinstance(max_goals, bool) or not isinstance(max_goals, int | np.integer) or max_goals < 1
-    ):
-        raise ValueError(f"max_goals: expected null or an integer >= 1, got {max_goals!r}")
+    _check_blend(mass, max_goals)
     probs = np.exp(log_b).tolist()
-    if mass >= 1 and (max_goals is None or max_goals >= n_goals):
+    order = None if _whole(mass, max_goals, log_b.size) else np.argsort(-log_b, kind="stable")
+    kept, probs = _blend_kept(probs, order, mass, max_goals)
+    total = math.fsum(probs)
+    return kept, [p / total for p in probs]
+
+
+def _whole(mass: float, max_goals: int | None, n_goals: int) -> bool:
+    """Whether the blend keeps every goal of probability > 0 (no ordering needed)."""
+    return mass >= 1 and (max_goals is None or max_goals >= n_goals)
+
+
+def _blend_kept(
+    probs: list[float], order: np.ndarray | None, mass: float, max_goals: int | None
+) -> tuple[list[int], list[float]]:
+    """The blend's goals (ascending) and their unnormalised probabilities, from one row's
+    probabilities and, unless the blend is `_whole`, its goals by descending probability."""
+    if order is None:
         kept = [g for g, p in enumerate(probs) if p > 0]
     else:
-        order = np.argsort(-log_b, kind="stable")[: None if max_goals is None else int(max_goals)]
         kept, covered = [], 0.0
-        for g in order.tolist():
+        for g in order[: None if max_goals is None else int(max_goals)].tolist():
             if probs[g] <= 0:
                 break
             kept.append(g)
@@ -142,7 +165,57 @@ def blend_goal_weights(
         kept.sort()
     if not kept:
         raise ValueError("log_belief_G: every goal has probability 0")
-    if len(kept) < n_goals:
+    if len(kept) < len(probs):
         probs = [probs[g] for g in kept]
-    total = math.fsum(probs)
-    return kept, [p / total for p in probs]
+    return kept, probs
+
+
+class BeliefView(NamedTuple):
+    """What a session reads from one belief row at every step (`belief_views`)."""
+
+    blend_goals: list[int]  # `blend_goal_weights`' kept goals (ascending indices)
+    blend_probs: list[float]  # and their probabilities
+    top: list[tuple[str, float]]  # `belief_summary`'s top goals
+    entropy: float  # and entropy
+
+
+def belief_views(
+    log_belief_PG: np.ndarray,
+    goals: Sequence[str],
+    k: int = 3,
+    mass: float = 1.0,
+    max_goals: int | None = None,
+) -> list[BeliefView]:
+    """Per row p of a (P, G) log-belief: `blend_goal_weights(row, mass, max_goals)` and
+    `belief_summary(row, goals, k)`, the same numbers bit for bit, with one exp, one sort and
+    one sum for all rows instead of two exps and a sort per row (elementwise operations and
+    the last-axis sum give every row what they give it alone; a division of arrays rounds as
+    Python's does)."""
+    log_b = np.asarray(log_belief_PG, dtype=np.float64)
+    if log_b.ndim != 2 or log_b.shape[1] == 0:
+        raise ValueError(f"log_belief_PG: expected shape (P, G) with G >= 1, got {log_b.shape}")
+    n_goals = log_b.shape[1]
+    if len(goals) != n_goals:
+        raise ValueError(f"goals: expected {n_goals} goals, got {len(goals)}")
+    if k < 1:
+        raise ValueError(f"k: expected >= 1, got {k}")
+    _check_blend(mass, max_goals)
+    if log_b.shape[0] == 0:
+        return []
+    b = np.exp(log_b)
+    order = np.argsort(-log_b, axis=1, kind="stable")
+    positive = b.min() > 0  # the floor's usual case: no 0 log 0 terms to mask
+    terms = b * log_b if positive else np.where(b > 0, b * np.where(b > 0, log_b, 0.0), 0.0)
+    entropies = terms.sum(axis=1).tolist()
+    tops = order[:, :k].tolist()
+    whole = _whole(mass, max_goals, n_goals)
+    views = []
+    for p, row in enumerate(b.tolist()):
+        top = [(goals[g], row[g]) for g in tops[p]]
+        if whole and positive:  # every goal kept: `_blend_kept` would copy the row as it is
+            kept, probs = list(range(n_goals)), row
+        else:
+            kept, probs = _blend_kept(row, None if whole else order[p], mass, max_goals)
+        total = math.fsum(probs)
+        views.append(BeliefView(kept, [q / total for q in probs], top, max(0.0, -entropies[p])))
+    return views

@@ -13,7 +13,8 @@ The belief itself (prior, forgetting, floor) is pure maths in `policy.belief`.
 | forward  | one stacked pass per spec partition: the same (P, pair_obs_dim) rows go    |
 |          | through all G networks, (1, P, F) @ (G, F, H) ... -> (G, P, A); with 2-3   |
 |          | partners one such pass per partner (faster: `ROW_BY_ROW_MAX`)              |
-| softmax  | `policy.belief.boltzmann_log_likelihoods`: log softmax(Q_g / α_g)[a_p]     |
+| softmax  | log softmax(Q_g / α_g)[a_p] (`policy.belief.boltzmann_log_likelihoods`'s  |
+|          | arithmetic, bit for bit, on the forward's layout: `_log_likelihoods`)      |
 
 α per goal: the request's `temperature`, else each task network's training α (lineage), else
 `DEFAULT_TEMPERATURE`: a partner is modelled as acting by its own task policy (eq. 2).
@@ -27,9 +28,10 @@ action per partner), `observed[i].action`, `temperature`, `alias`, `versions[nam
 `ModelNotFound` (field `partners`) when a goal has no task network under the alias / version.
 
 Latency (G = 35 networks 8-128-128-5, random weights, one OpenBLAS thread, median of 2000 calls,
-2-core dev machine): 75 µs for one partner (the forward ~45 µs of it; the 35 names resolve as one
-fixed set, ~2 µs), 132 µs for 2, 186 µs for 3 and for 4 partners. A session, which checked its
-inputs already, calls `checked_log_likelihoods` (the same pass without the argument checks).
+2-core dev machine): 68 µs for one partner (the forward ~45 µs of it; the 35 names resolve as one
+fixed set, ~2 µs; the softmax ~7 µs), 123 µs for 2, 174 µs for 3 and 176 µs for 4 partners. A
+session, which checked its inputs already, calls `checked_log_likelihoods` (the same pass without
+the argument checks).
 
 Recovering actions: an env may give its `Domain` an optional method
 `recover_action(prev_obs_D, obs_D, n_agents, partner) -> int`, the most likely action of the
@@ -48,7 +50,6 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from envs.base import Domain
-from policy.belief import boltzmann_log_likelihoods
 from services.engine.environments import EnvRuntime, env_runtime
 from services.engine.errors import EngineError, InvalidRequest
 from services.engine.gathers import Gather, find_gather
@@ -64,6 +65,9 @@ ALPHA_MEMO_KEY = ("goal_inference", "alpha_G")  # the group's per-goal training 
 # while one (G, P, 128) pass costs ~149 µs for 2 rows and ~207 for 3 (small-M sgemm kernels), and
 # ~146 for 4 rows, where the single pass wins again.
 ROW_BY_ROW_MAX = 3
+# z = Q - max Q with Q finite in float32, so |z| < 2^129: z / α overflows float64 (max ~2^1024)
+# only for α below ~2^-895 ~ 1e-269
+TINY_ALPHA = 1e-250
 
 
 def _is_int(value: object) -> bool:
@@ -165,12 +169,37 @@ def _forward_all(group: StackedGroup, x_1PF: np.ndarray) -> np.ndarray:
     return q_GPA
 
 
-def _training_alphas(group: StackedGroup) -> np.ndarray:
-    alpha_G = group.memo.get(ALPHA_MEMO_KEY)
-    if alpha_G is None:
+def _training_alphas(group: StackedGroup) -> tuple[np.ndarray, bool]:
+    """Each member's training α, (G, 1, 1) to divide (G, P, A) Q-values by goal, and whether
+    one is below `TINY_ALPHA`."""
+    memo = group.memo.get(ALPHA_MEMO_KEY)
+    if memo is None:
         alpha_G = np.array([net.alpha or DEFAULT_TEMPERATURE for net in group.nets])
-        group.memo[ALPHA_MEMO_KEY] = alpha_G  # immutable group: never stale
-    return alpha_G
+        memo = (alpha_G[:, None, None], bool(alpha_G.min() < TINY_ALPHA))
+        group.memo[ALPHA_MEMO_KEY] = memo  # immutable group: never stale
+    alphas: tuple[np.ndarray, bool] = memo
+    return alphas
+
+
+def _log_likelihoods(
+    q_GPA: np.ndarray, actions_P: np.ndarray, alpha: np.ndarray | float, tiny: bool
+) -> np.ndarray:
+    """`boltzmann_log_likelihoods(q_GPA.transpose(1, 0, 2), actions_P, α, validate=False)`: the
+    same arithmetic and numbers, bit for bit (tests/services/test_goal_likelihoods.py), in the
+    forward's (G, P, A) layout with fewer numpy calls. The Q-values are finite (checked by the
+    caller), so the division by α is the only step that can overflow (to -inf, meant), and
+    only when an α is `tiny` (< `TINY_ALPHA`): errstate (~1 µs) only then."""
+    z = q_GPA.astype(np.float64)
+    z -= z.max(axis=2, keepdims=True)  # <= 0, the arg-max exactly 0
+    if tiny:
+        with np.errstate(over="ignore"):
+            z /= alpha
+    else:
+        z /= alpha
+    log_norm_GP = np.log(np.exp(z).sum(axis=2))  # >= log 1 = 0: the arg-max term is exp(0)
+    if len(actions_P) == 1:  # one partner (the usual case): plain indexing, the same numbers
+        return (z[:, 0, int(actions_P[0])] - log_norm_GP[:, 0])[None]
+    return (z[:, np.arange(len(actions_P)), actions_P] - log_norm_GP).T
 
 
 def _check_observation(
@@ -285,9 +314,12 @@ def checked_log_likelihoods(
         q_GPA = _forward_all(group, x_1PF)
     if not np.isfinite(q_GPA).all():
         raise InvalidRequest("observation", "values so large that the Q-values overflow")
-    alpha_G = _training_alphas(group) if temperature is None else float(temperature)
-    # every argument is checked (actions, α > 0, finite Q)
-    return boltzmann_log_likelihoods(q_GPA.transpose(1, 0, 2), actions_P, alpha_G, validate=False)
+    alpha: np.ndarray | float
+    if temperature is None:
+        alpha, tiny = _training_alphas(group)
+    else:
+        alpha, tiny = float(temperature), temperature < TINY_ALPHA
+    return _log_likelihoods(q_GPA, actions_P, alpha, tiny)  # arguments checked, Q finite
 
 
 def recover_partner_actions(

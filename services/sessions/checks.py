@@ -23,7 +23,7 @@ Every bad input becomes `InvalidRequest(field, message)` in the REST body's nami
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -46,6 +46,10 @@ class CheckedSettings:
     inferred_indices: tuple[int, ...]  # the inferred partners' indices, in partner order
     # per partner: what `check_request` makes of it when announced (fixed), None when inferred
     announced: tuple[CheckedPartner | None, ...]
+    # an unseeded session's `ActRequest` for `engine.act_checked`, the same at every step: the
+    # engine reads neither its observations (a stand-in) nor its partners (the step's
+    # `CheckedRequest` holds both)
+    act_request: ActRequest
 
 
 def _is_int(value: object) -> bool:
@@ -160,10 +164,11 @@ def check_settings(settings: SessionSettings) -> CheckedSettings:
         else check_partners((PartnerSpec(p.index, p.goal, p.goal_probs),), runtime, p.index + 1)[0]
         for i, p in enumerate(partners)
     )
+    act_request = replace(_dry_act_request(settings, runtime), partners=(), seed=None)
     return CheckedSettings(
         settings, runtime, goals, inferred, log_prior_PG, initial_PG,
         PreparedUpdate(log_prior_PG, config), tuple(partners[i].index for i in inferred),
-        announced,
+        announced, act_request,
     )  # fmt: skip
 
 

@@ -23,7 +23,9 @@ nothing. Steps are serialised by a per-session lock; `expected_step` turns a sta
 step into `StepConflict` instead of a second update.
 
 State held: the settings (checked once), one log-belief row (G,) per inferred partner, the
-previous observation, the next step's index and per-partner counters.
+previous observation, the next step's index and per-partner counters, and what the last belief
+says (`policy.belief.belief_views`: the blend's distribution and the summary, one exp for all
+partners), which a step without evidence reuses.
 """
 
 from __future__ import annotations
@@ -35,7 +37,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike
 
-from policy.belief import belief_summary, blend_goal_weights
+from policy.belief import BeliefView, belief_views
 from services.engine import (
     ActRequest,
     ActResult,
@@ -60,6 +62,8 @@ from services.sessions.messages import (
     SessionStepResult,
 )
 
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+
 
 class Session:
     """One session: settings, beliefs, previous observation, counters (module docstring)."""
@@ -82,6 +86,8 @@ class Session:
         self._last_actions: list[int | None] = [None] * len(self._checked.inferred)
         self._previous: np.ndarray | None = None  # (1, D) float32
         self._previous_agents = 0  # the agents `_previous` holds
+        # the views of the last committed belief: a step without evidence reuses them
+        self._last_views: tuple[np.ndarray, list[BeliefView]] | None = None
         if previous_observation is not None:
             self._previous, self._previous_agents = self._observation(previous_observation)
         self._next_step = first_step
@@ -99,8 +105,8 @@ class Session:
     def snapshot(self) -> tuple[int, tuple[PartnerBelief, ...]]:
         """The next step's index and each inferred partner's belief, read together."""
         with self._lock:
-            beliefs = self._beliefs(self._log_belief_PG, self._updates, self._last_actions)
-            return self._next_step, beliefs
+            views = self._views(self._log_belief_PG)
+            return self._next_step, self._beliefs(views, self._updates, self._last_actions)
 
     # --- step ------------------------------------------------------------------------------
     def step(
@@ -125,12 +131,14 @@ class Session:
             n_actions = checked.runtime.domain.n_actions
             entries = check_observed(observed, indices, t, self._previous is not None, n_actions)
             log_belief_PG, updates, actions = self._updated(entries, obs_1D, indices)
-            result = self._act(obs_1D, n_agents, log_belief_PG, t)
+            views = self._views(log_belief_PG)
+            result = self._act(obs_1D, n_agents, views, t)
             # everything succeeded: commit
             self._log_belief_PG, self._updates, self._last_actions = log_belief_PG, updates, actions
             self._previous, self._previous_agents = obs_1D, n_agents
             self._next_step = t + 1
-            beliefs = self._beliefs(log_belief_PG, updates, actions)
+            self._last_views = (log_belief_PG, views)
+            beliefs = self._beliefs(views, updates, actions)
         return SessionStepResult(self.session_id, t, result, beliefs)
 
     def replace_settings(self, settings: SessionSettings) -> None:
@@ -152,6 +160,7 @@ class Session:
                     updates[r] = self._updates[previous_row]
             self._checked, self._log_belief_PG, self._updates = checked, log_belief_PG, updates
             self._last_actions = [None] * len(checked.inferred)
+            self._last_views = None
             if not same_env:
                 self._previous = None
 
@@ -159,6 +168,12 @@ class Session:
     def _observation(self, observation: object) -> tuple[np.ndarray, int]:
         """The ego's observation as float32 (1, D), checked as /v1/act checks it, and the
         number of agents it holds."""
+        if type(observation) is list:  # JSON's floats: one pass, when the checks would pass
+            n_agents = self._checked.runtime.agents_by_obs_dim.get(len(observation))
+            if n_agents is not None and all(
+                type(v) is float and -FLOAT32_MAX <= v <= FLOAT32_MAX for v in observation
+            ):  # finite, and finite in float32: the cast rounds as `check_observations`' does
+                return np.array([observation], dtype=np.float32), n_agents
         try:
             obs = np.asarray(observation, dtype=np.float64)
         except (TypeError, ValueError):
@@ -241,9 +256,19 @@ class Session:
         for j, action in zip(missing, recovered, strict=True):
             actions[j] = int(action)
 
-    def _act(
-        self, obs_1D: np.ndarray, n_agents: int, log_belief_PG: np.ndarray, t: int
-    ) -> ActResult:
+    def _views(self, log_belief_PG: np.ndarray) -> list[BeliefView]:
+        """Each inferred partner's blend distribution and summary (`belief_views`); a belief
+        the last step committed (a step without evidence) reuses that step's."""
+        last = self._last_views
+        if last is not None and last[0] is log_belief_PG:
+            return last[1]
+        settings = self._checked.settings
+        return belief_views(
+            log_belief_PG, self._checked.goals, TOP_GOALS, settings.blend_mass,
+            settings.blend_max_goals,
+        )  # fmt: skip
+
+    def _act(self, obs_1D: np.ndarray, n_agents: int, views: list[BeliefView], t: int) -> ActResult:
         """`engine.act` of the request with each inferred partner's `goal_probs` =
         `blend_goal_probs` of its belief. The request's parts were checked (settings at
         creation, the observation in `step`, the partner indices here) and the distribution is
@@ -255,11 +280,10 @@ class Session:
         for i, (partner, fixed) in enumerate(
             zip(settings.partners, checked.announced, strict=True)
         ):
-            check_partner_index(partner.index, n_agents, f"partners[{i}].index")
+            if not 1 <= partner.index < n_agents:  # the field's name only for the error
+                check_partner_index(partner.index, n_agents, f"partners[{i}].index")
             if fixed is None:  # inferred
-                kept, probs = blend_goal_weights(
-                    log_belief_PG[row], settings.blend_mass, settings.blend_max_goals
-                )
+                kept, probs = views[row].blend_goals, views[row].blend_probs
                 goals = checked.goals
                 if len(kept) < len(goals):
                     goals = tuple(goals[g] for g in kept)
@@ -267,13 +291,15 @@ class Session:
                 fixed = CheckedPartner(partner.index, goals, tuple([p / total for p in probs]))
                 row += 1
             partners.append(fixed)
-        # the partners are in `ready` (`act_checked` reads them, and the observation, there)
-        request = ActRequest(
-            env=settings.env, ego_goal=settings.ego_goal, observations=obs_1D,
-            method=settings.method, temperature=settings.temperature,
-            seed=None if settings.seed is None else settings.seed + t, alias=settings.alias,
-            versions=settings.versions,
-        )  # fmt: skip
+        # the partners are in `ready` (`act_checked` reads them, and the observation, there);
+        # without a seed the request is the same at every step
+        request = checked.act_request
+        if settings.seed is not None:
+            request = ActRequest(
+                env=settings.env, ego_goal=settings.ego_goal, observations=obs_1D,
+                method=settings.method, temperature=settings.temperature, seed=settings.seed + t,
+                alias=settings.alias, versions=settings.versions,
+            )  # fmt: skip
         ready = CheckedRequest(checked.runtime, obs_1D, n_agents, tuple(partners))
         try:
             return self.engine.act_checked(request, ready)[0]
@@ -283,11 +309,11 @@ class Session:
             raise
 
     def _beliefs(
-        self, log_belief_PG: np.ndarray, updates: Sequence[int], actions: Sequence[int | None]
+        self, views: list[BeliefView], updates: Sequence[int], actions: Sequence[int | None]
     ) -> tuple[PartnerBelief, ...]:
-        checked = self._checked
-        beliefs = []
-        for r, index in enumerate(checked.inferred_indices):
-            top, entropy = belief_summary(log_belief_PG[r], checked.goals, k=TOP_GOALS)
-            beliefs.append(PartnerBelief(index, tuple(top), entropy, actions[r], updates[r]))
-        return tuple(beliefs)
+        return tuple(
+            PartnerBelief(index, tuple(view.top), view.entropy, actions[r], updates[r])
+            for r, (index, view) in enumerate(
+                zip(self._checked.inferred_indices, views, strict=True)
+            )
+        )

@@ -1,7 +1,7 @@
 """The belief's per-step shortcuts give the numbers of the plain functions, bit for bit:
 `update_log_belief` (whose all-finite case skips the masks) = the masked arithmetic written out
 below, `PreparedUpdate` = `update_log_belief`, `belief_summary` = `top_goals` +
-`belief_entropy`, `blend_goal_weights` = `blend_goal_probs`. Random beliefs, likelihoods with
+`belief_entropy`, `blend_goal_weights` = `blend_goal_probs`, `belief_views` = both per row. Random beliefs, likelihoods with
 -inf / NaN / +inf entries, forgetting 1 and floor 0 included (the shortcuts branch on exactly
 those cases)."""
 
@@ -17,6 +17,7 @@ from policy.belief import (
     PreparedUpdate,
     belief_entropy,
     belief_summary,
+    belief_views,
     blend_goal_probs,
     blend_goal_weights,
     initial_log_belief,
@@ -156,3 +157,41 @@ def test_blend_goal_weights_are_the_blend_distribution() -> None:
         assert dict(zip([goals[g] for g in kept], probs, strict=True)) == blend_goal_probs(
             log_b, goals, mass, max_goals
         )
+
+
+def test_belief_views_equal_blend_weights_and_summary_row_by_row() -> None:
+    """Bit for bit, with several rows (one exp, sort and sum for all of them), zeros in some
+    rows only (the masked entropy then serves every row), ties and every blend setting."""
+    rng = np.random.default_rng(13)
+    for trial in range(400):
+        n_partners, n_goals = int(rng.integers(1, 6)), int(rng.integers(1, 40))
+        log_b_PG = _random_log_probs(rng, (n_partners, n_goals), zeros=False)
+        if trial % 3 == 0:  # goals ruled out in one row
+            log_b_PG[0] = _random_log_probs(rng, (n_goals,), zeros=True)
+        if trial % 5 == 0:  # ties
+            log_b_PG[:, : n_goals // 2] = log_b_PG[:, :1]
+        goals = [f"g{g}" for g in range(n_goals)]
+        k = int(rng.integers(1, 5))
+        mass = float(rng.choice([1.0, 0.99, 0.5]))
+        max_goals = [None, 1, 8, n_goals][trial % 4]
+        views = belief_views(log_b_PG, goals, k, mass, max_goals)
+        assert len(views) == n_partners
+        for row, view in zip(log_b_PG, views, strict=True):
+            assert (view.blend_goals, view.blend_probs) == blend_goal_weights(row, mass, max_goals)
+            assert (view.top, view.entropy) == belief_summary(row, goals, k)
+
+
+def test_belief_views_check_their_arguments() -> None:
+    assert belief_views(np.zeros((0, 3)), ["a", "b", "c"]) == []
+    with pytest.raises(ValueError, match=r"^log_belief_PG:"):
+        belief_views(np.zeros(3), ["a", "b", "c"])
+    with pytest.raises(ValueError, match=r"^goals:"):
+        belief_views(np.zeros((1, 2)), ["a"])
+    with pytest.raises(ValueError, match=r"^k:"):
+        belief_views(np.zeros((1, 1)), ["a"], k=0)
+    with pytest.raises(ValueError, match=r"^mass:"):
+        belief_views(np.zeros((1, 1)), ["a"], mass=0.0)
+    with pytest.raises(ValueError, match=r"^max_goals:"):
+        belief_views(np.zeros((1, 1)), ["a"], max_goals=0)
+    with pytest.raises(ValueError, match=r"every goal has probability 0"):
+        belief_views(np.full((1, 2), -np.inf), ["a", "b"])

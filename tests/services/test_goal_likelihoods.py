@@ -9,6 +9,7 @@ the engine's default 0.02) and goal 2 (0.2). Goal 0 also has a version 2 under `
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Iterator
 from typing import Any
 
@@ -24,7 +25,13 @@ from model_store.entities import Lineage
 from model_store.naming import task_model_name
 from model_store.sql import SqlModelStore
 from model_store.testing import qnet_spec, qnet_tensors
-from policy.belief import BeliefConfig, initial_log_belief, prior_log_probs, update_log_belief
+from policy.belief import (
+    BeliefConfig,
+    boltzmann_log_likelihoods,
+    initial_log_belief,
+    prior_log_probs,
+    update_log_belief,
+)
 from policy.qnet import QNetSpec, qnet_from_safetensors
 from services.engine import DEFAULT_TEMPERATURE, InferenceEngine, InvalidRequest, ModelNotFound
 
@@ -197,6 +204,31 @@ def test_a_reload_reaches_the_fixed_set_of_task_networks(
 def test_no_partners_gives_an_empty_table(engine: InferenceEngine) -> None:
     got = engine.goal_log_likelihoods("particle", np.zeros(8), [], [])
     assert got.shape == (0, G)
+
+
+def test_the_softmax_is_boltzmann_log_likelihoods_bit_for_bit() -> None:
+    """`_log_likelihoods` (the forward's (G, P, A) layout, errstate only for a tiny α) gives the
+    numbers of `policy.belief.boltzmann_log_likelihoods`, without a warning: huge Q-values, α per
+    goal or one for all, and α small enough that Q / α overflows to -inf."""
+    rng = np.random.default_rng(17)
+    for trial in range(600):
+        n_goals, n_partners, n_actions = (int(rng.integers(1, n)) for n in (40, 6, 7))
+        scale = float(rng.choice([1.0, 100.0, 1e30, 3e38]))
+        q_GPA = np.clip(rng.standard_normal((n_goals, n_partners, n_actions)) * scale,
+                        -3.4e38, 3.4e38).astype(np.float32)  # fmt: skip
+        actions_P = rng.integers(0, n_actions, n_partners)
+        if trial % 2:
+            alpha: Any = float(rng.choice([0.02, 1e-6, 1e-300, 5.0]))
+            shaped, tiny = alpha, alpha < goal_inference.TINY_ALPHA
+        else:
+            alpha = rng.choice([0.02, 0.05, 1e-260, 1.0], size=n_goals)
+            shaped, tiny = alpha[:, None, None], bool(alpha.min() < goal_inference.TINY_ALPHA)
+        expected = boltzmann_log_likelihoods(q_GPA.transpose(1, 0, 2), actions_P, alpha)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            got = goal_inference._log_likelihoods(q_GPA, actions_P, shaped, tiny)
+        assert got.shape == expected.shape
+        np.testing.assert_array_equal(got, expected)
 
 
 # --- one stacked pass -------------------------------------------------------------------------
