@@ -6,8 +6,9 @@
 
 The handlers are `async def` and call the engine directly (no thread-pool hop: a forward takes
 microseconds); they only translate JSON to an `ActRequest` and the results back, written with
-orjson. A batch with `"format": "columns"` is answered from `engine.act_columns`: one array per
-field, written by orjson straight from numpy, and the models once instead of once per row.
+orjson; a valid JSON body skips FastAPI's dependency solving (`lean_route`: ~27 µs of ~190 µs
+per act in-process). A batch with `"format": "columns"` is answered from `engine.act_columns`:
+one array per field, written by orjson straight from numpy, and the models once, not per row.
 Field names in errors follow the body: a single request's `observation` (or `state`), a batch's
 `observations[i]` (or `states[i]`). A `state` is turned into the ego's observation by the
 environment's perspective transform (`services.engine.observations_from_states`).
@@ -36,7 +37,7 @@ from services.engine import (
 )
 from services.engine.environments import env_runtime
 from services.rest.errors import ACT_ERROR_RESPONSES
-from services.rest.json_body import FastJsonRoute
+from services.rest.lean_route import LeanJsonRoute
 from services.rest.schemas import (
     ActBatchBody,
     ActBatchResponse,
@@ -47,7 +48,7 @@ from services.rest.schemas import (
     EnvsResponse,
 )
 
-router = APIRouter(prefix="/v1", tags=["inference"], route_class=FastJsonRoute)
+router = APIRouter(prefix="/v1", tags=["inference"], route_class=LeanJsonRoute)
 
 
 def _engine(request: Request) -> InferenceEngine:

@@ -1,4 +1,5 @@
-"""`LeanJsonRoute`: `FastJsonRoute` with a direct path for a valid JSON body (the session routes).
+"""`LeanJsonRoute`: `FastJsonRoute` with a direct path for a valid JSON body (the act
+and session routers).
 
 FastAPI's request handler spends ~30 µs per request on this machine before the endpoint runs
 (dependency solving, query, header and cookie parsing, exit stacks): more than half of a session
