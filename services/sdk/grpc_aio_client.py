@@ -33,7 +33,7 @@ from services.sdk.bodies import (
 )
 from services.sdk.errors import CoexistError
 from services.sdk.grpc_client import DEFAULT_TARGET, SERVICE_NAME, grpc_target, sdk_error
-from services.sdk.types import Action, ActionColumns, EnvInfo, Health
+from services.sdk.types import Action, ActionColumns, EnvInfo, Health, async_rows_of
 
 
 class AsyncGrpcCoexistClient:
@@ -78,28 +78,6 @@ class AsyncGrpcCoexistClient:
         response = await self._call(self._stub.Act, proto.act_request(body))
         return proto.action_from_proto(response)
 
-    async def act_batch(
-        self,
-        env: str,
-        ego_goal: str,
-        observations: ArrayLike | None = None,
-        *,
-        states: ArrayLike | None = None,
-        ego_index: int = 0,
-        partners: Partners = None,
-        method: str = "aail",
-        temperature: float | None = None,
-        seed: int | None = None,
-        alias: str = "production",
-        versions: Mapping[str, int] | None = None,
-    ) -> list[Action]:
-        body = act_batch_body(
-            env, ego_goal, observations, states=states, ego_index=ego_index, partners=partners,
-            method=method, temperature=temperature, seed=seed, alias=alias, versions=versions,
-            columns=True,
-        )  # fmt: skip
-        return (await self._columns(body)).to_actions()
-
     async def act_batch_columns(
         self,
         env: str,
@@ -121,6 +99,8 @@ class AsyncGrpcCoexistClient:
             columns=True,
         )  # fmt: skip
         return await self._columns(body)
+
+    act_batch = async_rows_of(act_batch_columns)
 
     async def _columns(self, body: dict[str, Any]) -> ActionColumns:
         try:

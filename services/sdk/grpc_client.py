@@ -37,7 +37,7 @@ from services.sdk.bodies import (
     session_body,
 )
 from services.sdk.errors import CoexistError, error_for_grpc
-from services.sdk.types import Action, ActionColumns, EnvInfo, Health
+from services.sdk.types import Action, ActionColumns, EnvInfo, Health, rows_of
 
 SERVICE_NAME = "coexist.v1.PolicyService"
 FIELD_METADATA_KEY = "coexist-field"
@@ -99,28 +99,6 @@ class GrpcCoexistClient:
         )  # fmt: skip
         return proto.action_from_proto(self._call(self._stub.Act, proto.act_request(body)))
 
-    def act_batch(
-        self,
-        env: str,
-        ego_goal: str,
-        observations: ArrayLike | None = None,
-        *,
-        states: ArrayLike | None = None,
-        ego_index: int = 0,
-        partners: Partners = None,
-        method: str = "aail",
-        temperature: float | None = None,
-        seed: int | None = None,
-        alias: str = "production",
-        versions: Mapping[str, int] | None = None,
-    ) -> list[Action]:
-        body = act_batch_body(
-            env, ego_goal, observations, states=states, ego_index=ego_index, partners=partners,
-            method=method, temperature=temperature, seed=seed, alias=alias, versions=versions,
-            columns=True,
-        )  # fmt: skip
-        return self._columns(body).to_actions()
-
     def act_batch_columns(
         self,
         env: str,
@@ -142,6 +120,8 @@ class GrpcCoexistClient:
             columns=True,
         )  # fmt: skip
         return self._columns(body)
+
+    act_batch = rows_of(act_batch_columns)
 
     def _columns(self, body: dict[str, Any]) -> ActionColumns:
         try:

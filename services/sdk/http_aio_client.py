@@ -17,7 +17,7 @@ from services.sdk.bodies import Partners, act_batch_body, act_body, session_body
 from services.sdk.errors import CoexistError
 from services.sdk.http_client import DEFAULT_URL, checked_json, envs_from_json, unavailable_error
 from services.sdk.http_sessions import AsyncSession, new_affinity
-from services.sdk.types import Action, ActionColumns, EnvInfo, Health, SessionInfo
+from services.sdk.types import Action, ActionColumns, EnvInfo, Health, SessionInfo, async_rows_of
 
 
 class AsyncCoexistClient:
@@ -74,28 +74,6 @@ class AsyncCoexistClient:
         )
         return Action.from_json(await self._request("POST", "/v1/act", body))
 
-    async def act_batch(
-        self,
-        env: str,
-        ego_goal: str,
-        observations: ArrayLike | None = None,
-        *,
-        states: ArrayLike | None = None,
-        ego_index: int = 0,
-        partners: Partners = None,
-        method: str = "aail",
-        temperature: float | None = None,
-        seed: int | None = None,
-        alias: str = "production",
-        versions: Mapping[str, int] | None = None,
-    ) -> list[Action]:
-        body = act_batch_body(
-            env, ego_goal, observations, states=states, ego_index=ego_index, partners=partners,
-            method=method, temperature=temperature, seed=seed, alias=alias, versions=versions,
-            columns=True,
-        )  # fmt: skip
-        return (await self._columns(body)).to_actions()
-
     async def act_batch_columns(
         self,
         env: str,
@@ -117,6 +95,8 @@ class AsyncCoexistClient:
             columns=True,
         )  # fmt: skip
         return await self._columns(body)
+
+    act_batch = async_rows_of(act_batch_columns)
 
     async def _columns(self, body: dict[str, Any]) -> ActionColumns:
         return ActionColumns.from_json(await self._request("POST", "/v1/act:batch", body))

@@ -38,7 +38,7 @@ from services.sdk.bodies import (
 )
 from services.sdk.errors import CoexistError, Unavailable, error_for_http
 from services.sdk.http_sessions import Session, new_affinity
-from services.sdk.types import Action, ActionColumns, EnvInfo, Health, SessionInfo
+from services.sdk.types import Action, ActionColumns, EnvInfo, Health, SessionInfo, rows_of
 
 DEFAULT_URL = "http://127.0.0.1:8000"
 
@@ -119,29 +119,6 @@ class CoexistClient:
         )
         return Action.from_json(self._request("POST", "/v1/act", body))
 
-    def act_batch(
-        self,
-        env: str,
-        ego_goal: str,
-        observations: ArrayLike | None = None,
-        *,
-        states: ArrayLike | None = None,
-        ego_index: int = 0,
-        partners: Partners = None,
-        method: str = "aail",
-        temperature: float | None = None,
-        seed: int | None = None,
-        alias: str = "production",
-        versions: Mapping[str, int] | None = None,
-    ) -> list[Action]:
-        """One action per observation (or per state), in order, from one vectorised request."""
-        body = act_batch_body(
-            env, ego_goal, observations, states=states, ego_index=ego_index, partners=partners,
-            method=method, temperature=temperature, seed=seed, alias=alias, versions=versions,
-            columns=True,
-        )  # fmt: skip
-        return self._columns(body).to_actions()
-
     def act_batch_columns(
         self,
         env: str,
@@ -164,6 +141,8 @@ class CoexistClient:
             columns=True,
         )  # fmt: skip
         return self._columns(body)
+
+    act_batch = rows_of(act_batch_columns)
 
     def _columns(self, body: dict[str, Any]) -> ActionColumns:
         return ActionColumns.from_json(self._request("POST", "/v1/act:batch", body))
