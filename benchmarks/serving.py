@@ -1,7 +1,7 @@
 """Serving load test: REST (wrk) and gRPC (h2load) against the server's own no-op floor.
 
-Run: `.venv/bin/python benchmarks/serving.py [--duration 5] [--log-level warning] [--json OUT]`
-(needs `wrk` and `h2load`: `apt-get install wrk nghttp2-client`).
+Run: `.venv/bin/python benchmarks/serving.py [--duration 5] [--rounds 1] [--log-level warning]
+[--json OUT]` (needs `wrk` and `h2load`: `apt-get install wrk nghttp2-client`).
 
 The server is the real one, `coexist serve` (uvicorn with uvloop + httptools, one worker, gRPC
 in the same process on grpcio's sync server with 8 threads), pinned to CPU 0; the load
@@ -21,6 +21,10 @@ case warms up for 1 s, then runs for `--duration` seconds on persistent connecti
 Targets (issue 5), per transport: act p50 at c=1 <= 2x the no-op p50; act throughput at c=32
 >= 40 % of the no-op's; batch actions/s >= 30x the single-request rate (both at c=1), with the
 columnar batch ("batch rows" is informational: the default format, one result per row).
+With `--rounds N` the whole plan runs N times one after the other; the table shows each case's
+median p50 and req/s over the rounds, and each target is the median of its per-round ratios
+(a ratio's two cases run minutes apart at most, so a burst of load from a neighbour on a shared
+machine moves one round, not the verdict).
 Every payload is checked once for a correct answer before it is timed; a run with any non-2xx
 HTTP answer or failed gRPC stream is reported as failed. The store is a temporary SQLite file
 with the FIVE_AGENTS networks (task a2; impact a0, b2, c4, e1) at the served size (hidden
@@ -286,9 +290,36 @@ def verdicts(cases: list[Case]) -> list[tuple[str, float, float, bool]]:
     return rows
 
 
+def median_cases(rounds: list[list[Case]]) -> list[Case]:
+    """Per case, the median p50 and the median req/s over the rounds (as one 1 s `Case`)."""
+    merged = []
+    for same in zip(*rounds, strict=True):
+        first = same[0]
+        merged.append(Case(
+            first.transport, first.case, first.concurrency,
+            round(statistics.median(c.rps for c in same)), 1.0,
+            statistics.median(c.p50_ms for c in same), first.rows, sum(c.failed for c in same),
+        ))  # fmt: skip
+    return merged
+
+
+def median_verdicts(rounds: list[list[Case]]) -> list[tuple[str, float, float, bool]]:
+    """Each target's median over the rounds of its per-round ratio."""
+    per_round = [verdicts(cases) for cases in rounds]
+    out = []
+    for same in zip(*per_round, strict=True):
+        name, _, required, _ = same[0]
+        value = statistics.median(v for _, v, _, _ in same)
+        out.append(
+            (name, value, required, value <= required if "p50" in name else value >= required)
+        )
+    return out
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--duration", type=float, default=5.0)
+    parser.add_argument("--rounds", type=int, default=1, help="run the whole plan N times")
     parser.add_argument("--log-level", default="warning", choices=("info", "warning"))
     parser.add_argument("--json", type=Path, help="also write the figures here")
     args = parser.parse_args()
@@ -304,23 +335,30 @@ def main() -> None:
             check_payloads(http_port, grpc_port, rest_bodies())
             print(f"server on CPU {SERVER_CPU}, load generators on CPU {LOAD_CPU}, "
                   f"{args.duration:g} s per case, log level {args.log_level}")  # fmt: skip
-            cases = measure(http_port, grpc_port, args.duration)
+            rounds = []
+            for r in range(args.rounds):
+                if args.rounds > 1:
+                    print(f"round {r + 1} of {args.rounds}", flush=True)
+                rounds.append(measure(http_port, grpc_port, args.duration))
         finally:
             server.terminate()
             server.wait(timeout=30)
-    print("\n| transport | case | c | p50 ms | req/s | actions/s | failed |")
+    cases = median_cases(rounds)
+    what = f" (medians of {args.rounds} rounds)" if args.rounds > 1 else ""
+    print(f"\n| transport | case | c | p50 ms | req/s | actions/s | failed |{what}")
     print("|---|---|---|---|---|---|---|")
     for c in cases:
         print(f"| {c.transport} | {c.case} | {c.concurrency} | {c.p50_ms:.3f} | {c.rps:,.0f} | "
               f"{c.actions_per_s:,.0f} | {c.failed} |")  # fmt: skip
     print("\n| target | measured | required | met |\n|---|---|---|---|")
-    results = verdicts(cases)
+    results = median_verdicts(rounds)
     for name, value, required, met in results:
         sign = "<=" if "p50" in name else ">="
         print(f"| {name} | {value:.2f} | {sign} {required:g} | {'yes' if met else 'NO'} |")
     if args.json:
         args.json.write_text(json.dumps({
             "cases": [{**asdict(c), "rps": c.rps, "actions_per_s": c.actions_per_s} for c in cases],
+            "rounds": [[{**asdict(c), "rps": c.rps} for c in cases] for cases in rounds],
             "targets": [{"target": n, "measured": v, "required": r, "met": m}
                         for n, v, r, m in results],
         }, indent=2))  # fmt: skip

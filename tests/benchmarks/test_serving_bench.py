@@ -70,6 +70,23 @@ def test_verdicts_compare_each_transport_with_its_own_floor() -> None:
     assert got["REST: batch actions/s / act req/s (c=1)"] == (34.13, True)
 
 
+def test_rounds_give_median_figures_and_median_ratios() -> None:
+    def one_round(act_p50: float, noop_rps: int, act_rps: int) -> list:
+        return (
+            [_case(t, "no-op", c, noop_rps, 0.2) for t in ("REST", "gRPC") for c in (1, 32)]
+            + [_case(t, "act", c, act_rps, act_p50) for t in ("REST", "gRPC") for c in (1, 32)]
+            + [_case(t, "batch", 1, 100, 3.0, rows=256) for t in ("REST", "gRPC")]
+        )
+
+    # a target is the median of the rounds' ratios (c=32: 0.45), not the ratio of medians (0.5)
+    rounds = [one_round(0.3, 1000, 400), one_round(0.5, 2000, 900), one_round(0.7, 1000, 500)]
+    medians = {(c.transport, c.case, c.concurrency): c for c in serving.median_cases(rounds)}
+    assert medians["REST", "act", 1].p50_ms == 0.5 and medians["REST", "act", 1].rps == 500
+    got = {name: (round(value, 2), met) for name, value, _, met in serving.median_verdicts(rounds)}
+    assert got["REST: act p50 / no-op p50 (c=1)"] == (2.5, False)
+    assert got["REST: act req/s / no-op req/s (c=32)"] == (0.45, True)
+
+
 def test_payloads_are_the_five_agent_scenario() -> None:
     from services.grpc_api.gen.coexist.v1 import policy_pb2 as pb
 
