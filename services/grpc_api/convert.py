@@ -21,7 +21,8 @@ Field names follow the REST API: a single request's rows are `observation` / `st
 calls them `observations[0]`), a batch of states is `states[b]`, a row of a batch's
 `observation_matrix` is `observation_matrix[b]`. A matrix and the columns are read into and
 filled from numpy in one call each (`np.array(values)`, `extend(ndarray)`): microseconds for a
-256-row batch, where reading one `Vector` message per row costs about 1 µs a row. Unset proto3 fields take the REST
+256-row batch, where reading one `Vector` message per row costs about 1 µs a row. Unset proto3
+fields take the REST
 defaults: method "aail", alias "production", no temperature, no seed; an unset belief field the
 `SessionSettings` / `BeliefConfig` default. `infer` is refused outside an Episode (a unary call
 has no history of the partner's actions).
@@ -54,7 +55,7 @@ from services.grpc_api.gen.coexist.v1 import policy_pb2 as pb
 from services.sessions import Observed, SessionPartner, SessionSettings, SessionStepResult
 
 Settings = pb.ActRequest | pb.ActBatchRequest | pb.EpisodeSettings
-Rows = pb.ActRequest | pb.ActBatchRequest | pb.EpisodeStep  # messages carrying observations
+Row = pb.ActRequest | pb.EpisodeStep  # messages carrying one observation (or state)
 _NO_ROWS = np.empty((0, 0))  # a settings template's observations (`repeated.request_with`)
 
 
@@ -95,11 +96,9 @@ def _rows(state: pb.State) -> list[list[float]]:
     return [list(agent.values) for agent in state.agents]
 
 
-def check_one_input(message: Rows) -> bool:
-    """Whether the rows come as states; `InvalidRequest` when both forms are given (checked
+def check_one_input(message: Row) -> bool:
+    """Whether the row comes as a state; `InvalidRequest` when both forms are given (checked
     before the engine runs, so the REST API's field names apply unchanged)."""
-    if isinstance(message, pb.ActBatchRequest):
-        return batch_source(message) == "states"
     from_state = message.HasField("state")
     if from_state and len(message.observation):
         raise InvalidRequest("observation", "give exactly one of observation and state")
@@ -151,9 +150,8 @@ def episode_request(settings: pb.EpisodeSettings, step: pb.EpisodeStep, t: int) 
     return repeated.request_with(settings, lambda: _request(settings, _NO_ROWS), observation, seed)
 
 
-def act_batch_request(message: pb.ActBatchRequest) -> ActRequest:
-    """The engine request of a batch in any of its three input forms (`batch_source`)."""
-    source = batch_source(message)
+def act_batch_request(message: pb.ActBatchRequest, source: str) -> ActRequest:
+    """The engine request of a batch given in its input form `source` (`batch_source`)."""
     if source == "observation_matrix":
         return _request(message, _matrix(message.observation_matrix))
     if source == "states":
@@ -244,15 +242,13 @@ def session_response(settings: SessionSettings, answer: SessionStepResult) -> pb
     return message
 
 
-def renamed_for_transport(err: EngineError, *, single: bool, from_state: bool) -> EngineError:
-    """Blame the field the client sent: `observation`/`state` for one row, `states[b]` for a
-    batch of states (the engine names them all `observations...`)."""
+def renamed_for_transport(err: EngineError, *, from_state: bool) -> EngineError:
+    """Blame the field the client sent for one row, `observation` or `state` (the engine names
+    it `observations[0]`)."""
     field = err.field
     if field is None or not field.startswith(("observations", "states")):
         return err
-    if single:
-        return err.renamed("state" if from_state else "observation")
-    return renamed_for_batch(err, "states" if from_state else "observations")
+    return err.renamed("state" if from_state else "observation")
 
 
 def renamed_for_batch(err: EngineError, source: str) -> EngineError:

@@ -44,22 +44,20 @@ class PolicyServicer(pb_grpc.PolicyServiceServicer):
         self.engine = engine
 
     def _run(
-        self, message: convert.Rows, build: Callable[[], ActRequest], *, single: bool
+        self, message: convert.Row, build: Callable[[], ActRequest]
     ) -> tuple[ActRequest, list[ActResult]]:
-        """Build the engine request from `message` and act; errors blame the field the client
-        sent (`observation` or `state` for one row, `observations[b]` or `states[b]` for many)."""
+        """Build the engine request of one row from `message` and act; errors blame the field
+        the client sent (`observation` or `state`)."""
         from_state = convert.check_one_input(message)
         try:
             request = build()
             return request, self.engine.act(request)
         except EngineError as err:
-            raise convert.renamed_for_transport(err, single=single, from_state=from_state) from None
+            raise convert.renamed_for_transport(err, from_state=from_state) from None
 
     @translate_errors
     def Act(self, request: pb.ActRequest, context: grpc.ServicerContext) -> pb.ActResponse:
-        act_request, results = self._run(
-            request, partial(convert.act_request, request), single=True
-        )
+        act_request, results = self._run(request, partial(convert.act_request, request))
         return convert.act_response(act_request, results[0])
 
     @translate_errors
@@ -74,7 +72,7 @@ class PolicyServicer(pb_grpc.PolicyServiceServicer):
             )
         source = convert.batch_source(request)
         try:
-            act_request = convert.act_batch_request(request)
+            act_request = convert.act_batch_request(request, source)
             if request.format == pb.BATCH_FORMAT_COLUMNS:
                 columns = self.engine.act_columns(act_request)
                 return convert.act_columns_response(act_request, columns)
@@ -115,7 +113,7 @@ class PolicyServicer(pb_grpc.PolicyServiceServicer):
                             "(or give it no goal) to send its actions",
                         )
                     build = partial(convert.episode_request, settings, step, t)
-                    act_request, results = self._run(step, build, single=True)
+                    act_request, results = self._run(step, build)
                     response = convert.act_response(act_request, results[0])
                     previous = (settings.env, act_request.observations[0])
             except Exception as err:
@@ -152,5 +150,5 @@ class PolicyServicer(pb_grpc.PolicyServiceServicer):
         except EngineError as err:
             if from_state and err.field == "observation":
                 raise err.renamed("state") from None
-            raise convert.renamed_for_transport(err, single=True, from_state=from_state) from None
+            raise convert.renamed_for_transport(err, from_state=from_state) from None
         return convert.session_response(session.settings, answer)

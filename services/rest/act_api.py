@@ -75,7 +75,7 @@ def _rename(field: str | None, source: str, single: bool) -> str | None:
     return field
 
 
-Encoder = Callable[[ActResult, list[dict[str, Any]]], dict[str, Any]]
+Encoder = Callable[[ActResult, Any], dict[str, Any]]  # (result, its `models` JSON) -> answer
 Answer = TypeVar("Answer", list[ActResult], ActColumns)
 
 
@@ -114,13 +114,14 @@ def _act(
     return answer, partners
 
 
-def _encoder(env: str, partners: Sequence[PartnerSpec]) -> Encoder:
+def encoder(env: str, partner_indices: Sequence[int]) -> Encoder:
+    """The `ActResponse` JSON of a result (also the first fields of a session step's answer)."""
     meanings = env_runtime(env).info.action_meanings
 
-    def encode(result: ActResult, models: list[dict[str, Any]]) -> dict[str, Any]:
+    def encode(result: ActResult, models: Any) -> dict[str, Any]:
         weights = [
-            {"index": p.index, "weight": w}
-            for p, w in zip(partners, result.partner_weights, strict=True)
+            {"index": index, "weight": w}
+            for index, w in zip(partner_indices, result.partner_weights, strict=True)
         ]
         return {
             "probs": result.probs,
@@ -139,11 +140,8 @@ def _encoder(env: str, partners: Sequence[PartnerSpec]) -> Encoder:
     return encode
 
 
-def _models(result: ActResult) -> list[dict[str, Any]]:
-    return _model_dicts(result.models)
-
-
-def _model_dicts(models: Sequence[ModelUsed]) -> list[dict[str, Any]]:
+def model_dicts(models: Sequence[ModelUsed]) -> list[dict[str, Any]]:
+    """The `models` JSON of an answer."""
     return [
         {
             "role": m.role, "name": m.name, "version": m.version, "sha256": m.sha256,
@@ -159,7 +157,7 @@ def _columns(env: str, partners: Sequence[PartnerSpec], columns: ActColumns) -> 
     return {
         "format": "columns",
         "method": columns.method,
-        "models": _model_dicts(columns.models),
+        "models": model_dicts(columns.models),
         "probs": np.ascontiguousarray(columns.probs),
         "actions": np.ascontiguousarray(columns.actions),
         "greedy_actions": np.ascontiguousarray(columns.greedy_actions),
@@ -176,7 +174,8 @@ async def act(body: ActBody, request: Request) -> Response:
     """The blended action distribution for one ego observation (or global state + ego index)."""
     engine = _engine(request)
     results, partners = _act(engine.act, body, body.observation, body.state, single=True)
-    return _json(_encoder(body.env, partners)(results[0], _models(results[0])))
+    encode = encoder(body.env, [p.index for p in partners])
+    return _json(encode(results[0], model_dicts(results[0].models)))
 
 
 @router.post(
@@ -192,7 +191,8 @@ async def act_batch(body: ActBatchBody, request: Request) -> Response:
         columns, partners = _act(engine.act_columns, body, rows, states, single=False)
         return _json(_columns(body.env, partners, columns))
     results, partners = _act(engine.act, body, rows, states, single=False)
-    encode, models = _encoder(body.env, partners), _models(results[0])  # shared by rows
+    encode = encoder(body.env, [p.index for p in partners])
+    models = model_dicts(results[0].models)  # the same networks serve every row
     return _json({"results": [encode(r, models) for r in results]})
 
 

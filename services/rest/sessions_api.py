@@ -39,7 +39,7 @@ from services.engine import (
     ModelUsed,
     observations_from_states,
 )
-from services.engine.environments import env_runtime
+from services.rest.act_api import encoder, model_dicts
 from services.rest.errors import SESSION_ERROR_RESPONSES
 from services.rest.lean_route import LeanJsonRoute
 from services.rest.session_schemas import (
@@ -110,38 +110,18 @@ def _models_fragment(models: Sequence[ModelUsed]) -> orjson.Fragment:
     key = tuple(map(id, models))
     entry = _models_json.get(key)
     if entry is None:
-        written = orjson.dumps(
-            [
-                {"role": m.role, "name": m.name, "version": m.version, "sha256": m.sha256,
-                 "partner_index": m.partner_index, "goal": m.goal}
-                for m in models
-            ]
-        )  # fmt: skip
         if len(_models_json) >= MODELS_JSON_MAX:
             _models_json.clear()
-        entry = _models_json[key] = (tuple(models), orjson.Fragment(written))
+        written = orjson.Fragment(orjson.dumps(model_dicts(models)))
+        entry = _models_json[key] = (tuple(models), written)
     return entry[1]
 
 
 def _step_json(settings: SessionSettings, answer: SessionStepResult) -> dict[str, Any]:
     """`SessionStepOut`: /v1/act's answer (`ActResponse`), then the session's step and beliefs."""
-    result = answer.result
-    weights = [
-        {"index": p.index, "weight": w}
-        for p, w in zip(settings.partners, result.partner_weights, strict=True)
-    ]
+    encode = encoder(settings.env, [p.index for p in settings.partners])
     return {
-        "probs": result.probs,
-        "action": result.action,
-        "greedy_action": result.greedy_action,
-        "action_meaning": env_runtime(settings.env).info.action_meanings[result.action],
-        "method": result.method,
-        "diagnostics": {
-            "task_entropy": result.task_entropy,
-            "task_weight": result.task_weight,
-            "partner_weights": weights,
-        },
-        "models": _models_fragment(result.models),
+        **encode(answer.result, _models_fragment(answer.result.models)),
         "session_id": answer.session_id,
         "step": answer.step,
         "beliefs": _beliefs(answer.beliefs),
