@@ -11,6 +11,11 @@ Run: `OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/session_breakdown.py --
 | act, all 35 blended           | `engine.act` with `goal_probs` over all 35 goals             |
 | session step                  | `Session.step` (server defaults) with the partner's previous |
 |                               | action: likelihood pass, belief update, act                  |
+| session step, scored ahead    | the same, `Session.prepare_next` run (untimed) before each   |
+|                               | step, as the servers run it after each answer: the step only |
+|                               | picks its action's likelihoods from the table                |
+| prepare_next                  | that table: the likelihood pass for every action (untimed    |
+|                               | steps in between)                                            |
 | act, a fixed 8-goal blend     | `engine.act` with the same 8-goal `goal_probs` every call    |
 | session step, top-8 blend     | `Session.step`, `blend_mass` 0.99 and `blend_max_goals` 8    |
 | act, top-8 sets of a session  | `engine.act` cycling through the 8-goal sets that session    |
@@ -43,14 +48,23 @@ sys.path.insert(0, str(ROOT))
 from envs.particle.goals import GOAL_IDS  # noqa: E402
 
 
-def _median_ms(call: Callable[[int], object], calls: int) -> float:
+def _timed(call: Callable[[], object]) -> float:
+    """Seconds `call` took."""
+    start = time.perf_counter()
+    call()
+    return time.perf_counter() - start
+
+
+def _median_ms(call: Callable[[int], Any], calls: int, timed: bool = False) -> float:
+    """Median milliseconds of `call(i)`; `timed`: `call` returns the seconds of its own timed
+    part (the rest of it untimed)."""
     for i in range(100):
         call(i)
     times = []
     for i in range(calls):
         start = time.perf_counter()
-        call(i)
-        times.append(time.perf_counter() - start)
+        took = call(i)
+        times.append(took if timed else time.perf_counter() - start)
     return statistics.median(times) * 1e3
 
 
@@ -72,12 +86,16 @@ def breakdown(url: str, obs_TD: np.ndarray, actions_TP: np.ndarray, calls: int) 
         )
         return engine.act(ActRequest("particle", "a2", obs_TD[i % steps][None], (spec,)))
 
-    def session(mass: float = 1.0, most: int | None = None) -> Callable[[int], object]:
+    def session(
+        mass: float = 1.0, most: int | None = None, ahead: bool = False, timed: str = "step"
+    ) -> Callable[[int], object]:
+        """One call: a step (`timed` "step"; `ahead`: after an untimed `prepare_next`) or a
+        `prepare_next` (`timed` "prepare", after an untimed step)."""
         partners = (SessionPartner(1, infer=True),)
         settings = SessionSettings(
             "particle", "a2", partners, blend_mass=mass, blend_max_goals=most
         )
-        s = Session(engine, settings)
+        s = Session(engine, settings, prefetch=ahead or timed == "prepare")
         s.step(obs_TD[0])
         sets.clear()
 
@@ -87,6 +105,10 @@ def breakdown(url: str, obs_TD: np.ndarray, actions_TP: np.ndarray, calls: int) 
             sets.add(tuple(m.goal for m in result.result.models if m.role == "impact"))
             return result
 
+        if timed == "prepare":
+            return lambda i: (step(i), _timed(s.prepare_next))[1]
+        if ahead:
+            return lambda i: (s.prepare_next(), _timed(lambda: step(i)))[1]
         return step
 
     sets: set[tuple[str, ...]] = set()
@@ -100,6 +122,8 @@ def breakdown(url: str, obs_TD: np.ndarray, actions_TP: np.ndarray, calls: int) 
     everything = {g: 1 / len(GOAL_IDS) for g in GOAL_IDS}
     out["act, all 35 blended"] = _median_ms(lambda i: act(everything, i), calls)
     out["session step"] = _median_ms(session(), calls)
+    out["session step, scored ahead"] = _median_ms(session(ahead=True), calls, timed=True)
+    out["prepare_next"] = _median_ms(session(timed="prepare"), calls, timed=True)
     fixed = {g: 1 / 8 for g in GOAL_IDS[:8]}
     out["act, a fixed 8-goal blend"] = _median_ms(lambda i: act(fixed, i), calls)
     out["session step, top-8 blend"] = _median_ms(session(mass=0.99, most=8), calls)

@@ -26,10 +26,13 @@ SERVER_CPU, LOAD_CPU = "0", "1"
 UNIT_MS = {"us": 1e-3, "ms": 1.0, "s": 1000.0}
 
 
-def lua_script(path: str, bodies: list[bytes]) -> str:
-    """A wrk script POSTing `bodies` to `path` in turn (one wrk thread: a plain counter)."""
+def lua_script(path: str, bodies: list[bytes], pause_ms: float = 0.0) -> str:
+    """A wrk script POSTing `bodies` to `path` in turn (one wrk thread: a plain counter);
+    `pause_ms` > 0: wrk waits that long after each answer before sending the next request
+    (wrk's `delay`; latency still runs from the request's send to its answer)."""
     items = ",\n".join(f"[==[{b.decode()}]==]" for b in bodies)
-    return (
+    pause = f"delay = function()\n  return {pause_ms:g}\nend\n" if pause_ms > 0 else ""
+    return pause + (
         "local bodies = {\n" + items + "\n}\n"
         "local i = 0\n"
         "local headers = {['Content-Type'] = 'application/json'}\n"
@@ -61,11 +64,12 @@ def parse_wrk(out: str) -> dict[str, float]:
 
 
 def run_wrk(
-    base: str, path: str, bodies: list[bytes], duration: float, tmp: Path
+    base: str, path: str, bodies: list[bytes], duration: float, tmp: Path, pause_ms: float = 0.0
 ) -> tuple[dict[str, float], int]:
-    """The timed run's figures and the requests of both runs (warm-up included)."""
+    """The timed run's figures and the requests of both runs (warm-up included); `pause_ms`
+    as `lua_script` takes it."""
     script = tmp / "bench.lua"
-    script.write_text(lua_script(path, bodies))
+    script.write_text(lua_script(path, bodies, pause_ms))
     command = ["taskset", "-c", LOAD_CPU, "wrk", "-t1", "-c1", "--timeout", "10s",
                "-s", str(script), "--latency"]  # fmt: skip
     runs = []

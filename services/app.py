@@ -82,7 +82,10 @@ def create_app(
             owned_engine.start_refresh_thread()
             app.state.engine = owned_engine
         app.state.sessions = SessionStore(
-            app.state.engine, max_sessions=settings.max_sessions, ttl_s=settings.session_ttl_s
+            app.state.engine,
+            max_sessions=settings.max_sessions,
+            ttl_s=settings.session_ttl_s,
+            prefetch=settings.session_prefetch,
         )
         if settings.grpc_enabled:
             from services.grpc_api.server import build_grpc_server
@@ -92,6 +95,7 @@ def create_app(
                 port=settings.grpc_port,
                 host=settings.host,
                 max_workers=settings.grpc_workers,
+                session_prefetch=settings.session_prefetch,
                 ready=lambda: _readiness(app.state.engine)[0],
                 reuse_port=True,  # uvicorn workers of one server share the gRPC port
             )

@@ -25,6 +25,9 @@ by the test suite and by Ray.
 | `COEXIST_MAX_BATCH`           | 4096               | server        | rows allowed in one act:batch                     |
 | `COEXIST_SESSION_TTL_S`       | 300                | server        | a REST session idle this long is forgotten        |
 | `COEXIST_MAX_SESSIONS`        | 1000               | server        | live REST sessions per server process             |
+| `COEXIST_SESSION_PREFETCH`    | true               | server        | after a session step's answer is sent, score the  |
+|                               |                    |               | next step's evidence ahead (REST and `Episode`;   |
+|                               |                    |               | `services.sessions.session`, "Scoring ahead")     |
 | `COEXIST_WORKERS`             | 1                  | server        | uvicorn worker processes (set by `coexist serve   |
 |                               |                    |               | --workers`); > 1 refuses REST sessions, which     |
 |                               |                    |               | live in one process's memory                      |
@@ -82,6 +85,7 @@ class Settings(BaseSettings):
     max_batch: int = Field(default=4096, ge=1)
     session_ttl_s: float = Field(default=300.0, gt=0, le=86400)
     max_sessions: int = Field(default=1000, ge=1)
+    session_prefetch: bool = True
     workers: int = Field(default=1, ge=1)
     log_format: Literal["json", "text"] = "text"
     log_level: Literal["debug", "info", "warning", "error"] = "info"

@@ -15,6 +15,9 @@ The belief itself (prior, forgetting, floor) is pure maths in `policy.belief`.
 |          | partners one such pass per partner (faster: `ROW_BY_ROW_MAX`)              |
 | softmax  | log softmax(Q_g / α_g)[a_p] (`policy.belief.boltzmann_log_likelihoods`'s  |
 |          | arithmetic, bit for bit, on the forward's layout: `_log_likelihoods`)      |
+| ahead    | `likelihood_table`: the same pass for every action a, before the actions   |
+|          | are known; `LikelihoodTable.pick` then gives the same numbers (a session   |
+|          | computes step t + 1's table right after answering step t)                  |
 
 α per goal: the request's `temperature`, else each task network's training α (lineage), else
 `DEFAULT_TEMPERATURE`: a partner is modelled as acting by its own task policy (eq. 2).
@@ -181,14 +184,13 @@ def _training_alphas(group: StackedGroup) -> tuple[np.ndarray, bool]:
     return alphas
 
 
-def _log_likelihoods(
-    q_GPA: np.ndarray, actions_P: np.ndarray, alpha: np.ndarray | float, tiny: bool
-) -> np.ndarray:
-    """`boltzmann_log_likelihoods(q_GPA.transpose(1, 0, 2), actions_P, α, validate=False)`: the
-    same arithmetic and numbers, bit for bit (tests/services/test_goal_likelihoods.py), in the
-    forward's (G, P, A) layout with fewer numpy calls. The Q-values are finite (checked by the
-    caller), so the division by α is the only step that can overflow (to -inf, meant), and
-    only when an α is `tiny` (< `TINY_ALPHA`): errstate (~1 µs) only then."""
+def _scaled(
+    q_GPA: np.ndarray, alpha: np.ndarray | float, tiny: bool
+) -> tuple[np.ndarray, np.ndarray]:
+    """z = (Q - max Q) / α as float64 (G, P, A) and log Σ_a exp z (G, P): the two parts of
+    log softmax(Q / α). The Q-values are finite (checked by the caller), so the division by α
+    is the only step that can overflow (to -inf, meant), and only when an α is `tiny` (<
+    `TINY_ALPHA`): errstate (~1 µs) only then."""
     z = q_GPA.astype(np.float64)
     z -= z.max(axis=2, keepdims=True)  # <= 0, the arg-max exactly 0
     if tiny:
@@ -196,7 +198,16 @@ def _log_likelihoods(
             z /= alpha
     else:
         z /= alpha
-    log_norm_GP = np.log(np.exp(z).sum(axis=2))  # >= log 1 = 0: the arg-max term is exp(0)
+    return z, np.log(np.exp(z).sum(axis=2))  # >= log 1 = 0: the arg-max term is exp(0)
+
+
+def _log_likelihoods(
+    q_GPA: np.ndarray, actions_P: np.ndarray, alpha: np.ndarray | float, tiny: bool
+) -> np.ndarray:
+    """`boltzmann_log_likelihoods(q_GPA.transpose(1, 0, 2), actions_P, α, validate=False)`: the
+    same arithmetic and numbers, bit for bit (tests/services/test_goal_likelihoods.py), in the
+    forward's (G, P, A) layout with fewer numpy calls (`_scaled`)."""
+    z, log_norm_GP = _scaled(q_GPA, alpha, tiny)
     if len(actions_P) == 1:  # one partner (the usual case): plain indexing, the same numbers
         return (z[:, 0, int(actions_P[0])] - log_norm_GP[:, 0])[None]
     return (z[:, np.arange(len(actions_P)), actions_P] - log_norm_GP).T
@@ -305,21 +316,103 @@ def checked_log_likelihoods(
     actions in range, a valid alias and pins, a temperature None or finite > 0. Internal, for a
     caller that checked them already (a session: its settings once, each step's observation
     and `observed` entries; it checks the indices against the stored observation's agents)."""
-    nets = _goal_networks(runtime.domain.name)
-    _, group = cache_.resolve_group(nets.needs, alias, versions, nets.members, runtime.domain)
+    group = task_group(cache_, runtime, alias, versions)
     if not len(partners):
-        return np.zeros((0, len(nets.goals)))
-    x_1PF = _partner_views(runtime, obs_D, n_agents, tuple(partners))
+        return np.zeros((0, len(group.nets)))
+    q_GPA = _q_values(group, runtime, obs_D, n_agents, tuple(partners))
+    cache_.stats.likelihood_passes += 1
+    return _log_likelihoods(q_GPA, actions_P, *_alphas(group, temperature))
+
+
+def task_group(
+    cache_: ModelCache, runtime: EnvRuntime, alias: str, versions: Mapping[str, int]
+) -> StackedGroup:
+    """The stacked group of every goal's task network, by alias or pinned versions (the same
+    object while no alias moves: a `LikelihoodTable` checks it with `is`)."""
+    nets = _goal_networks(runtime.domain.name)
+    return cache_.resolve_group(nets.needs, alias, versions, nets.members, runtime.domain)[1]
+
+
+def _q_values(
+    group: StackedGroup, runtime: EnvRuntime, obs_D: np.ndarray, n_agents: int,
+    partners: tuple[int, ...],
+) -> np.ndarray:  # fmt: skip
+    """Every task network on each partner's view: finite (G, P, A) float32 Q-values."""
+    x_1PF = _partner_views(runtime, obs_D, n_agents, partners)
     with np.errstate(over="ignore", invalid="ignore"):  # huge inputs: refused just below
         q_GPA = _forward_all(group, x_1PF)
     if not np.isfinite(q_GPA).all():
         raise InvalidRequest("observation", "values so large that the Q-values overflow")
-    alpha: np.ndarray | float
+    return q_GPA
+
+
+def _alphas(group: StackedGroup, temperature: float | None) -> tuple[np.ndarray | float, bool]:
+    """The Boltzmann temperature per goal (the request's, else each network's training α) and
+    whether one is below `TINY_ALPHA`."""
     if temperature is None:
-        alpha, tiny = _training_alphas(group)
-    else:
-        alpha, tiny = float(temperature), temperature < TINY_ALPHA
-    return _log_likelihoods(q_GPA, actions_P, alpha, tiny)  # arguments checked, Q finite
+        return _training_alphas(group)
+    return float(temperature), temperature < TINY_ALPHA
+
+
+@dataclass(frozen=True, eq=False)
+class LikelihoodTable:
+    """log π_g(a | partner p's view of one observation) for EVERY action a, computed before
+    the actions are known: a session scores step t + 1's evidence (the partners' actions at
+    o_t) with the table it computed right after answering step t (`likelihood_table`).
+
+    `pick` returns exactly what `checked_log_likelihoods` would on the same observation and
+    networks, bit for bit: z - log_norm subtracted per element either way. Rows are
+    independent when the table's forward ran row by row (P <= `ROW_BY_ROW_MAX`, also for P =
+    1), so any such subset of its partners is served; a batched table (P > 3) serves its own
+    partner tuple only (a batched matrix product may round a row differently with other rows).
+    """
+
+    group: StackedGroup  # the task networks it was computed with
+    partners: tuple[int, ...]
+    logp_GPA: np.ndarray  # (G, P, A) float64
+
+    def pick(
+        self, group: StackedGroup, partners: Sequence[int], actions_P: np.ndarray
+    ) -> np.ndarray | None:
+        """(E, G) log-likelihoods of `actions_P` taken by `partners`, or None when the table
+        cannot serve them: other networks (an alias moved) or other partner rows."""
+        if group is not self.group:
+            return None
+        wanted = tuple(partners)
+        if wanted == self.partners:
+            rows: Sequence[int] = range(len(wanted))
+        elif (
+            len(self.partners) <= ROW_BY_ROW_MAX
+            and len(wanted) <= ROW_BY_ROW_MAX
+            and set(wanted) <= set(self.partners)
+        ):
+            rows = [self.partners.index(p) for p in wanted]
+        else:
+            return None
+        if len(wanted) == 1:
+            return self.logp_GPA[:, rows[0], int(actions_P[0])][None]
+        return self.logp_GPA[:, list(rows), actions_P].T
+
+
+def likelihood_table(
+    cache_: ModelCache,
+    runtime: EnvRuntime,
+    obs_D: np.ndarray,
+    n_agents: int,
+    partners: tuple[int, ...],
+    *,
+    alias: str,
+    versions: Mapping[str, int],
+    temperature: float | None,
+) -> LikelihoodTable:
+    """The `LikelihoodTable` of `partners` on `obs_D`, arguments as `checked_log_likelihoods`
+    takes them (errors too: `ModelNotFound`, an observation whose Q-values overflow)."""
+    group = task_group(cache_, runtime, alias, versions)
+    q_GPA = _q_values(group, runtime, obs_D, n_agents, partners)
+    z_GPA, log_norm_GP = _scaled(q_GPA, *_alphas(group, temperature))
+    z_GPA -= log_norm_GP[:, :, None]  # in place: the same subtraction as `_log_likelihoods`'
+    cache_.stats.likelihood_tables += 1
+    return LikelihoodTable(group, partners, z_GPA)
 
 
 def recover_partner_actions(

@@ -166,6 +166,9 @@ class EngineStats:
     refreshes: int = 0  # refresh() calls that saw a new store change token
     reloads: int = 0  # aliases that moved and were swapped to their new version
     refresh_errors: int = 0  # refresh() calls that failed (store down ...) and will be retried
+    likelihood_passes: int = 0  # goal-likelihood passes over every task net, the actions known
+    likelihood_tables: int = 0  # the same passes for every action, ahead (a session's next step)
+    likelihood_tables_used: int = 0  # session steps whose evidence such a table scored
 
     def snapshot(self) -> EngineStats:
         return EngineStats(**vars(self))

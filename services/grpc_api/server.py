@@ -146,6 +146,7 @@ def build_grpc_server(
     ready: Callable[[], bool] | None = None,
     health_recheck_s: float = 1.0,
     reuse_port: bool = False,
+    session_prefetch: bool = True,
 ) -> GrpcServer:
     """A gRPC server (not started) bound to `host:port`; port 0 binds a free port (`.port`).
 
@@ -153,7 +154,8 @@ def build_grpc_server(
     Each open Episode stream holds one of the `max_workers` threads until it ends.
     `reuse_port` lets several processes bind the same port (SO_REUSEPORT: the kernel spreads
     connections over them), as uvicorn workers of one server do; otherwise a port already in
-    use is an error.
+    use is an error. `session_prefetch`: an `Episode` with inferred partners scores the next
+    step's evidence after sending each answer (`services.sessions.session`, "Scoring ahead").
     """
     if max_workers < 1:
         raise ValueError(f"max_workers: expected >= 1, got {max_workers}")
@@ -162,7 +164,7 @@ def build_grpc_server(
         options=[("grpc.so_reuseport", 1 if reuse_port else 0)],
         interceptors=(RequestIdInterceptor(),),  # request ids + access lines, as over HTTP
     )
-    handlers = _policy_handlers(PolicyServicer(engine))
+    handlers = _policy_handlers(PolicyServicer(engine, session_prefetch=session_prefetch))
     server.add_generic_rpc_handlers((grpc.method_handlers_generic_handler(SERVICE_NAME, handlers),))
     server.add_registered_method_handlers(SERVICE_NAME, handlers)
 

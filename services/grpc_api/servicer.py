@@ -10,7 +10,8 @@ maps errors (`errors`); the engine does the work, exactly as for the REST routes
 | `Episode`  | `engine.act` per received step        | settings from the first message (or the  |
 |            |                                       | latest that carried them); seed + t      |
 |            | with an inferred partner: a           | the stream owns it (no store): beliefs   |
-|            | `services.sessions.Session` per stream| updated from `observed`, then act        |
+|            | `services.sessions.Session` per stream| updated from `observed`, then act; after |
+|            |                                       | each answer `prepare_next` (scoring ahead)|
 
 On the sync server each open `Episode` stream holds one worker thread until the client closes it,
 so `max_workers` bounds the number of concurrent episodes plus in-flight unary calls.
@@ -40,8 +41,9 @@ from services.sessions import Session
 class PolicyServicer(pb_grpc.PolicyServiceServicer):
     """Implements `coexist.v1.PolicyService` over one shared `InferenceEngine`."""
 
-    def __init__(self, engine: InferenceEngine) -> None:
+    def __init__(self, engine: InferenceEngine, *, session_prefetch: bool = True) -> None:
         self.engine = engine
+        self.session_prefetch = session_prefetch  # `Session.prepare_next` after each answer
 
     def _run(
         self, message: convert.Row, build: Callable[[], ActRequest]
@@ -119,6 +121,8 @@ class PolicyServicer(pb_grpc.PolicyServiceServicer):
             except Exception as err:
                 raise StepError(t, err) from err
             yield response
+            if session is not None:  # the answer is sent: score the next step's evidence
+                session.prepare_next()
 
     def _episode_session(
         self,
@@ -138,8 +142,9 @@ class PolicyServicer(pb_grpc.PolicyServiceServicer):
         # a session begun mid-stream judges the next step's `observed` on the last observation
         observation = previous[1] if previous and previous[0] == settings.env else None
         return Session(
-            self.engine, session_settings, first_step=t, previous_observation=observation
-        )
+            self.engine, session_settings, first_step=t, previous_observation=observation,
+            prefetch=self.session_prefetch,
+        )  # fmt: skip
 
     def _session_step(self, session: Session, step: pb.EpisodeStep) -> pb.ActResponse:
         """One step of an inferring episode; errors blame the field the client sent."""

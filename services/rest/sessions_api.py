@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 import orjson
 from fastapi import APIRouter, Request, Response
+from starlette.background import BackgroundTask
 
 from policy.belief import BeliefConfig
 from services.engine import (
@@ -74,7 +75,11 @@ def session_store(request: Request) -> SessionStore:
         settings = getattr(request.app.state, "settings", None)
         kwargs = {}
         if settings is not None:
-            kwargs = {"max_sessions": settings.max_sessions, "ttl_s": settings.session_ttl_s}
+            kwargs = {
+                "max_sessions": settings.max_sessions,
+                "ttl_s": settings.session_ttl_s,
+                "prefetch": settings.session_prefetch,
+            }
         store = SessionStore(engine, **kwargs)
         request.app.state.sessions = store
     return store
@@ -198,7 +203,16 @@ async def step_session(session_id: str, body: SessionStepBody, request: Request)
         if from_state and err.field == "observation":
             raise err.renamed("state") from None
         raise
-    return _json(_step_json(settings, answer))
+    response = _json(_step_json(settings, answer))
+    if store.prefetch:  # after the answer is sent, on this event loop (no thread hop)
+        response.background = BackgroundTask(_prepare_next, store, session_id)
+    return response
+
+
+async def _prepare_next(store: SessionStore, session_id: str) -> None:
+    """The next step's evidence scored ahead (`Session.prepare_next`): runs once the step's
+    answer is on the socket, while the client reads it and sends its next step."""
+    store.prepare_next(session_id)
 
 
 @router.post("", status_code=201, response_model=SessionOut, responses=SESSION_ERROR_RESPONSES)

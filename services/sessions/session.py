@@ -26,6 +26,17 @@ State held: the settings (checked once), one log-belief row (G,) per inferred pa
 previous observation, the next step's index and per-partner counters, and what the last belief
 says (`policy.belief.belief_views`: the blend's distribution and the summary, one exp for all
 partners), which a step without evidence reuses.
+
+Scoring ahead (`prepare_next`, on by default; `prefetch=False` turns it off). Step t + 1's
+evidence is scored on o_t, which step t already holds: right after step t's answer is sent, the
+transport calls `prepare_next`, which runs the likelihood pass on o_t for every action
+(`goal_inference.likelihood_table`, G x P x A numbers), so that step t + 1 only picks its
+actions' entries instead of running the pass while the client waits (~60 of a REST step's
+~250 µs of work). The numbers are those of the pass run at step t + 1, bit for bit; a step
+uses the table only if it was made for that step, for those partners (`LikelihoodTable.pick`)
+and with the task networks the aliases resolve to at that step (a hot reload in between: the
+pass runs again). New settings drop it. The CPU work is the same, moved off the step's
+latency; a session whose last step brought no evidence (after its first) prepares nothing.
 """
 
 from __future__ import annotations
@@ -45,7 +56,12 @@ from services.engine import (
     InferenceEngine,
     InvalidRequest,
 )
-from services.engine.goal_inference import checked_log_likelihoods
+from services.engine.goal_inference import (
+    LikelihoodTable,
+    checked_log_likelihoods,
+    likelihood_table,
+    task_group,
+)
 from services.engine.validation import (
     CheckedPartner,
     CheckedRequest,
@@ -76,9 +92,11 @@ class Session:
         *,
         first_step: int = 0,
         previous_observation: ArrayLike | None = None,
+        prefetch: bool = True,
     ) -> None:
         self.engine = engine
         self.session_id = session_id
+        self.prefetch = prefetch
         self._lock = threading.Lock()
         self._checked = check_settings(settings)
         self._log_belief_PG = self._checked.initial_PG.copy()
@@ -90,7 +108,11 @@ class Session:
         self._last_views: tuple[np.ndarray, list[BeliefView]] | None = None
         if previous_observation is not None:
             self._previous, self._previous_agents = self._observation(previous_observation)
-        self._next_step = first_step
+        self._next_step = self._first_step = first_step
+        # scoring ahead: the partners whose actions the next step is expected to bring, and
+        # the table made for them (the step it serves, the table)
+        self._table_partners: tuple[int, ...] = ()
+        self._table: tuple[int, LikelihoodTable] | None = None
 
     # --- read ------------------------------------------------------------------------------
     @property
@@ -130,7 +152,7 @@ class Session:
             indices = checked.inferred_indices
             n_actions = checked.runtime.domain.n_actions
             entries = check_observed(observed, indices, t, self._previous is not None, n_actions)
-            log_belief_PG, updates, actions = self._updated(entries, obs_1D, indices)
+            log_belief_PG, updates, actions = self._updated(entries, obs_1D, indices, t)
             views = self._views(log_belief_PG)
             result = self._act(obs_1D, n_agents, views, t)
             # everything succeeded: commit
@@ -138,6 +160,7 @@ class Session:
             self._previous, self._previous_agents = obs_1D, n_agents
             self._next_step = t + 1
             self._last_views = (log_belief_PG, views)
+            self._table_partners = self._expected_partners(entries, t, n_agents)
             beliefs = self._beliefs(views, updates, actions)
         return SessionStepResult(self.session_id, t, result, beliefs)
 
@@ -161,10 +184,47 @@ class Session:
             self._checked, self._log_belief_PG, self._updates = checked, log_belief_PG, updates
             self._last_actions = [None] * len(checked.inferred)
             self._last_views = None
+            self._table, self._table_partners = None, ()
             if not same_env:
                 self._previous = None
 
+    def prepare_next(self) -> bool:
+        """Score the next step's evidence ahead (module docstring, "Scoring ahead"): call it
+        once a step's answer is on its way. Whether a table was made; never raises for bad
+        models or inputs (the next step runs the pass itself and reports them)."""
+        with self._lock:
+            t, partners = self._next_step, self._table_partners
+            if not self.prefetch or not partners or self._previous is None:
+                return False
+            if self._table is not None and self._table[0] == t:
+                return False
+            settings = self._checked.settings
+            try:
+                table = likelihood_table(
+                    self.engine.cache, self._checked.runtime, self._previous[0],
+                    self._previous_agents, partners, alias=settings.alias,
+                    versions=settings.versions, temperature=settings.belief.temperature,
+                )  # fmt: skip
+            except EngineError:
+                return False
+            self._table = (t, table)
+            return True
+
     # --- helpers ---------------------------------------------------------------------------
+    def _expected_partners(
+        self, entries: Sequence[Observed], t: int, n_agents: int
+    ) -> tuple[int, ...]:
+        """The partners whose actions step t + 1 will likely bring: those step t brought, in
+        its order; after the first step, every inferred partner (the evidence starts then);
+        none after a later step without evidence. Only partners the observation holds."""
+        if entries:
+            wanted: Sequence[int] = [e.index for e in entries]
+        elif t == self._first_step:
+            wanted = self._checked.inferred_indices
+        else:
+            return ()
+        return tuple(index for index in wanted if index < n_agents)
+
     def _observation(self, observation: object) -> tuple[np.ndarray, int]:
         """The ego's observation as float32 (1, D), checked as /v1/act checks it, and the
         number of agents it holds."""
@@ -190,7 +250,7 @@ class Session:
             raise err.renamed("observation") from None
 
     def _updated(
-        self, entries: Sequence[Observed], obs_1D: np.ndarray, indices: Sequence[int]
+        self, entries: Sequence[Observed], obs_1D: np.ndarray, indices: Sequence[int], t: int
     ) -> tuple[np.ndarray, list[int], list[int | None]]:
         """The beliefs, update counts and used actions after this step's evidence (copies)."""
         count = len(indices)
@@ -211,13 +271,16 @@ class Session:
                     f"{index} out of range: the previous observation holds {n_agents} "
                     f"agent(s), expected {expected}",
                 )
-        # = engine.goal_log_likelihoods(env, previous, partners, actions, ...) without its
-        # checks: the settings were checked at creation, the observation and `observed` above
-        log_lik_EG = checked_log_likelihoods(
-            self.engine.cache, checked.runtime, self._previous[0], n_agents, partners,
-            np.array(actions, dtype=np.int64), alias=settings.alias, versions=settings.versions,
-            temperature=settings.belief.temperature,
-        )  # fmt: skip
+        actions_E = np.array(actions, dtype=np.int64)
+        log_lik_EG = self._scored_ahead(t, partners, actions_E)
+        if log_lik_EG is None:
+            # = engine.goal_log_likelihoods(env, previous, partners, actions, ...) without its
+            # checks: the settings were checked at creation, the observation and `observed` above
+            log_lik_EG = checked_log_likelihoods(
+                self.engine.cache, checked.runtime, self._previous[0], n_agents, partners,
+                actions_E, alias=settings.alias, versions=settings.versions,
+                temperature=settings.belief.temperature,
+            )  # fmt: skip
         rows = [indices.index(e.index) for e in entries]
         # = update_log_belief(log_belief_PG[rows], log_lik_EG, log_prior_PG[rows], belief)
         if rows == list(range(count)):  # every inferred partner, in order: no copies
@@ -230,6 +293,22 @@ class Session:
             updates[row] += 1
             actions_used[row] = action
         return log_belief_PG, updates, actions_used
+
+    def _scored_ahead(
+        self, t: int, partners: Sequence[int], actions_E: np.ndarray
+    ) -> np.ndarray | None:
+        """The log-likelihoods from the table `prepare_next` made for step t, or None (no
+        table, another step's, other partners, or an alias moved since: `LikelihoodTable.pick`)."""
+        if self._table is None or self._table[0] != t:
+            return None
+        settings = self._checked.settings
+        group = task_group(
+            self.engine.cache, self._checked.runtime, settings.alias, settings.versions
+        )
+        log_lik_EG = self._table[1].pick(group, partners, actions_E)
+        if log_lik_EG is not None:
+            self.engine.stats.likelihood_tables_used += 1
+        return log_lik_EG
 
     def _recover(
         self, entries: Sequence[Observed], actions: list[int | None], obs_1D: np.ndarray

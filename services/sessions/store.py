@@ -52,6 +52,7 @@ class SessionStore:
         max_sessions: int = 1000,
         ttl_s: float = 300.0,
         clock: Callable[[], float] = time.monotonic,
+        prefetch: bool = True,
     ) -> None:
         if max_sessions < 1:
             raise ValueError(f"max_sessions: expected >= 1, got {max_sessions}")
@@ -60,6 +61,7 @@ class SessionStore:
         self.engine = engine
         self.max_sessions = max_sessions
         self.ttl_s = ttl_s
+        self.prefetch = prefetch  # sessions score the next step's evidence ahead
         self._clock = clock
         self._lock = threading.Lock()
         self._sessions: dict[str, _Entry] = {}
@@ -72,7 +74,7 @@ class SessionStore:
     # --- operations ------------------------------------------------------------------------
     def create(self, settings: SessionSettings) -> SessionInfo:
         """A new session (settings checked first: `InvalidRequest` naming the field)."""
-        session = Session(self.engine, settings, secrets.token_urlsafe(16))
+        session = Session(self.engine, settings, secrets.token_urlsafe(16), prefetch=self.prefetch)
         with self._lock:
             now = self._clock()
             if len(self._sessions) >= self.max_sessions:
@@ -95,6 +97,13 @@ class SessionStore:
         with self._lock:
             entry.last_used = self._clock()
         return result
+
+    def prepare_next(self, session_id: str) -> bool:
+        """`Session.prepare_next` of the session, if it is still here (a transport calls it
+        after sending a step's answer; a session gone meanwhile is no error)."""
+        with self._lock:
+            entry = self._sessions.get(session_id)
+        return entry is not None and entry.session.prepare_next()
 
     def settings(self, session_id: str) -> SessionSettings:
         """The session's settings (cheap: no belief summary), or `SessionNotFound`."""
