@@ -51,6 +51,8 @@ def _first_row(request: ActRequest) -> ActRequest:
         observations=np.asarray(request.observations)[:1],
         partners=request.partners,
         method=request.method,
+        temperature=request.temperature,
+        seed=request.seed,
         alias=request.alias,
         versions=request.versions,
     )
@@ -84,22 +86,25 @@ class ServerBackend:
         self.client = client
         self.description = description
 
-    def _call(self, request: ActRequest) -> list[Any]:
-        actions: list[Any] = self.client.act_batch(
+    def _call(self, request: ActRequest) -> Any:
+        """The server's answer as columns (`act_batch_columns`): every field of the request
+        sent, the temperature and seed included."""
+        return self.client.act_batch_columns(
             request.env,
             request.ego_goal,
-            np.asarray(request.observations, dtype=np.float64).tolist(),
+            np.asarray(request.observations, dtype=np.float64),
             partners=list(request.partners),
             method=request.method,
+            temperature=request.temperature,
+            seed=request.seed,
             alias=request.alias,
             versions=dict(request.versions) or None,
         )
-        return actions
 
     def probs(self, request: ActRequest) -> tuple[np.ndarray, set[ModelRecord]]:
-        actions = self._call(request)
-        probs_BA = np.asarray([a.probs for a in actions], dtype=np.float64)
-        models = {ModelRecord(m.name, m.version, m.sha256, m.role) for m in actions[0].models}
+        columns = self._call(request)
+        probs_BA = np.asarray(columns.probs, dtype=np.float64)
+        models = {ModelRecord(m.name, m.version, m.sha256, m.role) for m in columns.models}
         return probs_BA, models
 
     def has_models(self, request: ActRequest) -> bool:

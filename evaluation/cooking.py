@@ -27,7 +27,7 @@ The policies come from a `PolicyBackend` (`evaluation.backend`): the inference e
 the files of `reports/cooking` and the cooking section of the paper report.
 
 `temperature` (default None: the engine serves at the task network's training α) sets the left
-cook's Boltzmann temperature for every method (in-process only: the server backend sends none).
+cook's Boltzmann temperature for every method (in-process or sent to the server alike).
 It is a sensitivity knob, not part of the paper's protocol: at α a blended policy that prefers a
 no-op (walking into a counter that takes nothing) repeats it forever, since the state does not
 change; a warmer policy walks out of such loops.
@@ -189,11 +189,6 @@ def evaluate_cooking(
     if episodes < 1 or max_steps < 1:
         raise ValueError(f"episodes, max_steps: expected >= 1, got {episodes}, {max_steps}")
     backend = EngineBackend(policies) if isinstance(policies, InferenceEngine) else policies
-    if temperature is not None and not isinstance(backend, EngineBackend):
-        raise ValueError(
-            "temperature: only the in-process engine takes a temperature here "
-            f"({backend.description} serves at the networks' α); leave it None"
-        )
     methods = tuple(methods)
     n_methods, n_rows = len(methods), len(methods) * episodes
     world = BatchedCookingWorld(LAYOUT, np.array([RECIPES] * n_rows), max_steps=max_steps)

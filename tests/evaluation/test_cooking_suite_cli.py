@@ -83,9 +83,16 @@ def test_the_same_episodes_through_a_server(store_url: str) -> None:
         local = evaluate_cooking(EngineBackend(engine), episodes=2, max_steps=8, seed=3)
         with live_http(engine) as url:
             remote = evaluate_cooking(server_backend(url), episodes=2, max_steps=8, seed=3)
-            with pytest.raises(ValueError, match="temperature"):
-                evaluate_cooking(server_backend(url), episodes=1, max_steps=2, temperature=0.5)
+            # the temperature reaches the server (it was dropped once)
+            warm = evaluate_cooking(
+                server_backend(url), episodes=2, max_steps=8, seed=3, temperature=5.0
+            )
+        warm_local = evaluate_cooking(
+            EngineBackend(engine), episodes=2, max_steps=8, seed=3, temperature=5.0
+        )
     assert (local.returns_MEN == remote.returns_MEN).all()
+    assert (warm.served_MEN == warm_local.served_MEN).all()
+    assert (warm.returns_MEN == warm_local.returns_MEN).all()
     assert local.models == remote.models and remote.right_cook.startswith("learned")
 
 

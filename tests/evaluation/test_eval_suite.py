@@ -7,6 +7,7 @@ import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -22,7 +23,7 @@ from evaluation.prepare import train_tiny_zoo
 from evaluation.report import SECTIONS
 from evaluation.rollout import Cell, run_cells
 from model_store.sql import SqlModelStore
-from services.engine import ActRequest, InferenceEngine
+from services.engine import ActRequest, InferenceEngine, PartnerSpec
 from services.rest import install_error_handlers, router
 
 
@@ -104,6 +105,15 @@ def test_server_backend_gives_the_engine_episodes(tmp_path: Path) -> None:
             assert backend.has_models(ActRequest("particle", "a2", np.zeros((1, 8)), method="sl"))
             assert not backend.has_models(ActRequest("particle", "e4", np.zeros((1, 8))))
             remote = run_cells(backend, cells, max_steps=25, seed=1)
+            # every field of the request reaches the server, the temperature and seed too
+            obs = np.random.default_rng(0).uniform(-1, 1, (3, 8))
+            for temperature in (None, 3.0):
+                request = ActRequest("particle", "a2", obs, (PartnerSpec(1, goal="b3"),),
+                                     temperature=temperature, seed=7)  # fmt: skip
+                got, _ = backend.probs(request)
+                want, _ = EngineBackend(engine).probs(request)
+                np.testing.assert_allclose(got, want, rtol=1e-12)
+            assert not np.allclose(got, backend.probs(replace(request, temperature=None))[0])
     for a, b in zip(local.results, remote.results, strict=True):
         np.testing.assert_allclose(a.returns_EN, b.returns_EN, rtol=1e-9)
         np.testing.assert_array_equal(a.length_E, b.length_E)
