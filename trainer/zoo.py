@@ -167,7 +167,11 @@ def run_impacts(
     `production_parents_only` (default: in the kitchen only, module docstring) skips goals whose
     task network has no `production` version instead of using `latest`."""
     check_config_env(config, env)
-    strict = env == "cooking" if production_parents_only is None else production_parents_only
+    strict = (
+        production_parents_required(env)
+        if production_parents_only is None
+        else production_parents_only
+    )
     batches = []
     for i, chunk in enumerate(chunked(goals, goals_per_batch)):
         key = f"impact:{','.join(chunk)}"
@@ -175,11 +179,7 @@ def run_impacts(
             continue
         unserved = goals_without(store, env, "task", chunk, "production") if strict else []
         if unserved:
-            log.warning(
-                "impact %s: skipped, the task network has no 'production' version (every gate "
-                "attempt failed); train a passing one, then `coexist train impact --env %s`",
-                ",".join(unserved), env,
-            )  # fmt: skip
+            warn_unserved_parents(unserved, env)
             chunk = [g for g in chunk if g not in unserved]
             key = f"impact:{','.join(chunk)}"
             if not chunk or key in run.done:
@@ -236,6 +236,20 @@ def run_joint(
         run.record(key, publish_batch(store, batch, env=env, parents=parents))
         batches.append(batch)
     return batches
+
+
+def production_parents_required(env: str) -> bool:
+    """Whether an impact network must be trained against a `production` task network (the
+    kitchen: module docstring), or may fall back to `latest` (the particle world)."""
+    return env == "cooking"
+
+
+def warn_unserved_parents(goals: Sequence[str], env: str) -> None:
+    log.warning(
+        "impact %s: skipped, the task network has no 'production' version (every gate "
+        "attempt failed); train a passing one, then `coexist train impact --env %s`",
+        ",".join(goals), env,
+    )  # fmt: skip
 
 
 def goals_without(

@@ -12,8 +12,13 @@ from typing import Any
 import pytest
 from rich.console import Console
 
+from model_store.entities import Lineage
 from model_store.errors import NotFound
+from model_store.naming import task_model_name
 from model_store.sql.sql_store import SqlModelStore
+from model_store.testing import qnet_spec, qnet_weights
+from trainer.backends.jobs import impact_jobs_with_parents, impact_stage
+from trainer.config import ImpactConfig
 from trainer.cooking_config import CookingImpactConfig, CookingTaskConfig
 from trainer.report import KITCHEN_NOTE, print_summary
 from trainer.zoo import RunState, run_impacts, run_tasks
@@ -70,4 +75,29 @@ def test_no_impact_network_beside_a_failed_task_network(
     fresh = RunState.open(tmp_path / "run2", "fp2", resume=False)
     [batch] = run_impacts(store, [GOAL], impact_cfg, seed=0, run=fresh, **common)
     assert batch.goals == [(GOAL,)]
+    store.close()
+
+
+def test_the_ray_impact_stage_skips_the_goals_the_local_loop_skips(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """`impact_jobs_with_parents` (the Ray backend's impact stage) mirrors `run_impacts`: in the
+    kitchen a goal whose task network has no `production` version leaves its job, the job
+    keeps its seed and index and its key names the goals left; the particle world keeps all."""
+    other = "OnionSoup"
+    store = SqlModelStore(f"sqlite:///{tmp_path / 'models.db'}")
+    spec = qnet_spec(obs_dim=8, n_actions=5, hidden=(4,))
+    for goal, aliases in ((GOAL, ()), (other, ("production",))):
+        name = task_model_name("cooking", goal)
+        store.create_model(name, env="cooking", kind="task", goals=[goal], obs_dim=8, n_actions=5)
+        store.register_version(name, spec=spec, weights=qnet_weights(spec, seed=1),
+                               lineage=Lineage(seed=1), aliases=aliases)  # fmt: skip
+    stage = impact_stage([GOAL, other, "BananaSmoothie"], ImpactConfig(), seed=3, per_batch=2)
+    with caplog.at_level(logging.WARNING, logger="trainer.zoo"):
+        jobs = impact_jobs_with_parents(store, "cooking", stage.jobs)
+    assert "impact CarrotBanana,BananaSmoothie: skipped" in caplog.text
+    [job] = jobs  # the second batch held only BananaSmoothie, which has no task network at all
+    assert (job.members, job.key) == (((other,),), f"impact:{other}")
+    assert (job.seed, job.index) == (stage.jobs[0].seed, 0)
+    assert impact_jobs_with_parents(store, "particle", stage.jobs) == stage.jobs
     store.close()

@@ -17,7 +17,9 @@ through the store as safetensors only).
 | joint      | every combination of one size        | seed + 2000 + size         | `joint:a2+b3;c+c4` |
 
 Stages run in order (tasks and their gate retries, then impacts, then joint): an impact job
-needs the task versions registered before it, exactly as in the local pipeline. Seeds, keys and
+needs the task versions registered before it, exactly as in the local pipeline (and in the
+kitchen a `production` one: `impact_jobs_with_parents` drops the other goals, as
+`trainer.zoo.run_impacts` skips them). Seeds, keys and
 the retry rule mirror `trainer.zoo`'s loops; the Ray tests compare the two registries.
 """
 
@@ -28,11 +30,17 @@ from dataclasses import dataclass, field
 from typing import Any, cast
 
 from model_store.defaults import open_store
+from model_store.store import ModelStore
 from policy.qnet import StackedQNet
 from trainer.config import ImpactConfig, JointConfig, SoftQConfig, TaskConfig
 from trainer.learners import Kind, TrainedBatch, chunked, train_impacts, train_joint, train_tasks
 from trainer.loop import TrainingCurves
-from trainer.zoo import load_task_nets
+from trainer.zoo import (
+    goals_without,
+    load_task_nets,
+    production_parents_required,
+    warn_unserved_parents,
+)
 
 from .once import RegisteredHook, publish_once
 
@@ -94,6 +102,36 @@ def impact_stage(goals: Sequence[str], config: ImpactConfig, *, seed: int, per_b
         for i, chunk in enumerate(chunks)
     ]
     return Stage(tuple(jobs), config)
+
+
+def impact_jobs_with_parents(
+    store: ModelStore, env: str, jobs: Sequence[BatchJob]
+) -> tuple[BatchJob, ...]:
+    """The impact `jobs` that may run now: in the kitchen, without the goals whose task network
+    has no `production` version (skipped with a warning, as `trainer.zoo.run_impacts` does);
+    elsewhere all of them (a `latest` parent is allowed)."""
+    if not production_parents_required(env):
+        return tuple(jobs)
+    goals = [m[0] for job in jobs for m in job.members]
+    unserved = goals_without(store, env, "task", goals, "production")
+    if unserved:
+        warn_unserved_parents(unserved, env)
+    return without_goals(jobs, unserved)
+
+
+def without_goals(jobs: Sequence[BatchJob], skipped: Sequence[str]) -> tuple[BatchJob, ...]:
+    """Impact `jobs` minus the `skipped` goals, as `trainer.zoo.run_impacts` skips a goal whose
+    task network has no `production` version in the kitchen: a job keeps its seed and index,
+    its key names the goals left (the local loop's key), and a job left empty is dropped."""
+    kept = []
+    for job in jobs:
+        members = tuple(m for m in job.members if m[0] not in skipped)
+        if members == job.members:
+            kept.append(job)
+        elif members:
+            key = f"{job.kind}:{','.join(m[0] for m in members)}"
+            kept.append(BatchJob(job.kind, members, job.seed, job.index, key))
+    return tuple(kept)
 
 
 def joint_stage(combos: Sequence[Sequence[str]], config: JointConfig, *, seed: int) -> Stage:

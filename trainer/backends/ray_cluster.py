@@ -38,7 +38,14 @@ from model_store.sql.engine import is_sqlite, normalise_url
 from trainer.config import SoftQConfig
 from trainer.zoo import RunState, goals_without
 
-from .jobs import BatchJob, BatchOutcome, Stage, task_retry_job, train_batch
+from .jobs import (
+    BatchJob,
+    BatchOutcome,
+    Stage,
+    impact_jobs_with_parents,
+    task_retry_job,
+    train_batch,
+)
 from .once import RegisteredHook
 
 DEFAULT_MAX_RETRIES = 3
@@ -125,7 +132,11 @@ def run_on_ray(
     outcomes: list[BatchOutcome] = []
     try:
         for stage in stages:
-            todo = [job for job in stage.jobs if job.key not in run.done]
+            jobs = stage.jobs
+            if jobs and jobs[0].kind == "impact":
+                with open_store(url) as store:
+                    jobs = impact_jobs_with_parents(store, env, jobs)
+            todo = [job for job in jobs if job.key not in run.done]
             if todo:
                 outcomes += run_jobs(todo, stage.config)
             for attempt in range(1, stage.gate_retries + 1):  # as trainer.zoo.run_tasks
