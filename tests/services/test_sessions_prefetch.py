@@ -7,10 +7,14 @@ it after each answer: REST as a background task, gRPC `Episode` after the yield.
 from __future__ import annotations
 
 import shutil
+import threading
+import time
 from collections.abc import Iterator
 
+import httpx
 import numpy as np
 import pytest
+import uvicorn
 from fastapi import FastAPI
 from fastapi.testclient import TestClient
 from grpc_live_server import live_grpc_server
@@ -22,6 +26,7 @@ from model_store.naming import task_model_name
 from model_store.sql import SqlModelStore
 from model_store.testing import qnet_spec, qnet_tensors
 from policy.belief import BeliefConfig
+from services.app import create_app
 from services.engine import InferenceEngine, ModelNotFound
 from services.grpc_api.gen.coexist.v1 import policy_pb2 as pb
 from services.rest import install_error_handlers, sessions_router
@@ -231,3 +236,40 @@ def test_an_episode_scores_ahead_after_each_answer(store: SqlModelStore) -> None
             assert stats.likelihood_tables_used == (4 if prefetch else 0)
             assert stats.likelihood_passes == (0 if prefetch else 4)
     assert answers[True] == answers[False]
+
+
+def test_the_answer_is_sent_before_the_table_is_made(
+    store: SqlModelStore, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Over a real socket (the whole app, its middlewares included): `prepare_next` runs only
+    once the client holds the step's answer. The patched `prepare_next` waits until the client
+    says it has the answer; run before the answer was sent it would time out."""
+    answered, order = threading.Event(), []
+
+    def after_the_answer(self: Session) -> bool:
+        order.append(answered.wait(timeout=10))
+        return True
+
+    monkeypatch.setattr(Session, "prepare_next", after_the_answer)
+    app = create_app(Settings(grpc_enabled=False, dev_mode=True), store)
+    server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=0, log_level="warning"))
+    thread = threading.Thread(target=server.run, daemon=True)
+    thread.start()
+    try:
+        while not server.started:
+            time.sleep(0.01)
+        port = server.servers[0].sockets[0].getsockname()[1]
+        with httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=30) as client:
+            body = {"env": "particle", "ego_goal": "a2", "partners": [{"index": 1, "infer": True}]}
+            session_id = client.post("/v1/sessions", json=body).json()["session_id"]
+            rng = np.random.default_rng(3)
+            for _ in range(2):
+                answered.clear()
+                step = {"observation": random_observation(rng).tolist()}
+                reply = client.post(f"/v1/sessions/{session_id}/steps", json=step)
+                assert reply.status_code == 200
+                answered.set()
+    finally:
+        server.should_exit = True
+        thread.join(timeout=10)
+    assert order == [True, True]
