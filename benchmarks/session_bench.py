@@ -1,6 +1,6 @@
 """Session step latency (issue 9): a REST step with goal inference against a plain `/v1/act`.
 
-Run: `.venv/bin/python benchmarks/session_bench.py [--duration 5] [--rounds 3] [--steps 200]
+Run: `.venv/bin/python benchmarks/session_bench.py [--duration 5] [--rounds 3] [--steps 200] [--no-prefetch]
 [--out reports/inference]` (needs `wrk` and `taskset`; the plumbing is `benchmarks/wrk_server.py`).
 
 | case                         | request per step                                     | networks per step    |
@@ -285,6 +285,9 @@ def main() -> None:
     parser.add_argument("--duration", type=float, default=5.0, help="seconds per case")
     parser.add_argument("--steps", type=int, default=200, help="bodies cycled through per case")
     parser.add_argument("--rounds", type=int, default=3, help="interleaved runs of every case")
+    parser.add_argument("--no-prefetch", action="store_true",
+                        help="serve with COEXIST_SESSION_PREFETCH=false (steps score their own "
+                        "evidence: the A/B of scoring ahead)")  # fmt: skip
     parser.add_argument("--pause-ms", type=float, default=5.0,
                         help="paced cases: wrk waits this long after each answer (0: none)")  # fmt: skip
     parser.add_argument("--out", type=Path, default=ROOT / "reports/inference",
@@ -301,7 +304,8 @@ def main() -> None:
         print("in-process breakdown (this process) ...", flush=True)
         in_process = breakdown(url, *episode(2, args.steps), calls=1000)
         port = free_port()
-        server = start_server(url, port)
+        os.environ["COEXIST_SESSION_PREFETCH"] = "false" if args.no_prefetch else "true"
+        server = start_server(url, port)  # inherits this environment
         try:
             print(f"server on CPU {SERVER_CPU}, wrk on CPU {LOAD_CPU}, c=1, {args.duration:g} s "
                   "per case")  # fmt: skip
@@ -328,6 +332,7 @@ def main() -> None:
             f"--steps {args.steps}",
             f"--rounds {args.rounds}",
             f"--pause-ms {args.pause_ms:g}",
+            *(["--no-prefetch"] if args.no_prefetch else []),
         ]
     )
     setup = (
@@ -340,7 +345,8 @@ def main() -> None:
         "seeded episode, every session step carrying the partners' previous actions; "
         f"the paced cases: wrk waits {args.pause_ms:g} ms after each answer (a control loop "
         "stepping at most every few ms), closed loop otherwise; the server scores each "
-        "step's evidence ahead (`COEXIST_SESSION_PREFETCH`, default on); "
+        f"step's evidence ahead: {'NO (--no-prefetch)' if args.no_prefetch else 'yes'} "
+        "(`COEXIST_SESSION_PREFETCH`); "
         f"{os.cpu_count()} CPUs on this machine, shared with other work."
     )
     args.out.mkdir(parents=True, exist_ok=True)
