@@ -11,7 +11,7 @@ maps errors (`errors`); the engine does the work, exactly as for the REST routes
 |            |                                       | latest that carried them); seed + t      |
 |            | with an inferred partner: a           | the stream owns it (no store): beliefs   |
 |            | `services.sessions.Session` per stream| updated from `observed`, then act; after |
-|            |                                       | each answer `prepare_next` (scoring ahead)|
+|            |                                       | each answer `prepare_next` (ahead)       |
 
 On the sync server each open `Episode` stream holds one worker thread until the client closes it,
 so `max_workers` bounds the number of concurrent episodes plus in-flight unary calls.
