@@ -25,7 +25,8 @@ step into `StepConflict` instead of a second update.
 State held: the settings (checked once), one log-belief row (G,) per inferred partner, the
 previous observation, the next step's index and per-partner counters, and what the last belief
 says (`policy.belief.belief_views`: the blend's distribution and the summary, one exp for all
-partners), which a step without evidence reuses.
+partners), which a step without evidence reuses; and the next step's likelihood table
+(below: G x P x A float64, 1.4 KB per inferred partner of the particle world).
 
 Scoring ahead (`prepare_next`, on by default; `prefetch=False` turns it off). Step t + 1's
 evidence is scored on o_t, which step t already holds: right after step t's answer is sent, the
