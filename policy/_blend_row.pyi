@@ -1,0 +1,15 @@
+"""Types of the compiled row blend (policy/_blend_row.c); `policy.blend_fast` is its interface."""
+
+from collections.abc import Sequence
+from typing import Any
+
+def blend_row(
+    method: str,
+    q_task_A: Sequence[float],
+    q_impact_PA: Sequence[Sequence[float]],
+    alpha: float,
+    mask_P: Sequence[bool] | None,
+    normalise: bool,
+    /,
+) -> Any: ...
+def set_result_type(result_type: type, /) -> None: ...
