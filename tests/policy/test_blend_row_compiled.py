@@ -36,7 +36,9 @@ def _rows(seed: int, count: int):
         if shape == 1:
             q_impact[:] = q_task
         elif shape == 2:
-            q_impact[:] = q_task * (1 + rng.choice([1e-13, 1e-11, 1e-9]) * np.arange(1, slots + 1))[:, None]
+            q_impact[:] = (
+                q_task * (1 + rng.choice([1e-13, 1e-11, 1e-9]) * np.arange(1, slots + 1))[:, None]
+            )
         elif shape == 3:
             q_task[:] = q_task[0]
         elif shape == 4:
