@@ -12,4 +12,13 @@ def blend_row(
     normalise: bool,
     /,
 ) -> Any: ...
+def blend_rows(
+    method: str,
+    q_task_BA: Any,
+    q_impact_BPA: Any,
+    alpha_B: Any,
+    mask_BP: Any,
+    normalise: bool,
+    /,
+) -> Any: ...
 def set_result_type(result_type: type, /) -> None: ...

@@ -48,7 +48,15 @@ import numpy as np
 if TYPE_CHECKING:
     from policy.blend import BlendMethod
 
-__all__ = ["COMPILED", "FLAT_STD_RTOL", "RowBlend", "blend_row", "blend_row_python", "np_sum"]
+__all__ = [
+    "COMPILED",
+    "FLAT_STD_RTOL",
+    "RowBlend",
+    "blend_row",
+    "blend_row_python",
+    "compiled_rows",
+    "np_sum",
+]
 
 FLAT_STD_RTOL = 1e-12  # a Q-vector whose std is below this fraction of max |Q| is "flat"
 _PAIRWISE_BLOCK = 128  # numpy's PW_BLOCKSIZE
@@ -313,11 +321,12 @@ def _aail_raw(
 
 
 _compiled: Any = None
+_compiled_rows: Any = None
 try:  # the same steps compiled (policy/_blend_row.c; setup.py builds it when a compiler exists)
     from policy import _blend_row
 
     _blend_row.set_result_type(RowBlend)
-    _compiled = _blend_row.blend_row
+    _compiled, _compiled_rows = _blend_row.blend_row, _blend_row.blend_rows
 except ImportError:  # pragma: no cover - an install without a C compiler
     pass
 
@@ -339,3 +348,23 @@ def blend_row(
         result: RowBlend = _compiled(method, q_task_A, q_impact_PA, alpha, mask_P, normalise)
         return result
     return blend_row_python(method, q_task_A, q_impact_PA, alpha, mask_P, normalise)
+
+
+def compiled_rows(
+    method: BlendMethod,
+    q_task_BA: np.ndarray,
+    q_impact_BPA: np.ndarray,
+    alpha_B: np.ndarray,
+    mask_BP: np.ndarray,
+    *,
+    normalise: bool = True,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """`blend_row` of every row in one compiled call (needs `COMPILED`): `policy.blend`'s
+    BlendResult fields as float64 arrays, (q_BA, probs_BA, task_entropy_B, task_weight_B,
+    partner_weights_BP). Inputs are trusted as `blend_row`'s are (`policy.blend` checks them)."""
+    if _compiled_rows is None:
+        raise RuntimeError("policy._blend_row is not built: use policy.blend.blend")
+    arrays: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray] = _compiled_rows(
+        method, q_task_BA, q_impact_BPA, alpha_B, mask_BP, normalise
+    )
+    return arrays

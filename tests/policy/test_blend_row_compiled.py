@@ -112,3 +112,59 @@ def test_blend_row_falls_back_to_python(monkeypatch) -> None:
     monkeypatch.setattr(blend_fast, "blend_row_python", spy)
     row = blend_fast.blend_row("aail", [0.0, 1.0, 3.0], [[2.0, 0.0, 1.0]], 0.5)
     assert calls == ["aail"] and row.partner_weights_P == [1.0]
+
+
+def _batches(seed: int, count: int):
+    """Batches of 0-20 rows built from `_rows`' shapes, per-row temperatures and masks."""
+    rng = np.random.default_rng(seed)
+    for _ in range(count):
+        n_rows, n, slots = (
+            int(rng.integers(0, 21)),
+            int(rng.integers(1, 13)),
+            int(rng.integers(0, 9)),
+        )
+        scale = 10.0 ** rng.choice([-300, -12, 0, 0, 3, 300])
+        q_task = rng.uniform(-10, 10, (n_rows, n)) * scale
+        q_impact = rng.uniform(-10, 10, (n_rows, slots, n)) * scale
+        shape = rng.integers(0, 4)
+        if shape == 1:
+            q_impact[:] = q_task[:, None, :]
+        elif shape == 2:
+            q_impact[:] = q_task[:, None, :] * (1 + 1e-11 * np.arange(1, slots + 1))[:, None]
+        elif shape == 3:
+            q_task[:] = q_task[:, :1]
+        mask = rng.random((n_rows, slots)) < 0.7
+        alpha = rng.choice([1e-300, 1e-9, 0.02, 1.0, 1e6], size=n_rows)
+        yield q_task, q_impact, alpha, mask
+
+
+@needs_compiled
+@pytest.mark.parametrize("method", ["sl", "nail", "aail"])
+@pytest.mark.parametrize("normalise", [True, False])
+def test_blend_of_a_batch_has_the_vectorised_bits(method: str, normalise: bool) -> None:
+    """`policy.blend.blend` on the compiled batch against `blend_vectorised`, the reference
+    (each ufunc is called once per batch: an element's result must not depend on the rest)."""
+    blend_module = importlib.import_module("policy.blend")
+    assert blend_fast.COMPILED
+    for q_task, q_impact, alpha, mask in _batches(seed=len(method) + 3 * normalise, count=400):
+        fast = blend_module.blend(method, q_task, q_impact, alpha, mask, normalise=normalise)
+        with np.errstate(all="ignore"):
+            reference = blend_module.blend_vectorised(
+                method, q_task, q_impact, alpha, mask, normalise=normalise
+            )
+        for field in ("q_BA", "probs_BA", "task_entropy_B", "task_weight_B", "partner_weights_BP"):
+            got, want = getattr(fast, field), np.asarray(getattr(reference, field), np.float64)
+            assert got.shape == want.shape and got.tobytes() == want.tobytes(), (method, field)
+
+
+@needs_compiled
+def test_batch_shapes_are_checked() -> None:
+    rows = importlib.import_module("policy._blend_row").blend_rows
+    q_task, q_impact = np.zeros((2, 3)), np.zeros((2, 1, 3))
+    alpha, mask = np.ones(2), np.ones((2, 1), bool)
+    with pytest.raises(ValueError, match="shapes"):
+        rows("aail", q_task, np.zeros((2, 1, 4)), alpha, mask, True)
+    with pytest.raises(ValueError, match="shapes"):
+        rows("aail", q_task, q_impact, np.ones(3), mask, True)
+    with pytest.raises(ValueError, match="q_task_BA"):
+        rows("aail", np.zeros(3), q_impact, alpha, mask, True)

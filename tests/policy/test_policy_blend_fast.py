@@ -159,7 +159,9 @@ def test_js_distance_with_an_underflowed_mixture() -> None:
 
 
 def test_blend_takes_rows_or_the_vectorised_path_by_size(monkeypatch) -> None:
+    """Without the compiled blend (tests/policy/test_blend_row_compiled.py covers it)."""
     blend_module = importlib.import_module("policy.blend")  # `policy.blend` is the function
+    monkeypatch.setattr(importlib.import_module("policy.blend_fast"), "COMPILED", False)
     taken: list[int] = []
     row = blend_module.blend_row
 
