@@ -10,9 +10,10 @@ Run: `OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/engine.py [--repeats 5]
 | aail, batch 1     | the same with AAIL: task net + 4 impact nets (`b3`, `c1`, `d4`, `e0`)    |
 | aail unseeded     | the same without a seed (no generator to build per request)             |
 | blend alone       | `policy.blend.blend("aail", ...)` on the batch-1 shapes (the checked    |
-|                   | entry point; small inputs take the plain-Python path)                   |
+|                   | entry point: the compiled rows, or the Python ones without them)        |
 | blend vectorised  | `policy.blend.blend_vectorised`, the numpy path, same shapes            |
 | blend_row         | `policy.blend_fast.blend_row`, the unchecked row kernel the engine uses |
+|                   | (compiled where `policy/_blend_row.c` was built)                        |
 | * batch 256       | 256 observations in one call; figure = actions (rows) per second        |
 
 BLAS threads: run with `OPENBLAS_NUM_THREADS=1` to measure what one server worker per core sees;
