@@ -5,6 +5,9 @@ normalisations; errors for inputs that are not numbers; the Python fallback."""
 from __future__ import annotations
 
 import importlib
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -145,7 +148,8 @@ def test_blend_of_a_batch_has_the_vectorised_bits(method: str, normalise: bool) 
     """`policy.blend.blend` on the compiled batch against `blend_vectorised`, the reference
     (each ufunc is called once per batch: an element's result must not depend on the rest)."""
     blend_module = importlib.import_module("policy.blend")
-    assert blend_fast.COMPILED
+    if not blend_fast.COMPILED:
+        pytest.skip("COEXIST_PYTHON_BLEND=1: blend takes the Python paths")
     for q_task, q_impact, alpha, mask in _batches(seed=len(method) + 3 * normalise, count=400):
         fast = blend_module.blend(method, q_task, q_impact, alpha, mask, normalise=normalise)
         with np.errstate(all="ignore"):
@@ -168,3 +172,12 @@ def test_batch_shapes_are_checked() -> None:
         rows("aail", q_task, q_impact, np.ones(3), mask, True)
     with pytest.raises(ValueError, match="q_task_BA"):
         rows("aail", np.zeros(3), q_impact, alpha, mask, True)
+
+
+@needs_compiled
+def test_the_environment_variable_forces_python() -> None:
+    code = "from policy import blend_fast; print(blend_fast.COMPILED)"
+    for value, expected in (("1", "False"), ("0", "True"), ("", "True")):
+        env = {**os.environ, "COEXIST_PYTHON_BLEND": value}
+        out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+        assert out.stdout.strip() == expected, (value, out.stderr)
