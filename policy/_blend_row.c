@@ -165,7 +165,10 @@ static void renormalised(const double *p, Py_ssize_t n, double *out) {
 static double entropy_finish(const double *p, const double *logs, Py_ssize_t n, double log_n) {
     double terms[PAIRWISE_BLOCK];
     double *t = n <= PAIRWISE_BLOCK ? terms : PyMem_Malloc(n * sizeof(double));
-    if (t == NULL) return 0.0; /* out of memory: PyErr_Occurred() tells */
+    if (t == NULL) { /* out of memory: the caller checks PyErr_Occurred() */
+        PyErr_NoMemory();
+        return 0.0;
+    }
     for (Py_ssize_t a = 0; a < n; a++) t[a] = p[a] > 0 ? p[a] * logs[a] : 0.0;
     double h = -vsum(t, n, n) / log_n;
     if (t != terms) PyMem_Free(t);
@@ -381,7 +384,10 @@ static int power_step(Py_ssize_t n, const double *h, Py_ssize_t B, double *out) 
 static int blend_batch(const Batch *t) {
     Py_ssize_t B = t->B, P = t->P, n = t->n, pairs = 0;
     Py_ssize_t *counts = PyMem_Malloc(3 * (B + 1) * sizeof(Py_ssize_t));
-    if (counts == NULL) return PyErr_NoMemory(), -1;
+    if (counts == NULL) {
+        PyErr_NoMemory();
+        return -1;
+    }
     Work w = {counts, counts + B + 1, counts + 2 * (B + 1)};
     Py_ssize_t vectors = 0;
     for (Py_ssize_t b = 0; b < B; b++) {

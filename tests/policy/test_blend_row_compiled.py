@@ -91,6 +91,19 @@ def test_underflowed_mixture_and_huge_values() -> None:
 
 
 @needs_compiled
+@pytest.mark.parametrize("n_actions", [129, 300])
+def test_many_actions_take_the_pairwise_sums(n_actions: int) -> None:
+    """Above 128 terms numpy's pairwise sum splits in halves (and the entropy's terms need
+    their own buffer): the same bits there too."""
+    rng = np.random.default_rng(n_actions)
+    for slots in (0, 1, 3):
+        q_task, q_impact = rng.normal(size=n_actions) * 3, rng.normal(size=(slots, n_actions)) * 3
+        for method in ("sl", "nail", "aail"):
+            args = (method, q_task.tolist(), q_impact.tolist(), 0.5, None, True)
+            assert _same_bits(blend_fast._compiled(*args), blend_fast.blend_row_python(*args))
+
+
+@needs_compiled
 def test_bad_inputs_raise_instead_of_crashing() -> None:
     with pytest.raises(ValueError, match="method"):
         blend_fast._compiled("xail", [1.0], [], 1.0, None, True)
