@@ -89,6 +89,29 @@ def _builder(domain: Domain, n_agents: int, sources: list[int], indices: list[in
     return build
 
 
+# gathers by (env, agents, sources, partner indices, obs_dim): what a builder computes depends on
+# nothing else, so a new stacked group (a top-k blend's next goal set) reuses the probe's result
+# instead of proving it again (~0.5 ms)
+_GATHERS: dict[tuple[object, ...], Gather | None] = {}
+
+
+def _gather(
+    build: Builder,
+    domain: Domain,
+    n_agents: int,
+    sources: list[int],
+    indices: list[int],
+    obs_dim: int,
+) -> Gather | None:
+    """`find_gather(build, obs_dim)`, remembered by what `build` depends on."""
+    key = (domain.name, n_agents, tuple(sources), tuple(indices), obs_dim)
+    if key not in _GATHERS:
+        if len(_GATHERS) >= MEMO_MAX:
+            _GATHERS.clear()
+        _GATHERS[key] = find_gather(build, obs_dim)
+    return _GATHERS[key]
+
+
 def _layout(
     checked: CheckedRequest, members: Sequence[Member], group: StackedGroup
 ) -> RowLayout | None:
@@ -112,8 +135,13 @@ def _layout(
         for j in part.members:
             first_row[j] = row
             row += task_rows if j == 0 else 1
-        build = _builder(domain, n_agents, [source_of[j] for j in part.members], indices)
-        parts.append(PartInputs(part, task_rows, build, find_gather(build, obs_dim)))
+        sources = [source_of[j] for j in part.members]
+        build = _builder(domain, n_agents, sources, indices)
+        parts.append(
+            PartInputs(
+                part, task_rows, build, _gather(build, domain, n_agents, sources, indices, obs_dim)
+            )
+        )
     partner_rows = tuple(
         tuple(first_row[member_of[goal]] for goal in partner.goals) if len(members) > 1 else ()
         for partner in checked.partners

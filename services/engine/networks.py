@@ -104,6 +104,9 @@ class LoadedNet:
     spec: QNetSpec
     tensors: dict[str, np.ndarray]  # float32, named as in `QNetwork`
     alpha: float | None  # training temperature from the lineage
+    # per layer the weight transposed for `x @ w`, (1, in, out), and the bias (1, 1, out): what
+    # a partition's `row_weights` stack (made once here, not for every new group of networks)
+    row_layers: tuple[tuple[np.ndarray, np.ndarray], ...] = field(default=(), repr=False)
 
 
 def load_net(store: ModelStore, version: ModelVersion) -> LoadedNet:
@@ -111,9 +114,15 @@ def load_net(store: ModelStore, version: ModelVersion) -> LoadedNet:
     spec = QNetSpec.from_json(version.spec)
     data = store.load_weights(version.name, version.version)  # re-computes and checks the sha256
     tensors = tensors_from_safetensors(spec, data)
-    return LoadedNet(
-        version.name, version.version, version.sha256, spec, tensors, training_alpha(version)
+    [stacked] = [stack_numpy([tensors], spec)]  # checks names and shapes, float32
+    row_layers = tuple(
+        (np.ascontiguousarray(w_GOI.transpose(0, 2, 1)), b_GO[:, None, :])
+        for w_GOI, b_GO in stacked
     )
+    return LoadedNet(
+        version.name, version.version, version.sha256, spec, tensors, training_alpha(version),
+        row_layers,
+    )  # fmt: skip
 
 
 @dataclass(frozen=True, eq=False)
@@ -139,18 +148,26 @@ class StackedGroup:
     memo: dict[Hashable, Any] = field(default_factory=dict, repr=False)
 
 
+def _row_layers(net: LoadedNet) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
+    if net.row_layers:
+        return net.row_layers
+    [stacked] = [stack_numpy([net.tensors], net.spec)]  # a net made without `load_net`
+    return tuple((w.transpose(0, 2, 1), b[:, None, :]) for w, b in stacked)
+
+
 def _partition(
     nets: Sequence[LoadedNet], members: list[int], spec: QNetSpec, repeats: int
 ) -> Partition:
-    stacked = stack_numpy([nets[j].tensors for j in members], spec)
-    layer_bytes = sum(w[0].nbytes + b[0].nbytes for w, b in stacked)
+    layers = [_row_layers(nets[j]) for j in members]
+    layer_bytes = sum(w.nbytes + b.nbytes for w, b in layers[0])
     if (repeats - 1) * layer_bytes > ROW_REPEAT_MAX_BYTES:
         repeats = 1  # too big to copy: a single row with several task views takes the general path
     row_weights, weights = [], []
-    for w_GOI, b_GO in stacked:
-        first_w, first_b = w_GOI[:1], b_GO[:1]
-        w_RIO = np.concatenate([first_w] * (repeats - 1) + [w_GOI]).transpose(0, 2, 1).copy()
-        b_R1O = np.concatenate([first_b] * (repeats - 1) + [b_GO])[:, None, :].copy()
+    for k in range(len(spec.layer_sizes)):
+        # one copy per layer from the nets' own (in, out) layouts (~4x cheaper than stacking
+        # the (out, in) tensors and transposing the stack: a top-k blend makes many groups)
+        w_RIO = np.concatenate([layers[0][k][0]] * (repeats - 1) + [n[k][0] for n in layers])
+        b_R1O = np.concatenate([layers[0][k][1]] * (repeats - 1) + [n[k][1] for n in layers])
         row_weights.append((w_RIO, b_R1O))
         weights.append((w_RIO[repeats - 1 :].transpose(0, 2, 1), b_R1O[repeats - 1 :, 0, :]))
     return Partition(tuple(members), spec, weights, row_weights, repeats)

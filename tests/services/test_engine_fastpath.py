@@ -148,6 +148,7 @@ def test_networks_of_different_architectures(tiny_zoo) -> None:
 
 def test_domain_views_when_no_gather(tiny_zoo, monkeypatch) -> None:
     monkeypatch.setattr(fastpath, "find_gather", lambda build, obs_dim: None)
+    monkeypatch.setattr(fastpath, "_GATHERS", {})  # no gather proved by an earlier test
     request = ActRequest(
         "particle", "c1", np.random.default_rng(2).random((1, 12)), (PartnerSpec(2, goal="e0"),)
     )
@@ -261,3 +262,26 @@ def test_gathers_refuse_views_that_compute() -> None:
     for build in (relative, clipped, zero_to_phantom, strict, widened):
         assert find_gather(build, 8) is None, build.__name__
     assert find_gather(lambda obs: obs[:, None, ::-1], 8) is not None
+
+
+def test_a_gather_is_proved_once_per_layout_shape(tiny_zoo, monkeypatch) -> None:
+    """A top-k blend makes a new stacked group whenever its goal set changes; the gather of
+    its inputs depends only on the env, the agents and the partner slots, so it is proved once
+    (~0.5 ms), and every group's answers still equal the general path's."""
+    proved: list[int] = []
+    find = fastpath.find_gather
+
+    def counting(build: Any, obs_dim: int) -> Any:
+        proved.append(obs_dim)
+        return find(build, obs_dim)
+
+    monkeypatch.setattr(fastpath, "find_gather", counting)
+    monkeypatch.setattr(fastpath, "_GATHERS", {})
+    obs = np.random.default_rng(4).random((1, 8))
+    for goals in (("b3", "c1"), ("d4", "e0"), ("c", "b3")):  # three groups, one shape
+        request = ActRequest(
+            "particle", "a2", obs, (PartnerSpec(1, goal_probs={goals[0]: 0.25, goals[1]: 0.75}),)
+        )
+        [fast], [general] = _both(tiny_zoo, request)
+        _assert_close(fast, general)
+    assert len(proved) == 1
