@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+import pytest
 
 from model_store import task_model_name
 from services.engine.networks import build_group, load_net
@@ -37,3 +38,32 @@ def test_groups_from_row_layers_equal_groups_from_tensors(tiny_zoo) -> None:
             np.testing.assert_array_equal(
                 part_a.weights[0][0][0], nets[first].tensors["layers.0.weight"]
             )
+
+
+def test_a_belief_batch_that_overflows_is_a_clear_error(tiny_zoo) -> None:
+    """A batch mixing goal distributions used to reach `mix_goal_beliefs`' checks with the
+    overflowed Q-values and raise ValueError (a 500); it is the engine's InvalidRequest now."""
+    from services.engine import ActRequest, InferenceEngine, InvalidRequest, PartnerSpec
+
+    engine = InferenceEngine(tiny_zoo.store)
+    partner = (PartnerSpec(1, goal_probs={"b3": 0.5, "c1": 0.5}),)
+    with pytest.raises(InvalidRequest) as err:
+        engine.act(ActRequest("particle", "a2", np.full((2, 8), 3e38), partner))
+    assert err.value.field == "observations" and "overflow" in err.value.message
+
+
+def test_general_path_layouts_are_remembered(tiny_zoo) -> None:
+    """The same partners' goals give the same `ModelUsed` objects (the REST session route
+    writes their JSON once per set) and the same numbers as before the memo."""
+    from services.engine import ActRequest, InferenceEngine, PartnerSpec
+
+    engine = InferenceEngine(tiny_zoo.store)
+    obs = np.random.default_rng(5).random((3, 12))
+    partners = (
+        PartnerSpec(1, goal_probs={"b3": 0.25, "c1": 0.75}),
+        PartnerSpec(2, goal_probs={"b3": 0.5, "c1": 0.5}),
+    )
+    first, second = (engine.act(ActRequest("particle", "a2", obs, partners)) for _ in range(2))
+    assert all(a is b for a, b in zip(first[0].models, second[0].models, strict=True))
+    assert [r.probs for r in first] == [r.probs for r in second]
+    assert [m.partner_index for m in first[0].models] == [None, 1, 1, 2, 2]
