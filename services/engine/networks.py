@@ -114,15 +114,20 @@ def load_net(store: ModelStore, version: ModelVersion) -> LoadedNet:
     spec = QNetSpec.from_json(version.spec)
     data = store.load_weights(version.name, version.version)  # re-computes and checks the sha256
     tensors = tensors_from_safetensors(spec, data)
-    [stacked] = [stack_numpy([tensors], spec)]  # checks names and shapes, float32
-    row_layers = tuple(
-        (np.ascontiguousarray(w_GOI.transpose(0, 2, 1)), b_GO[:, None, :])
-        for w_GOI, b_GO in stacked
-    )
     return LoadedNet(
         version.name, version.version, version.sha256, spec, tensors, training_alpha(version),
-        row_layers,
+        _row_layers_of(tensors, spec),
     )  # fmt: skip
+
+
+def _row_layers_of(
+    tensors: dict[str, np.ndarray], spec: QNetSpec
+) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
+    """`LoadedNet.row_layers` from the tensors (names and shapes checked by `stack_numpy`)."""
+    return tuple(
+        (np.ascontiguousarray(w_GOI.transpose(0, 2, 1)), b_GO[:, None, :])
+        for w_GOI, b_GO in stack_numpy([tensors], spec)
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -149,10 +154,7 @@ class StackedGroup:
 
 
 def _row_layers(net: LoadedNet) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
-    if net.row_layers:
-        return net.row_layers
-    [stacked] = [stack_numpy([net.tensors], net.spec)]  # a net made without `load_net`
-    return tuple((w.transpose(0, 2, 1), b[:, None, :]) for w, b in stacked)
+    return net.row_layers or _row_layers_of(net.tensors, net.spec)  # or: made without load_net
 
 
 def _partition(
