@@ -1,7 +1,11 @@
-"""The one compiled part: `policy._blend_row`, the row blend in C (policy/_blend_row.c).
+"""The compiled parts, both optional (without a C compiler the install goes on):
 
-Everything else is in pyproject.toml. The extension is optional: without a C compiler the
-install goes on and `policy.blend_fast` uses its Python row blend (the same numbers).
+- `policy._blend_row`, the row blend in C (policy/_blend_row.c); without it `policy.blend_fast`
+  uses its Python row blend (the same numbers);
+- `policy._row_forward`, a stack of small MLPs on one observation (policy/_row_forward.c);
+  without it (or without AVX2 and FMA) `policy.row_forward` uses numpy.
+
+Everything else is in pyproject.toml.
 """
 
 import numpy
@@ -16,6 +20,15 @@ setup(
             # no fused multiply-add: Python rounds a * b + c twice, and so must this
             extra_compile_args=["-O2", "-ffp-contract=off"],
             optional=True,
-        )
+        ),
+        Extension(
+            "policy._row_forward",
+            ["policy/_row_forward.c"],
+            include_dirs=[numpy.get_include()],
+            # the vector code is intrinsics, compiled per CPU variant (target attributes) and
+            # chosen at import; no contraction of the plain C either
+            extra_compile_args=["-O2", "-ffp-contract=off"],
+            optional=True,
+        ),
     ]
 )

@@ -53,6 +53,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from envs.base import Domain
+from policy.row_forward import row_forward
 from services.engine.environments import EnvRuntime, env_runtime
 from services.engine.errors import EngineError, InvalidRequest
 from services.engine.gathers import Gather, find_gather
@@ -143,17 +144,7 @@ def _forward_shared(part: Partition, x_1PF: np.ndarray) -> np.ndarray:
     """Every member of the partition on the same rows: (1, P, F) -> (members, P, A), float32.
     `row_weights` hold the first member `first_repeats` times; it is used once here."""
     start = part.first_repeats - 1
-    last = len(part.row_weights) - 1
-    h = x_1PF
-    for k, (w_RIO, b_R1O) in enumerate(part.row_weights):
-        h = np.matmul(h, w_RIO[start:])  # broadcasts the rows over the members
-        h += b_R1O[start:]
-        if k < last:
-            if part.spec.activation == "relu":
-                np.maximum(h, 0.0, out=h)
-            else:
-                np.tanh(h, out=h)
-    return h
+    return row_forward(x_1PF, part.row_weights, start, len(part.members), part.spec.activation)
 
 
 def _forward_all(group: StackedGroup, x_1PF: np.ndarray) -> np.ndarray:

@@ -33,11 +33,14 @@ import numpy as np
 from model_store.entities import ModelVersion
 from model_store.store import ModelStore
 from policy.qnet import QNetSpec, numpy_stacked_forward, stack_numpy, tensors_from_safetensors
+from policy.row_forward import COMPILED as ROW_FORWARD
+from policy.row_forward import row_forward
 
 K = TypeVar("K", bound=Hashable)
 V = TypeVar("V")
 
 STACK_MAX_ROWS = 64  # members with more input rows than this are evaluated one by one
+ROW_FORWARD_MAX_ROWS = 8  # members with at most this many rows: `policy.row_forward` when compiled
 ROW_REPEAT_MAX_BYTES = 8 << 20  # at most this much extra memory for `Partition.row_weights`
 
 
@@ -191,20 +194,11 @@ def build_group(nets: Sequence[LoadedNet], first_repeats: int = 1) -> StackedGro
 def forward_rows(part: Partition, x_R1D: np.ndarray, first_rows: int) -> np.ndarray:
     """One-row members: x (R, 1, in) whose first `first_rows` rows go through the partition's
     first member and the others through one member each, in order -> q (R, 1, A). Needs
-    `first_rows <= part.first_repeats`. At batch 1 this beats a padded (G, K, in) stack: numpy
-    runs R matrix-vector products, cheaper than G small matrix products."""
+    `first_rows <= part.first_repeats`. At batch 1 this beats a padded (G, K, in) stack: the
+    R matrix-vector products run in one loop (`policy.row_forward`, compiled where it can)."""
     start = part.first_repeats - first_rows
-    last = len(part.row_weights) - 1
-    h = x_R1D.astype(np.float32, copy=False)  # as `numpy_stacked_forward` casts its input
-    for k, (w_RIO, b_R1O) in enumerate(part.row_weights):
-        h = np.matmul(h, w_RIO[start:])
-        h += b_R1O[start:]
-        if k < last:
-            if part.spec.activation == "relu":
-                np.maximum(h, 0.0, out=h)
-            else:
-                np.tanh(h, out=h)
-    return h
+    members = len(part.row_weights[0][0]) - start
+    return row_forward(x_R1D, part.row_weights, start, members, part.spec.activation)
 
 
 def _forward_partition(part: Partition, inputs: Sequence[np.ndarray]) -> list[np.ndarray]:
@@ -223,7 +217,11 @@ def _forward_partition(part: Partition, inputs: Sequence[np.ndarray]) -> list[np
         x_GRD = np.zeros((len(rows), max(rows), part.spec.obs_dim), dtype=np.float32)
         for g, j in enumerate(part.members):
             x_GRD[g, : rows[g]] = inputs[j]
-    q_GRA = numpy_stacked_forward(part.weights, x_GRD, activation)
+    if ROW_FORWARD and max(rows) <= ROW_FORWARD_MAX_ROWS:  # a few rows: one compiled loop
+        start = part.first_repeats - 1  # the first member's own copy in `row_weights`
+        q_GRA = row_forward(x_GRD, part.row_weights, start, len(rows), activation)
+    else:
+        q_GRA = numpy_stacked_forward(part.weights, x_GRD, activation)
     return [q_GRA[g, : rows[g]] for g in range(len(rows))]
 
 

@@ -1,0 +1,192 @@
+"""`policy.row_forward`: the compiled stack forward against numpy and a float64 reference, the
+same bits from its AVX2 and AVX-512 code, non-finite values kept, bad arguments refused, and the
+switch back to numpy."""
+
+from __future__ import annotations
+
+import itertools
+import os
+import subprocess
+import sys
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+
+from policy import row_forward as rf
+from policy.row_forward import numpy_row_forward, row_forward
+
+compiled = pytest.mark.skipif(not rf.COMPILED, reason="no compiled forward on this machine")
+Layers = list[tuple[np.ndarray, np.ndarray]]
+
+
+def stack(rng: np.random.Generator, sizes: tuple[int, ...], nets: int) -> Layers:
+    """`nets` random MLPs of `sizes` as (R, in, out) weights and (R, 1, out) biases."""
+    return [
+        (
+            (rng.standard_normal((nets, n_in, n_out)) / np.sqrt(n_in)).astype(np.float32),
+            (0.1 * rng.standard_normal((nets, 1, n_out))).astype(np.float32),
+        )
+        for n_in, n_out in itertools.pairwise(sizes)
+    ]
+
+
+def float64_forward(
+    x: np.ndarray, layers: Layers, start: int, members: int, act: str
+) -> np.ndarray:
+    h = x.astype(np.float64)
+    for k, (w, b) in enumerate(layers):
+        h = np.matmul(h, w[start : start + members].astype(np.float64)) + b[start : start + members]
+        if k < len(layers) - 1:
+            h = np.maximum(h, 0.0) if act == "relu" else np.tanh(h)
+    return h
+
+
+# widths around the vector blocks: 128 / 64 / 16 / 8 outputs per pass, 4-way sums in the tail
+SIZES = [
+    (8, 128, 128, 5),
+    (3, 7, 9, 1),
+    (17, 130, 200, 12),
+    (5, 64, 16),
+    (200, 8, 24, 6, 3),
+    (4, 2),
+]
+
+
+@compiled
+@pytest.mark.parametrize("sizes", SIZES)
+@pytest.mark.parametrize("activation", ["relu", "tanh"])
+@pytest.mark.parametrize(("x_members", "rows"), [(1, 1), (1, 3), ("all", 1), ("all", 2)])
+def test_compiled_matches_numpy_and_float64(
+    sizes: tuple[int, ...], activation: str, x_members: object, rows: int
+) -> None:
+    rng = np.random.default_rng(sum(sizes) + rows)
+    nets, start = 6, 2
+    members = nets - start
+    layers = stack(rng, sizes, nets)
+    x = rng.standard_normal((members if x_members == "all" else 1, rows, sizes[0]))
+    x = x.astype(np.float32)
+    got = row_forward(x, layers, start, members, activation)
+    numpy_got = numpy_row_forward(x, layers, start, members, activation)
+    exact = float64_forward(x, layers, start, members, activation)
+    assert got.dtype == np.float32 and got.shape == (members, rows, sizes[-1])
+    assert numpy_got.shape == got.shape
+    # float32 rounding of sums of ~width terms of unit scale: far below 1e-4 either way
+    np.testing.assert_allclose(got, exact, rtol=1e-4, atol=1e-4)
+    np.testing.assert_allclose(numpy_got, exact, rtol=1e-4, atol=1e-4)
+
+
+@compiled
+def test_member_offsets_pick_the_right_networks() -> None:
+    """Member m is network start + m: each alone gives its own row of the whole stack."""
+    rng = np.random.default_rng(0)
+    layers = stack(rng, (8, 32, 5), 7)
+    x = rng.standard_normal((7, 1, 8)).astype(np.float32)
+    whole = row_forward(x, layers, 0, 7, "relu")
+    for m in range(7):
+        alone = row_forward(x[m : m + 1], layers, m, 1, "relu")
+        np.testing.assert_array_equal(alone[0], whole[m])  # one member's loop, the same bits
+
+
+@pytest.fixture
+def avx2() -> Iterator[None]:
+    """The AVX2 code on this machine (skipped where there is none)."""
+    if not rf.COMPILED:
+        pytest.skip("no compiled forward on this machine")
+    from policy import _row_forward
+
+    previous = _row_forward.set_variant("avx2")
+    try:
+        yield
+    finally:
+        _row_forward.set_variant(previous)
+
+
+@pytest.mark.skipif(rf.VARIANT != "avx512", reason="needs an AVX-512 machine to compare with")
+@pytest.mark.parametrize("sizes", SIZES)
+def test_avx2_and_avx512_give_the_same_bits(sizes: tuple[int, ...]) -> None:
+    from policy import _row_forward
+
+    rng = np.random.default_rng(len(sizes))
+    layers = stack(rng, sizes, 5)
+    x = rng.standard_normal((5, 2, sizes[0])).astype(np.float32)
+    wide = row_forward(x, layers, 0, 5, "relu")
+    previous = _row_forward.set_variant("avx2")
+    try:
+        narrow = row_forward(x, layers, 0, 5, "relu")
+    finally:
+        _row_forward.set_variant(previous)
+    np.testing.assert_array_equal(wide, narrow)
+
+
+@pytest.mark.usefixtures("avx2")
+def test_the_avx2_code_is_right_too() -> None:
+    rng = np.random.default_rng(5)
+    layers = stack(rng, (17, 130, 200, 12), 3)
+    x = rng.standard_normal((3, 1, 17)).astype(np.float32)
+    exact = float64_forward(x, layers, 0, 3, "tanh")
+    np.testing.assert_allclose(row_forward(x, layers, 0, 3, "tanh"), exact, rtol=1e-4, atol=1e-4)
+
+
+@compiled
+@pytest.mark.parametrize("activation", ["relu", "tanh"])
+def test_non_finite_values_stay_non_finite(activation: str) -> None:
+    """An overflow must reach the engine's isfinite check: relu keeps NaN (as numpy's maximum
+    does), it does not turn it into 0."""
+    rng = np.random.default_rng(1)
+    layers = stack(rng, (4, 16, 3), 2)
+    x = np.full((1, 2, 4), 3e38, dtype=np.float32)
+    x[0, 1] = np.nan
+    with np.errstate(all="ignore"):
+        got = row_forward(x, layers, 0, 2, activation)
+        want = numpy_row_forward(x, layers, 0, 2, activation)
+    np.testing.assert_array_equal(np.isfinite(got), np.isfinite(want))
+    assert not np.isfinite(got[:, 1]).any()
+
+
+@compiled
+def test_bad_arguments_are_refused_clearly() -> None:
+    from policy import _row_forward
+
+    rng = np.random.default_rng(2)
+    layers = stack(rng, (4, 8, 3), 3)
+    x = rng.standard_normal((1, 1, 4)).astype(np.float32)
+    with pytest.raises(ValueError, match="x: expected a C-contiguous float32"):
+        _row_forward.forward(x.astype(np.float64), layers, 0, 3, "relu")
+    with pytest.raises(ValueError, match=r"layers\[0\]: expected weights \(R >= 4"):
+        _row_forward.forward(x, layers, 1, 3, "relu")  # members 1..3 of a stack of 3
+    with pytest.raises(ValueError, match=r"layers\[0\]"):
+        _row_forward.forward(np.zeros((1, 1, 5), np.float32), layers, 0, 3, "relu")
+    with pytest.raises(ValueError, match=r"layers\[1\]\[0\]"):
+        bad = [layers[0], (np.asfortranarray(layers[1][0]), layers[1][1])]
+        _row_forward.forward(x, bad, 0, 3, "relu")
+    with pytest.raises(TypeError, match=r"layers\[0\]"):
+        _row_forward.forward(x, [layers[0][0]], 0, 3, "relu")  # type: ignore[list-item]
+    with pytest.raises(ValueError, match="activation"):
+        _row_forward.forward(x, layers, 0, 3, "gelu")
+    with pytest.raises(ValueError, match="x: expected"):
+        _row_forward.forward(np.zeros((2, 1, 4), np.float32), layers, 0, 3, "relu")
+    with pytest.raises(ValueError, match="variant"):
+        _row_forward.set_variant("avx1024")
+
+
+@compiled
+def test_threads_share_it_safely() -> None:
+    """The GIL is released while it runs: threads calling it at once get their own answers."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    rng = np.random.default_rng(3)
+    layers = stack(rng, (8, 128, 128, 5), 35)
+    xs = [rng.standard_normal((35, 1, 8)).astype(np.float32) for _ in range(8)]
+    want = [row_forward(x, layers, 0, 35, "relu") for x in xs]
+    with ThreadPoolExecutor(4) as pool:
+        got = list(pool.map(lambda x: row_forward(x, layers, 0, 35, "relu"), xs * 4))
+    for k, result in enumerate(got):
+        np.testing.assert_array_equal(result, want[k % len(xs)])
+
+
+def test_the_environment_switches_to_numpy() -> None:
+    code = "import policy.row_forward as r; print(r.COMPILED, r.VARIANT)"
+    env = {**os.environ, "COEXIST_PYTHON_FORWARD": "1"}
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+    assert out.stdout.split() == ["False", "numpy"], out.stderr
