@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed
 
 .PHONY: setup demo serve test lint clean
 
-$(STAMP): pyproject.toml setup.py policy/_blend_row.c policy/_row_forward.c
+$(STAMP): pyproject.toml setup.py $(wildcard policy/*.c policy/*.h)
 	$(PY) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 	# The CPU build of torch first, exactly: a bare `torch` requirement would pull CUDA wheels.

@@ -26,35 +26,11 @@
 #define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
 #include <numpy/arrayobject.h>
 
+#include "_numpy_order.h"
+
 #define FLAT_STD_RTOL 1e-12 /* blend_fast.FLAT_STD_RTOL */
-#define PAIRWISE_BLOCK 128  /* numpy's PW_BLOCKSIZE */
 
 static PyObject *np_exp, *np_log, *np_log2, *np_power, *row_blend_type;
-
-/* ---- sums in numpy's (and blend_fast's) order ------------------------------------------- */
-
-static double sequential_sum(const double *x, Py_ssize_t n) {
-    double total = 0.0;
-    for (Py_ssize_t i = 0; i < n; i++) total += x[i];
-    return total;
-}
-
-static double pairwise_sum(const double *x, Py_ssize_t n) { /* blend_fast.np_sum */
-    if (n < 8) return sequential_sum(x, n);
-    if (n <= PAIRWISE_BLOCK) {
-        double acc[8];
-        memcpy(acc, x, sizeof acc);
-        Py_ssize_t stop = n - n % 8;
-        for (Py_ssize_t i = 8; i < stop; i += 8)
-            for (int j = 0; j < 8; j++) acc[j] += x[i + j];
-        double total = ((acc[0] + acc[1]) + (acc[2] + acc[3])) + ((acc[4] + acc[5]) + (acc[6] + acc[7]));
-        for (Py_ssize_t i = stop; i < n; i++) total += x[i];
-        return total;
-    }
-    Py_ssize_t half = n / 2;
-    half -= half % 8;
-    return pairwise_sum(x, half) + pairwise_sum(x + half, n - half);
-}
 
 /* the sum over actions: blend_fast's `vsum` */
 static double vsum(const double *x, Py_ssize_t n, Py_ssize_t n_act) {
@@ -77,19 +53,6 @@ static double first_min(const double *x, Py_ssize_t n) {
 
 static double py_max2(double a, double b) { return b > a ? b : a; } /* max(a, b) */
 static double py_min2(double a, double b) { return b < a ? b : a; } /* min(a, b) */
-
-/* ---- numpy's ufuncs, in place on a C buffer ----------------------------------------------- */
-
-static int ufunc_inplace(PyObject *ufunc, double *data, Py_ssize_t n) {
-    npy_intp dims[1] = {(npy_intp)n};
-    PyObject *array = PyArray_SimpleNewFromData(1, dims, NPY_DOUBLE, data);
-    if (array == NULL) return -1;
-    PyObject *out = PyObject_CallFunctionObjArgs(ufunc, array, array, NULL);
-    Py_DECREF(array);
-    if (out == NULL) return -1;
-    Py_DECREF(out);
-    return 0;
-}
 
 /* float(np.log(n)) for an action count n, as blend_fast._log (cached: n is small) */
 #define LOG_CACHE 64

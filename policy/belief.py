@@ -45,6 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from policy._validate import PROB_SUM_TOL
+from policy.belief_compiled import compiled_update
 from policy.belief_views import (
     BeliefView,
     belief_cross_entropy,
@@ -321,8 +322,12 @@ def _updated(
 ) -> np.ndarray:
     """The update's arithmetic (`update_log_belief`). When every entry is finite (every row is
     evidence and normalisable: the usual case) the masks are skipped; the operations, hence the
-    bits, are those of the general path."""
+    bits, are those of the general path. That case runs compiled where it can
+    (`policy.belief_compiled`: the same bits)."""
     n_goals = log_b.shape[-1]
+    fast = compiled_update(log_b, lik, pull, lam, eps)
+    if fast is not None:
+        return fast
     if np.isfinite(lik).all():
         x = lam * log_b + lik
         if pull is not None:

@@ -18,9 +18,10 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import NamedTuple
 
 import numpy as np
+
+from policy.belief_compiled import BeliefView, compiled_views
 
 __all__ = [
     "BeliefView",
@@ -170,15 +171,6 @@ def _blend_kept(
     return kept, probs
 
 
-class BeliefView(NamedTuple):
-    """What a session reads from one belief row at every step (`belief_views`)."""
-
-    blend_goals: list[int]  # `blend_goal_weights`' kept goals (ascending indices)
-    blend_probs: list[float]  # and their probabilities
-    top: list[tuple[str, float]]  # `belief_summary`'s top goals
-    entropy: float  # and entropy
-
-
 def belief_views(
     log_belief_PG: np.ndarray,
     goals: Sequence[str],
@@ -202,6 +194,10 @@ def belief_views(
     _check_blend(mass, max_goals)
     if log_b.shape[0] == 0:
         return []
+    if _whole(mass, max_goals, n_goals):  # compiled where it can (the same bits)
+        views = compiled_views(log_b, goals, k)
+        if views is not None:
+            return views
     b = np.exp(log_b)
     order = np.argsort(-log_b, axis=1, kind="stable")
     positive = b.min() > 0  # the floor's usual case: no 0 log 0 terms to mask

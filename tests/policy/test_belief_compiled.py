@@ -1,0 +1,120 @@
+"""`policy.belief_compiled`: the compiled belief update and views give the numpy path's bits on
+random, peaked, flat, floored and extreme beliefs; they step aside (None) where the numpy path
+masks, and COEXIST_PYTHON_BELIEF=1 turns them off."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+import pytest
+
+from policy import belief_compiled as bc
+from policy.belief import BeliefConfig, PreparedUpdate, belief_views, update_log_belief
+
+pytestmark = pytest.mark.skipif(not bc.COMPILED, reason="built without a C compiler")
+
+
+def both(call: Callable[[], Any], monkeypatch: pytest.MonkeyPatch) -> tuple[Any, Any]:
+    """`call()` compiled, then with the numpy path."""
+    compiled = call()
+    with monkeypatch.context() as patch:
+        patch.setattr(bc, "_EXTENSION", None)
+        reference = call()
+    return compiled, reference
+
+
+def log_beliefs(rng: np.random.Generator, rows: int, goals: int, kind: str) -> np.ndarray:
+    if kind == "random":
+        x = rng.standard_normal((rows, goals)) * 3
+    elif kind == "peaked":
+        x = rng.standard_normal((rows, goals)) * 40
+    elif kind == "flat":
+        x = np.zeros((rows, goals)) + rng.standard_normal((rows, goals)) * 1e-12
+    else:  # ties
+        x = np.round(rng.standard_normal((rows, goals)))
+    return (
+        x
+        - np.log(np.exp(x - x.max(1, keepdims=True)).sum(1, keepdims=True))
+        - x.max(1, keepdims=True)
+    )
+
+
+@pytest.mark.parametrize("kind", ["random", "peaked", "flat", "ties"])
+@pytest.mark.parametrize("config", [BeliefConfig(), BeliefConfig(forgetting=1.0, floor=0.0),
+                                    BeliefConfig(forgetting=0.5, floor=0.01)])  # fmt: skip
+@pytest.mark.parametrize(("rows", "goals"), [(1, 35), (4, 35), (3, 1), (2, 7), (5, 200)])
+def test_the_update_has_the_numpy_bits(
+    kind: str, config: BeliefConfig, rows: int, goals: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    if config.floor * goals >= 1:
+        config = BeliefConfig(forgetting=config.forgetting, floor=0.0)
+    rng = np.random.default_rng(rows * 1000 + goals)
+    for _ in range(20):
+        prior = log_beliefs(rng, rows, goals, "random")
+        log_b = log_beliefs(rng, rows, goals, kind)
+        lik = -np.abs(rng.standard_normal((rows, goals))) * rng.choice([0.01, 1, 300])
+        update = PreparedUpdate(prior, config)
+        # the compiled path did run (the comparison below is not numpy against itself)
+        assert bc.compiled_update(log_b, lik, None, config.forgetting, config.floor) is not None
+        got, want = both(lambda: update(log_b, lik), monkeypatch)  # noqa: B023
+        np.testing.assert_array_equal(got, want)
+        got, want = both(lambda: update_log_belief(log_b[0], lik[0], prior[0], config), monkeypatch)  # noqa: B023
+        np.testing.assert_array_equal(got, want)
+
+
+def test_non_finite_evidence_takes_the_numpy_path(monkeypatch: pytest.MonkeyPatch) -> None:
+    prior = np.log(np.full((2, 5), 0.2))
+    update = PreparedUpdate(prior, BeliefConfig())
+    with np.errstate(divide="ignore"):
+        lik = np.log(np.array([[0.1, 0.2, 0.3, 0.2, 0.2], [0.0, 0.5, 0.5, 0.0, 0.0]]))
+    assert bc.compiled_update(prior, lik, None, 0.9, 1e-3) is None
+    got, want = both(lambda: update(prior, lik), monkeypatch)
+    np.testing.assert_array_equal(got, want)
+
+
+@pytest.mark.parametrize("kind", ["random", "peaked", "flat", "ties"])
+@pytest.mark.parametrize(("rows", "goals", "k"), [(1, 35, 3), (4, 35, 3), (2, 1, 3), (3, 9, 9),
+                                                  (2, 200, 64)])  # fmt: skip
+def test_the_views_have_the_numpy_bits(
+    kind: str, rows: int, goals: int, k: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    rng = np.random.default_rng(goals + k)
+    names = [f"g{i}" for i in range(goals)]
+    for _ in range(20):
+        log_b = log_beliefs(rng, rows, goals, kind)
+        assert bc.compiled_views(log_b, names, k) is not None
+        got, want = both(lambda: belief_views(log_b, names, k), monkeypatch)  # noqa: B023
+        assert got == want  # floats compared with ==
+
+
+def test_a_zero_probability_takes_the_numpy_path(monkeypatch: pytest.MonkeyPatch) -> None:
+    with np.errstate(divide="ignore"):
+        log_b = np.log(np.array([[0.5, 0.5, 0.0], [0.2, 0.3, 0.5]]))
+    assert bc.compiled_views(log_b, ["a", "b", "c"], 2) is None
+    got, want = both(lambda: belief_views(log_b, ["a", "b", "c"], 2), monkeypatch)
+    assert got == want
+
+
+def test_bad_arguments_are_refused() -> None:
+    from policy import _belief_row
+
+    with pytest.raises(ValueError, match="log_belief"):
+        _belief_row.update_rows(
+            np.zeros((2, 3), np.float32), np.zeros((2, 3)), None, 1.0, 0.0, None
+        )
+    with pytest.raises(ValueError, match="lik, pull"):
+        _belief_row.update_rows(np.zeros((2, 3)), np.zeros((1, 3)), None, 1.0, 0.0, None)
+    with pytest.raises(ValueError, match="k: expected"):
+        _belief_row.view_rows(np.zeros((2, 3)), 0)
+
+
+def test_the_environment_switches_to_numpy() -> None:
+    code = "import policy.belief_compiled as b; print(b.COMPILED)"
+    env = {**os.environ, "COEXIST_PYTHON_BELIEF": "1"}
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+    assert out.stdout.split() == ["False"], out.stderr
