@@ -1,6 +1,8 @@
 /* policy._belief_row: a session's belief step in C, with numpy's bits: the update of
  * `policy.belief.PreparedUpdate` (its all-finite case) and `policy.belief_views.belief_views`
- * (its whole-belief, all-positive case), for E rows of G goals.
+ * (its whole-belief, all-positive case), for E rows of G goals; the goal likelihoods' log
+ * softmax table (services.engine.goal_inference) and the expected impact Q of a goal
+ * distribution (services.engine.fastpath).
  *
  * Why C: with G = 35 the update and the views are ~25 small numpy calls and a few Python loops
  * over 35 floats, ~45 µs of a REST session step; here they are 4 numpy calls and C loops.
@@ -224,7 +226,123 @@ fail:
     return NULL;
 }
 
+/* log_softmax_table(q_GPA, alpha) -> (G, P, A) float64
+ *
+ * log softmax(Q / alpha_g) of every row, as services.engine.goal_inference computes its
+ * likelihood table (`_scaled`, then z - log_norm): z = (float64(q) - max q) / alpha_g, then
+ * z - log(sum(exp(z))) with numpy's exp and log and the pairwise sum over A. `alpha` a float
+ * or G float64 values; q finite (the caller checks). */
+static PyObject *log_softmax_table(PyObject *self, PyObject *args) {
+    PyObject *q_obj, *alpha_obj;
+    if (!PyArg_ParseTuple(args, "OO", &q_obj, &alpha_obj)) return NULL;
+    if (!PyArray_Check(q_obj) || PyArray_TYPE((PyArrayObject *)q_obj) != NPY_FLOAT32 ||
+        !PyArray_IS_C_CONTIGUOUS((PyArrayObject *)q_obj) || PyArray_NDIM((PyArrayObject *)q_obj) != 3 ||
+        PyArray_DIM((PyArrayObject *)q_obj, 2) < 1) {
+        PyErr_SetString(PyExc_ValueError, "q_GPA: expected a C-contiguous float32 array (G, P, A)");
+        return NULL;
+    }
+    PyArrayObject *q = (PyArrayObject *)q_obj;
+    Py_ssize_t G = PyArray_DIM(q, 0), P = PyArray_DIM(q, 1), A = PyArray_DIM(q, 2);
+    const double *alphas = NULL;
+    double alpha = 0.0;
+    if (PyArray_Check(alpha_obj)) {
+        PyArrayObject *a = (PyArrayObject *)alpha_obj;
+        if (PyArray_TYPE(a) != NPY_DOUBLE || !PyArray_IS_C_CONTIGUOUS(a) || PyArray_SIZE(a) != G) {
+            PyErr_SetString(PyExc_ValueError, "alpha: expected a float or G float64 values");
+            return NULL;
+        }
+        alphas = PyArray_DATA(a);
+    } else if ((alpha = PyFloat_AsDouble(alpha_obj)) == -1.0 && PyErr_Occurred()) {
+        return NULL;
+    }
+    npy_intp dims[3] = {G, P, A};
+    PyObject *out = PyArray_SimpleNew(3, dims, NPY_DOUBLE);
+    double *work = out ? PyMem_Malloc(((size_t)G * P * A + (size_t)G * P) * sizeof(double)) : NULL;
+    if (work == NULL) {
+        Py_XDECREF(out);
+        return PyErr_Occurred() ? NULL : PyErr_NoMemory();
+    }
+    const float *qd = PyArray_DATA(q);
+    double *z = PyArray_DATA((PyArrayObject *)out), *e = work, *norm = work + (size_t)G * P * A;
+    for (Py_ssize_t g = 0; g < G; g++) {
+        double a = alphas ? alphas[g] : alpha;
+        for (Py_ssize_t p = 0; p < P; p++) {
+            Py_ssize_t at = (g * P + p) * A;
+            double top = (double)qd[at];
+            for (Py_ssize_t i = 1; i < A; i++)
+                if ((double)qd[at + i] > top) top = (double)qd[at + i];
+            for (Py_ssize_t i = 0; i < A; i++) z[at + i] = e[at + i] = ((double)qd[at + i] - top) / a;
+        }
+    }
+    if (ufunc_inplace(np_exp, e, G * P * A) < 0) goto fail;
+    for (Py_ssize_t r = 0; r < G * P; r++) norm[r] = pairwise_sum(e + r * A, A);
+    if (ufunc_inplace(np_log, norm, G * P) < 0) goto fail;
+    for (Py_ssize_t r = 0; r < G * P; r++)
+        for (Py_ssize_t i = 0; i < A; i++) z[r * A + i] -= norm[r];
+    PyMem_Free(work);
+    return out;
+fail:
+    PyMem_Free(work);
+    Py_DECREF(out);
+    return NULL;
+}
+
+/* mix_rows(probs, q_RA, rows) -> list of A floats
+ *
+ * A goal distribution's expected Q (the engine's single-row mix, services.engine.fastpath):
+ * sum over j of probs[j] * float64(q[rows[j]]), added in order (np.add.accumulate's order). */
+static PyObject *mix_rows(PyObject *self, PyObject *args) {
+    PyObject *probs_obj, *q_obj, *rows_obj;
+    if (!PyArg_ParseTuple(args, "OOO", &probs_obj, &q_obj, &rows_obj)) return NULL;
+    if (!PyArray_Check(q_obj) || PyArray_TYPE((PyArrayObject *)q_obj) != NPY_FLOAT32 ||
+        !PyArray_IS_C_CONTIGUOUS((PyArrayObject *)q_obj) || PyArray_NDIM((PyArrayObject *)q_obj) != 2) {
+        PyErr_SetString(PyExc_ValueError, "q_RA: expected a C-contiguous float32 array (R, A)");
+        return NULL;
+    }
+    PyArrayObject *q = (PyArrayObject *)q_obj;
+    Py_ssize_t R = PyArray_DIM(q, 0), A = PyArray_DIM(q, 1);
+    PyObject *probs = PySequence_Fast(probs_obj, "probs: expected a sequence of floats");
+    PyObject *rows = probs ? PySequence_Fast(rows_obj, "rows: expected a sequence of ints") : NULL;
+    double *acc = rows ? PyMem_Calloc((size_t)A + 1, sizeof(double)) : NULL;
+    PyObject *result = NULL;
+    if (acc == NULL) goto done;
+    Py_ssize_t n = PySequence_Fast_GET_SIZE(probs);
+    if (n < 1 || PySequence_Fast_GET_SIZE(rows) != n) {
+        PyErr_SetString(PyExc_ValueError, "probs, rows: expected one row per probability (>= 1)");
+        goto done;
+    }
+    const float *qd = PyArray_DATA(q);
+    for (Py_ssize_t j = 0; j < n; j++) {
+        double p = PyFloat_AsDouble(PySequence_Fast_GET_ITEM(probs, j));
+        Py_ssize_t row = PyLong_AsSsize_t(PySequence_Fast_GET_ITEM(rows, j));
+        if (PyErr_Occurred()) goto done;
+        if (row < 0 || row >= R) {
+            PyErr_Format(PyExc_ValueError, "rows[%zd]: %zd is not a row of q_RA", j, row);
+            goto done;
+        }
+        for (Py_ssize_t i = 0; i < A; i++) {
+            double term = p * (double)qd[row * A + i];
+            acc[i] = j == 0 ? term : acc[i] + term;
+        }
+    }
+    result = PyList_New(A);
+    for (Py_ssize_t i = 0; result != NULL && i < A; i++) {
+        PyObject *v = PyFloat_FromDouble(acc[i]);
+        if (v == NULL) Py_CLEAR(result);
+        else PyList_SET_ITEM(result, i, v);
+    }
+done:
+    PyMem_Free(acc);
+    Py_XDECREF(probs);
+    Py_XDECREF(rows);
+    return result;
+}
+
 static PyMethodDef methods[] = {
+    {"log_softmax_table", log_softmax_table, METH_VARARGS,
+     "log_softmax_table(q_GPA, alpha) -> (G, P, A) float64 log softmax(q / alpha_g)"},
+    {"mix_rows", mix_rows, METH_VARARGS,
+     "mix_rows(probs, q_RA, rows) -> sum_j probs[j] q[rows[j]] as A floats"},
     {"update_rows", update_rows, METH_VARARGS,
      "update_rows(log_b, lik, pull, lam, floor_scale, floor_log) -> (E, G) array or None"},
     {"view_rows", view_rows, METH_VARARGS,

@@ -315,6 +315,20 @@ fail:
     return NULL;
 }
 
+/* all_finite(a) -> bool: every entry of a C-contiguous float32 array is finite */
+static PyObject *all_finite(PyObject *self, PyObject *obj) {
+    if (!PyArray_Check(obj) || PyArray_TYPE((PyArrayObject *)obj) != NPY_FLOAT32 ||
+        !PyArray_IS_C_CONTIGUOUS((PyArrayObject *)obj)) {
+        PyErr_SetString(PyExc_ValueError, "a: expected a C-contiguous float32 array");
+        return NULL;
+    }
+    const float *data = PyArray_DATA((PyArrayObject *)obj);
+    npy_intp n = PyArray_SIZE((PyArrayObject *)obj);
+    for (npy_intp i = 0; i < n; i++)
+        if (!isfinite(data[i])) Py_RETURN_FALSE;
+    Py_RETURN_TRUE;
+}
+
 static const char *variant_name(int v) { return v == 512 ? "avx512" : v == 256 ? "avx2" : "none"; }
 
 /* tests: run a narrower variant than the machine's (the bits must not change) */
@@ -334,6 +348,7 @@ static PyObject *set_variant(PyObject *self, PyObject *arg) {
 static PyMethodDef methods[] = {
     {"forward", forward, METH_VARARGS,
      "forward(x_XPF, layers, start, members, activation) -> (members, P, A) float32"},
+    {"all_finite", all_finite, METH_O, "all_finite(a) -> whether every float32 entry is finite"},
     {"set_variant", set_variant, METH_O, "set_variant('avx2' | 'avx512') -> the previous one"},
     {NULL, NULL, 0, NULL},
 };

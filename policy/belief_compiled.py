@@ -8,6 +8,12 @@ caller then runs its numpy path:
 |--------------------|-----------------------------------------------------|-------|
 | `compiled_update`  | every likelihood and every updated entry is finite  | None  |
 | `compiled_views`   | the blend keeps every goal and every probability > 0| None  |
+| `compiled_log_softmax` | always (finite Q-values: the caller checks)     | None  |
+| `compiled_mix`     | always                                              | None  |
+
+The last two serve the engine: the goal likelihoods' table log softmax(Q / α_g)
+(`services.engine.goal_inference`) and a goal distribution's expected impact Q on one row
+(`services.engine.fastpath`), each the numpy code's bits.
 
 Why the bits match (the C file says how): IEEE + - * in both, no fused multiply-adds; numpy's
 own exp, log and logaddexp called on the C buffers; numpy's pairwise sums; Python's math.fsum
@@ -88,3 +94,26 @@ def compiled_views(log_b: np.ndarray, goals: Sequence[str], k: int) -> list[Beli
         BeliefView(list(range(n_goals)), blend, [(goals[g], probs[g]) for g in top], entropy)
         for probs, blend, top, entropy in rows
     ]
+
+
+def compiled_log_softmax(q_GPA: np.ndarray, alpha: np.ndarray | float) -> np.ndarray | None:
+    """log softmax(q / α_g) over the last axis of a (G, P, A) float32 array, float64, as
+    `services.engine.goal_inference` computes it with numpy (`alpha` a float or G values in
+    any shape), or None without the extension."""
+    if _EXTENSION is None or q_GPA.dtype != np.float32 or not q_GPA.flags.c_contiguous:
+        return None
+    if isinstance(alpha, np.ndarray):
+        alpha = np.ascontiguousarray(alpha, dtype=np.float64).reshape(-1)
+    result: np.ndarray = _EXTENSION.log_softmax_table(q_GPA, alpha)
+    return result
+
+
+def compiled_mix(
+    probs: Sequence[float], q_RA: np.ndarray, rows: Sequence[int]
+) -> list[float] | None:
+    """Σ_j probs[j] · float64(q_RA[rows[j]]), added in order (`np.add.accumulate`'s bits), or
+    None without the extension or for a non-contiguous float32 `q_RA`."""
+    if _EXTENSION is None or q_RA.dtype != np.float32 or not q_RA.flags.c_contiguous:
+        return None
+    mixed: list[float] = _EXTENSION.mix_rows(probs, q_RA, rows)
+    return mixed

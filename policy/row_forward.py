@@ -31,7 +31,7 @@ import numpy as np
 
 Layers = Sequence[tuple[np.ndarray, np.ndarray]]
 
-__all__ = ["COMPILED", "VARIANT", "numpy_row_forward", "row_forward"]
+__all__ = ["COMPILED", "VARIANT", "all_finite", "numpy_row_forward", "row_forward"]
 
 
 def _compiled() -> ModuleType | None:
@@ -76,3 +76,11 @@ def row_forward(
     x = np.ascontiguousarray(x_XPF, dtype=np.float32)
     result: np.ndarray = _EXTENSION.forward(x, layers, start, members, activation)
     return result
+
+
+def all_finite(array: np.ndarray) -> bool:
+    """Whether every entry is finite: one compiled scan of a contiguous float32 array (the
+    forward's output; ~0.3 µs), else numpy's isfinite."""
+    if _EXTENSION is not None and array.dtype == np.float32 and array.flags.c_contiguous:
+        return bool(_EXTENSION.all_finite(array))
+    return bool(np.isfinite(array).all())

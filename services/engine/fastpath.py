@@ -37,8 +37,10 @@ from itertools import accumulate
 import numpy as np
 
 from envs.base import Domain
+from policy.belief_compiled import compiled_mix
 from policy.blend import BlendMethod
 from policy.blend_fast import blend_row
+from policy.row_forward import all_finite
 from services.engine.assembly import models_used
 from services.engine.errors import InvalidRequest
 from services.engine.gathers import Builder, Gather, find_gather
@@ -187,7 +189,7 @@ def act_row(
         else:
             x_R1F = inputs.build(checked.obs_BD)[0][:, None, :]
         q_R1A = forward_rows(inputs.part, x_R1F, inputs.task_rows)
-        if not np.isfinite(q_R1A).all():
+        if not all_finite(q_R1A):
             raise InvalidRequest("observations", "values so large that the Q-values overflow")
         q_blocks.append(q_R1A[:, 0, :])
     q_RA = q_blocks[0] if len(q_blocks) == 1 else np.concatenate(q_blocks)
@@ -202,9 +204,12 @@ def act_row(
     ):
         if partner.probs is None:
             q_impact += [q_rows[row] for row in rows]
-        elif len(rows) >= MIX_NUMPY_MIN:  # the same sum as below, in numpy
-            terms_GA = np.multiply(np.asarray(partner.probs)[:, None], q_RA[index], dtype=float)
-            q_impact.append(np.add.accumulate(terms_GA, axis=0)[-1].tolist())
+        elif len(rows) >= MIX_NUMPY_MIN:  # the same sum as below, compiled or in numpy
+            mixed_A = compiled_mix(partner.probs, q_RA, rows)
+            if mixed_A is None:
+                terms_GA = np.multiply(np.asarray(partner.probs)[:, None], q_RA[index], dtype=float)
+                mixed_A = np.add.accumulate(terms_GA, axis=0)[-1].tolist()
+            q_impact.append(mixed_A)
         elif rows:  # the expected impact Q under the goal distribution (§3.2)
             mixed = [0.0] * len(q_task)
             for p, row in zip(partner.probs, rows, strict=True):

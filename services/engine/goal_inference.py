@@ -14,7 +14,8 @@ The belief itself (prior, forgetting, floor) is pure maths in `policy.belief`.
 |          | through all G networks, (1, P, F) @ (G, F, H) ... -> (G, P, A); with 2-3   |
 |          | partners one such pass per partner (faster: `ROW_BY_ROW_MAX`)              |
 | softmax  | log softmax(Q_g / α_g)[a_p] (`policy.belief.boltzmann_log_likelihoods`'s  |
-|          | arithmetic, bit for bit, on the forward's layout: `_log_likelihoods`)      |
+|          | arithmetic, bit for bit, on the forward's layout: `_log_likelihoods`;      |
+|          | compiled by `policy.belief_compiled.compiled_log_softmax`, the same bits)  |
 | ahead    | `likelihood_table`: the same pass for every action a, before the actions   |
 |          | are known; `LikelihoodTable.pick` then gives the same numbers (a session   |
 |          | computes step t + 1's table right after answering step t)                  |
@@ -53,7 +54,9 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from envs.base import Domain
-from policy.row_forward import row_forward
+from policy.belief_compiled import compiled_log_softmax
+from policy.row_forward import COMPILED as ROW_FORWARD
+from policy.row_forward import all_finite, row_forward
 from services.engine.environments import EnvRuntime, env_runtime
 from services.engine.errors import EngineError, InvalidRequest
 from services.engine.gathers import Gather, find_gather
@@ -198,6 +201,11 @@ def _log_likelihoods(
     """`boltzmann_log_likelihoods(q_GPA.transpose(1, 0, 2), actions_P, α, validate=False)`: the
     same arithmetic and numbers, bit for bit (tests/services/test_goal_likelihoods.py), in the
     forward's (G, P, A) layout with fewer numpy calls (`_scaled`)."""
+    table = compiled_log_softmax(q_GPA, alpha)  # z - log_norm, the same bits, compiled
+    if table is not None:
+        if len(actions_P) == 1:
+            return table[:, 0, int(actions_P[0])][None]
+        return table[:, np.arange(len(actions_P)), actions_P].T
     z, log_norm_GP = _scaled(q_GPA, alpha, tiny)
     if len(actions_P) == 1:  # one partner (the usual case): plain indexing, the same numbers
         return (z[:, 0, int(actions_P[0])] - log_norm_GP[:, 0])[None]
@@ -330,9 +338,12 @@ def _q_values(
 ) -> np.ndarray:  # fmt: skip
     """Every task network on each partner's view: finite (G, P, A) float32 Q-values."""
     x_1PF = _partner_views(runtime, obs_D, n_agents, partners)
-    with np.errstate(over="ignore", invalid="ignore"):  # huge inputs: refused just below
+    if ROW_FORWARD:  # compiled: no floating-point warnings to silence
         q_GPA = _forward_all(group, x_1PF)
-    if not np.isfinite(q_GPA).all():
+    else:
+        with np.errstate(over="ignore", invalid="ignore"):  # huge inputs: refused just below
+            q_GPA = _forward_all(group, x_1PF)
+    if not all_finite(q_GPA):
         raise InvalidRequest("observation", "values so large that the Q-values overflow")
     return q_GPA
 
@@ -400,8 +411,11 @@ def likelihood_table(
     takes them (errors too: `ModelNotFound`, an observation whose Q-values overflow)."""
     group = task_group(cache_, runtime, alias, versions)
     q_GPA = _q_values(group, runtime, obs_D, n_agents, partners)
-    z_GPA, log_norm_GP = _scaled(q_GPA, *_alphas(group, temperature))
-    z_GPA -= log_norm_GP[:, :, None]  # in place: the same subtraction as `_log_likelihoods`'
+    alpha, tiny = _alphas(group, temperature)
+    z_GPA = compiled_log_softmax(q_GPA, alpha)  # the numpy lines' bits, compiled
+    if z_GPA is None:
+        z_GPA, log_norm_GP = _scaled(q_GPA, alpha, tiny)
+        z_GPA -= log_norm_GP[:, :, None]  # in place: the same subtraction as `_log_likelihoods`'
     cache_.stats.likelihood_tables += 1
     return LikelihoodTable(group, partners, z_GPA)
 

@@ -118,3 +118,46 @@ def test_the_environment_switches_to_numpy() -> None:
     env = {**os.environ, "COEXIST_PYTHON_BELIEF": "1"}
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
     assert out.stdout.split() == ["False"], out.stderr
+
+
+@pytest.mark.parametrize(
+    ("goals", "partners", "actions"), [(35, 1, 5), (35, 4, 5), (3, 2, 1), (7, 3, 9)]
+)
+@pytest.mark.parametrize("alpha_kind", ["per goal", "scalar", "tiny"])
+def test_the_log_softmax_table_has_the_engines_numpy_bits(
+    goals: int, partners: int, actions: int, alpha_kind: str
+) -> None:
+    """`compiled_log_softmax` against the engine's numpy lines (`goal_inference._scaled`, then
+    z - log_norm), which the tests of the goal likelihoods hold to `boltzmann_log_likelihoods`."""
+    from services.engine.goal_inference import _scaled
+
+    rng = np.random.default_rng(goals * partners + actions)
+    for _ in range(20):
+        q = (rng.standard_normal((goals, partners, actions)) * rng.choice([0.01, 1, 50])).astype(
+            np.float32
+        )
+        if alpha_kind == "per goal":
+            alpha: np.ndarray | float = rng.uniform(0.005, 2, goals)[:, None, None]
+        else:
+            alpha = 1e-300 if alpha_kind == "tiny" else 0.02
+        with np.errstate(over="ignore"):
+            z, log_norm = _scaled(q, alpha, alpha_kind == "tiny")
+        want = z - log_norm[:, :, None]
+        got = bc.compiled_log_softmax(q, alpha)
+        assert got is not None
+        np.testing.assert_array_equal(got, want)
+
+
+@pytest.mark.parametrize("goals", [1, 8, 35])
+def test_the_mix_adds_in_numpys_order(goals: int) -> None:
+    rng = np.random.default_rng(goals)
+    q = rng.standard_normal((goals + 3, 5)).astype(np.float32)
+    rows = rng.permutation(goals + 3)[:goals].tolist()
+    probs = rng.dirichlet(np.ones(goals)).tolist()
+    terms = np.multiply(np.asarray(probs)[:, None], q[rows], dtype=float)
+    assert (
+        bc.compiled_mix(tuple(probs), q, tuple(rows))
+        == np.add.accumulate(terms, axis=0)[-1].tolist()
+    )
+    with pytest.raises(ValueError, match="rows"):
+        bc.compiled_mix(probs, q, [0] * (goals - 1) + [goals + 3])

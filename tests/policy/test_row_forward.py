@@ -190,3 +190,15 @@ def test_the_environment_switches_to_numpy() -> None:
     env = {**os.environ, "COEXIST_PYTHON_FORWARD": "1"}
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
     assert out.stdout.split() == ["False", "numpy"], out.stderr
+
+
+def test_all_finite() -> None:
+    from policy.row_forward import all_finite
+
+    ok = np.ones((3, 1, 5), np.float32)
+    assert all_finite(ok) and all_finite(ok.astype(np.float64))
+    for bad in (np.inf, -np.inf, np.nan):
+        broken = ok.copy()
+        broken[2, 0, 4] = bad
+        assert not all_finite(broken)
+        assert not all_finite(broken[:, :, ::2])  # not contiguous: numpy's check
