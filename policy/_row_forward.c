@@ -15,6 +15,8 @@
  *   inputs added to the first one in order, then (s0 + s1) + (s2 + s3) (a single chain would
  *   wait on the FMA latency at every step);
  * - relu is max(0, v) keeping NaN (as numpy's maximum does); tanh is libm's tanhf.
+ * With AVX-512, two rows of a member (two partners' views) go through its weights together,
+ * each weight loaded once for both; every output's operations stay the ones above.
  * numpy's BLAS sums in another order, so the results differ from `policy.qnet`'s numpy forward
  * in the last bits (tests/policy/test_row_forward.py bounds it).
  *
@@ -40,35 +42,53 @@ typedef void (*relu_fn)(float *h, int n);
 #include <immintrin.h>
 #define HAVE_X86 1
 
-/* the last n_o mod 8 outputs: four partial sums (header comment), with the fused multiply-add
- * instruction the target attribute allows */
-#define TAIL_MATVEC(NAME, TARGET)                                                              \
-    __attribute__((target(TARGET))) static void NAME(const float *x, const float *W,           \
-                                                     const float *b, float *y, int n_i, int n_o,   \
-                                                     int ob) {                                 \
-        for (int o = ob; o < n_o; o++) {                                                         \
-            float s0 = b[o], s1 = 0.0f, s2 = 0.0f, s3 = 0.0f;                                  \
-            const float *r = W + o;                                                            \
-            int i = 0;                                                                         \
-            for (; i + 4 <= n_i; i += 4, r += 4 * (size_t)n_o) {                                   \
-                s0 = __builtin_fmaf(x[i], r[0], s0);                                           \
-                s1 = __builtin_fmaf(x[i + 1], r[n_o], s1);                                       \
-                s2 = __builtin_fmaf(x[i + 2], r[2 * (size_t)n_o], s2);                           \
-                s3 = __builtin_fmaf(x[i + 3], r[3 * (size_t)n_o], s3);                           \
-            }                                                                                  \
-            for (; i < n_i; i++, r += n_o) s0 = __builtin_fmaf(x[i], r[0], s0);                    \
-            y[o] = (s0 + s1) + (s2 + s3);                                                      \
-        }                                                                                      \
+/* the last n_o mod 8 (< 8) outputs: four partial sums (header comment), each output a lane
+ * of a masked vector (the same operations per output as a scalar loop, one FMA latency per
+ * 4 inputs for all of them) */
+__attribute__((target("avx2,fma"))) static void tail_avx2(const float *x, const float *W,
+                                                         const float *b, float *y, int n_i,
+                                                         int n_o, int ob) {
+    if (ob >= n_o) return;
+    int lanes = n_o - ob;
+    __m256i mask = _mm256_cmpgt_epi32(_mm256_set1_epi32(lanes), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+    __m256 s0 = _mm256_maskload_ps(b + ob, mask), s1 = _mm256_setzero_ps(), s2 = s1, s3 = s1;
+    const float *r = W + ob;
+    int i = 0;
+    for (; i + 4 <= n_i; i += 4, r += 4 * (size_t)n_o) {
+        s0 = _mm256_fmadd_ps(_mm256_set1_ps(x[i]), _mm256_maskload_ps(r, mask), s0);
+        s1 = _mm256_fmadd_ps(_mm256_set1_ps(x[i + 1]), _mm256_maskload_ps(r + n_o, mask), s1);
+        s2 = _mm256_fmadd_ps(_mm256_set1_ps(x[i + 2]), _mm256_maskload_ps(r + 2 * (size_t)n_o, mask), s2);
+        s3 = _mm256_fmadd_ps(_mm256_set1_ps(x[i + 3]), _mm256_maskload_ps(r + 3 * (size_t)n_o, mask), s3);
     }
+    for (; i < n_i; i++, r += n_o)
+        s0 = _mm256_fmadd_ps(_mm256_set1_ps(x[i]), _mm256_maskload_ps(r, mask), s0);
+    _mm256_maskstore_ps(y + ob, mask, _mm256_add_ps(_mm256_add_ps(s0, s1), _mm256_add_ps(s2, s3)));
+}
 
-TAIL_MATVEC(tail_avx2, "avx2,fma")
-TAIL_MATVEC(tail_avx512, "avx512f,fma")
+__attribute__((target("avx512f,fma"))) static void tail_avx512(const float *x, const float *W,
+                                                              const float *b, float *y, int n_i,
+                                                              int n_o, int ob) {
+    if (ob >= n_o) return;
+    __mmask16 mask = (__mmask16)((1u << (n_o - ob)) - 1);
+    __m512 s0 = _mm512_maskz_loadu_ps(mask, b + ob), s1 = _mm512_setzero_ps(), s2 = s1, s3 = s1;
+    const float *r = W + ob;
+    int i = 0;
+    for (; i + 4 <= n_i; i += 4, r += 4 * (size_t)n_o) {
+        s0 = _mm512_fmadd_ps(_mm512_set1_ps(x[i]), _mm512_maskz_loadu_ps(mask, r), s0);
+        s1 = _mm512_fmadd_ps(_mm512_set1_ps(x[i + 1]), _mm512_maskz_loadu_ps(mask, r + n_o), s1);
+        s2 = _mm512_fmadd_ps(_mm512_set1_ps(x[i + 2]), _mm512_maskz_loadu_ps(mask, r + 2 * (size_t)n_o), s2);
+        s3 = _mm512_fmadd_ps(_mm512_set1_ps(x[i + 3]), _mm512_maskz_loadu_ps(mask, r + 3 * (size_t)n_o), s3);
+    }
+    for (; i < n_i; i++, r += n_o)
+        s0 = _mm512_fmadd_ps(_mm512_set1_ps(x[i]), _mm512_maskz_loadu_ps(mask, r), s0);
+    _mm512_mask_storeu_ps(y + ob, mask, _mm512_add_ps(_mm512_add_ps(s0, s1), _mm512_add_ps(s2, s3)));
+}
 
 /* y (n_o) = b + x (n_i) @ W (n_i, n_o), W row-major: AVX-512, 128 outputs per pass in 8 registers */
-__attribute__((target("avx512f,fma"))) static void matvec_avx512(const float *x, const float *W,
-                                                                const float *b, float *y, int n_i,
-                                                                int n_o) {
-    int ob = 0;
+__attribute__((target("avx512f,fma"))) static void matvec_avx512_from(const float *x,
+                                                                     const float *W,
+                                                                     const float *b, float *y,
+                                                                     int n_i, int n_o, int ob) {
     for (; ob + 128 <= n_o; ob += 128) {
         __m512 a0 = _mm512_loadu_ps(b + ob), a1 = _mm512_loadu_ps(b + ob + 16);
         __m512 a2 = _mm512_loadu_ps(b + ob + 32), a3 = _mm512_loadu_ps(b + ob + 48);
@@ -105,6 +125,54 @@ __attribute__((target("avx512f,fma"))) static void matvec_avx512(const float *x,
         ob += 8;
     }
     tail_avx512(x, W, b, y, n_i, n_o, ob);
+}
+
+__attribute__((target("avx512f,fma"))) static void matvec_avx512(const float *x, const float *W,
+                                                                const float *b, float *y, int n_i,
+                                                                int n_o) {
+    matvec_avx512_from(x, W, b, y, n_i, n_o, 0);
+}
+
+/* two rows through the same weights in one pass (each weight loaded once for both): the
+ * 128-output blocks with 8 accumulators per row, the rest row by row; every output's
+ * operations are those of matvec_avx512, so the bits are too */
+__attribute__((target("avx512f,fma"))) static void matvec2_avx512(const float *xa,
+                                                                 const float *xb,
+                                                                 const float *W, const float *b,
+                                                                 float *ya, float *yb, int n_i,
+                                                                 int n_o) {
+    int ob = 0;
+    for (; ob + 128 <= n_o; ob += 128) {
+        __m512 a0 = _mm512_loadu_ps(b + ob), a1 = _mm512_loadu_ps(b + ob + 16);
+        __m512 a2 = _mm512_loadu_ps(b + ob + 32), a3 = _mm512_loadu_ps(b + ob + 48);
+        __m512 a4 = _mm512_loadu_ps(b + ob + 64), a5 = _mm512_loadu_ps(b + ob + 80);
+        __m512 a6 = _mm512_loadu_ps(b + ob + 96), a7 = _mm512_loadu_ps(b + ob + 112);
+        __m512 c0 = a0, c1 = a1, c2 = a2, c3 = a3, c4 = a4, c5 = a5, c6 = a6, c7 = a7;
+        const float *r = W + ob;
+        for (int i = 0; i < n_i; i++, r += n_o) {
+            __m512 ha = _mm512_set1_ps(xa[i]), hb = _mm512_set1_ps(xb[i]), w;
+            w = _mm512_loadu_ps(r), a0 = _mm512_fmadd_ps(ha, w, a0), c0 = _mm512_fmadd_ps(hb, w, c0);
+            w = _mm512_loadu_ps(r + 16), a1 = _mm512_fmadd_ps(ha, w, a1), c1 = _mm512_fmadd_ps(hb, w, c1);
+            w = _mm512_loadu_ps(r + 32), a2 = _mm512_fmadd_ps(ha, w, a2), c2 = _mm512_fmadd_ps(hb, w, c2);
+            w = _mm512_loadu_ps(r + 48), a3 = _mm512_fmadd_ps(ha, w, a3), c3 = _mm512_fmadd_ps(hb, w, c3);
+            w = _mm512_loadu_ps(r + 64), a4 = _mm512_fmadd_ps(ha, w, a4), c4 = _mm512_fmadd_ps(hb, w, c4);
+            w = _mm512_loadu_ps(r + 80), a5 = _mm512_fmadd_ps(ha, w, a5), c5 = _mm512_fmadd_ps(hb, w, c5);
+            w = _mm512_loadu_ps(r + 96), a6 = _mm512_fmadd_ps(ha, w, a6), c6 = _mm512_fmadd_ps(hb, w, c6);
+            w = _mm512_loadu_ps(r + 112), a7 = _mm512_fmadd_ps(ha, w, a7), c7 = _mm512_fmadd_ps(hb, w, c7);
+        }
+        _mm512_storeu_ps(ya + ob, a0), _mm512_storeu_ps(ya + ob + 16, a1);
+        _mm512_storeu_ps(ya + ob + 32, a2), _mm512_storeu_ps(ya + ob + 48, a3);
+        _mm512_storeu_ps(ya + ob + 64, a4), _mm512_storeu_ps(ya + ob + 80, a5);
+        _mm512_storeu_ps(ya + ob + 96, a6), _mm512_storeu_ps(ya + ob + 112, a7);
+        _mm512_storeu_ps(yb + ob, c0), _mm512_storeu_ps(yb + ob + 16, c1);
+        _mm512_storeu_ps(yb + ob + 32, c2), _mm512_storeu_ps(yb + ob + 48, c3);
+        _mm512_storeu_ps(yb + ob + 64, c4), _mm512_storeu_ps(yb + ob + 80, c5);
+        _mm512_storeu_ps(yb + ob + 96, c6), _mm512_storeu_ps(yb + ob + 112, c7);
+    }
+    if (ob < n_o) {
+        matvec_avx512_from(xa, W, b, ya, n_i, n_o, ob);
+        matvec_avx512_from(xb, W, b, yb, n_i, n_o, ob);
+    }
 }
 
 /* the same with AVX2: 64 outputs per pass in 8 registers */
@@ -173,31 +241,52 @@ typedef struct {
     const float *w[MAX_LAYERS], *b[MAX_LAYERS]; /* at member `start` */
 } Stack;
 
-/* every member m < M on its rows p < P: out[m, p] = mlp_m(x[m or 0, p]) */
+static void activate(float *y, int n, int relu) {
+#if HAVE_X86
+    if (relu) relu_avx2(y, n);
+    else tanh_inplace(y, n);
+#else
+    (void)y, (void)n, (void)relu;
+#endif
+}
+
+/* every member m < M on its rows p < P: out[m, p] = mlp_m(x[m or 0, p]); with AVX-512 two rows
+ * at a time share each weight load (matvec2_avx512: the same bits). `buf` holds 4 hidden
+ * vectors of the widest layer. */
 static void run(const Stack *s, const float *x, int x_members, int M, int P, int relu,
-                float *out, float *buf_a, float *buf_b) {
+                float *out, float *buf, int width) {
 #if HAVE_X86
     matvec_fn matvec = variant == 512 ? matvec_avx512 : matvec_avx2;
+    int pairs = variant == 512;
 #else
     matvec_fn matvec = NULL;
+    int pairs = 0;
 #endif
     int last = s->n_layers - 1, n_x = s->n_in[0], n_a = s->n_out[last];
     for (int m = 0; m < M; m++) {
-        for (int p = 0; p < P; p++) {
+        int p = 0;
+#if HAVE_X86
+        for (; pairs && p + 2 <= P; p += 2) {
+            const float *ha = x + ((size_t)(x_members > 1 ? m : 0) * P + p) * n_x, *hb = ha + n_x;
+            for (int k = 0; k <= last; k++) {
+                int n_i = s->n_in[k], n_o = s->n_out[k];
+                const float *w = s->w[k] + (size_t)m * n_i * n_o, *b = s->b[k] + (size_t)m * n_o;
+                float *ya = k == last ? out + ((size_t)m * P + p) * n_a : buf + (k % 2) * width;
+                float *yb = k == last ? ya + n_a : buf + (2 + k % 2) * width;
+                matvec2_avx512(ha, hb, w, b, ya, yb, n_i, n_o);
+                if (k < last) activate(ya, n_o, relu), activate(yb, n_o, relu);
+                ha = ya, hb = yb;
+            }
+        }
+#endif
+        for (; p < P; p++) {
             const float *h = x + ((size_t)(x_members > 1 ? m : 0) * P + p) * n_x;
             for (int k = 0; k <= last; k++) {
                 int n_i = s->n_in[k], n_o = s->n_out[k];
                 const float *w = s->w[k] + (size_t)m * n_i * n_o, *b = s->b[k] + (size_t)m * n_o;
-                float *y = k == last ? out + ((size_t)m * P + p) * n_a : (k % 2 ? buf_b : buf_a);
+                float *y = k == last ? out + ((size_t)m * P + p) * n_a : buf + (k % 2) * width;
                 matvec(h, w, b, y, n_i, n_o);
-                if (k < last) {
-#if HAVE_X86
-                    if (relu) relu_avx2(y, n_o);
-                    else tanh_inplace(y, n_o);
-#else
-                    (void)relu;
-#endif
-                }
+                if (k < last) activate(y, n_o, relu);
                 h = y;
             }
         }
@@ -295,7 +384,7 @@ static PyObject *forward(PyObject *self, PyObject *args) {
     }
     npy_intp dims[3] = {members, xs[1], n_in};
     PyObject *out = PyArray_SimpleNew(3, dims, NPY_FLOAT32);
-    float *buf = out ? malloc(2 * (size_t)width * sizeof(float)) : NULL;
+    float *buf = out ? malloc(4 * (size_t)width * sizeof(float)) : NULL;
     if (buf == NULL) {
         Py_XDECREF(out);
         if (!PyErr_Occurred()) PyErr_NoMemory();
@@ -305,7 +394,7 @@ static PyObject *forward(PyObject *self, PyObject *args) {
     float *out_data = (float *)PyArray_DATA((PyArrayObject *)out);
     int x_members = (int)xs[0], P = (int)xs[1];
     Py_BEGIN_ALLOW_THREADS
-    run(&s, x_data, x_members, (int)members, P, relu, out_data, buf, buf + width);
+    run(&s, x_data, x_members, (int)members, P, relu, out_data, buf, (int)width);
     Py_END_ALLOW_THREADS
     free(buf);
     Py_DECREF(keep);

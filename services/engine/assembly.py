@@ -15,7 +15,7 @@ Row layout of the member inputs (B observation rows, K task views, U_g partners 
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from typing import NamedTuple
 
 import numpy as np
@@ -35,6 +35,10 @@ class Layout(NamedTuple):
     positions: tuple[tuple[int, ...], ...]  # per impact member: the partners it serves, in order
     slots: Slots  # (partner position, goal) -> (member, block)
     models: tuple[ModelUsed, ...]  # `models_used`, the same objects on every call
+    # the goal distributions' mixes (`impact_q`): per goal count, the partners' positions and
+    # (P', G) rows of their goals' Q-values among the impact members' rows at batch 1 (member j
+    # has one row per partner it serves; at batch B each row is B rows)
+    mixes: tuple[tuple[tuple[int, ...], np.ndarray], ...]
 
 
 def _layout(checked: CheckedRequest, members: Sequence[Member], group: StackedGroup) -> Layout:
@@ -53,8 +57,21 @@ def _layout(checked: CheckedRequest, members: Sequence[Member], group: StackedGr
             j = member_of[goal]
             slots[(position, goal)] = (j, len(served[j]))
             served[j].append(position)
+    first_unit = np.cumsum([0] + [len(partners) for partners in served[1:]])  # per member j-1
+    by_count: dict[int, list[int]] = {}
+    for position, partner in enumerate(checked.partners):
+        if partner.probs is not None:
+            by_count.setdefault(len(partner.goals), []).append(position)
+    mixes = tuple(
+        (tuple(positions), np.array([
+            [first_unit[slots[(k, goal)][0] - 1] + slots[(k, goal)][1]
+             for goal in checked.partners[k].goals]
+            for k in positions
+        ], dtype=np.intp))
+        for positions in by_count.values()
+    )  # fmt: skip
     layout = Layout(
-        tuple(map(tuple, served[1:])), slots, tuple(_models_used(checked, members, group))
+        tuple(map(tuple, served[1:])), slots, tuple(_models_used(checked, members, group)), mixes
     )
     if len(group.memo) >= MEMO_MAX:
         group.memo.clear()
@@ -64,8 +81,9 @@ def _layout(checked: CheckedRequest, members: Sequence[Member], group: StackedGr
 
 def member_inputs(
     checked: CheckedRequest, members: Sequence[Member], group: StackedGroup
-) -> tuple[list[np.ndarray], Slots]:
-    """Each member's input rows (table above) and the partners' slots."""
+) -> tuple[list[np.ndarray], Layout | None]:
+    """Each member's input rows (table above) and the request's layout (None: no impact
+    network)."""
     obs_BD, n_agents, domain = checked.obs_BD, checked.n_agents, checked.runtime.domain
     if members[0][0] == "joint":
         joint = group.nets[0]
@@ -75,11 +93,11 @@ def member_inputs(
                 f"the joint network {joint.name} takes {joint.spec.obs_dim} features, "
                 f"the observations have {obs_BD.shape[1]} (a joint network knows no bystanders)",
             )
-        return [obs_BD], {}
+        return [obs_BD], None
     views_BKP = domain.task_views(obs_BD, n_agents)
     inputs = [views_BKP.reshape(-1, views_BKP.shape[-1])]
     if len(members) == 1:
-        return inputs, {}
+        return inputs, None
     layout = _layout(checked, members, group)
     views = [domain.impact_view(obs_BD, n_agents, p.index) for p in checked.partners]
     joined: dict[tuple[int, ...], np.ndarray] = {}  # members serving the same partners share
@@ -88,35 +106,45 @@ def member_inputs(
             blocks = [views[position] for position in positions]
             joined[positions] = blocks[0] if len(blocks) == 1 else np.concatenate(blocks)
         inputs.append(joined[positions])
-    return inputs, layout.slots
+    return inputs, layout
 
 
 def impact_q(
-    checked: CheckedRequest,
-    q_members: Sequence[np.ndarray],
-    slots: Mapping[tuple[int, str], tuple[int, int]],
+    checked: CheckedRequest, q_members: Sequence[np.ndarray], layout: Layout | None
 ) -> np.ndarray:
     """One impact Q-vector per partner, (B, P, A); a goal distribution is mixed by its
     probabilities (§3.2: the expected impact Q, `mix_goal_beliefs`' einsum on the same float64
-    values, without its checks: a non-finite Q goes on to the caller's overflow check)."""
+    values, without its checks: a non-finite Q goes on to the caller's overflow check).
+    Distributions over equally many goals (a session's whole beliefs) share one einsum: its
+    (b, p, a) sums are those of one einsum per partner, bit for bit (checked on random data)."""
     batch, n_actions = checked.obs_BD.shape[0], checked.runtime.domain.n_actions
-    per_partner = []
-    for position, partner in enumerate(checked.partners):
-        q_GBA = []
-        for goal in partner.goals:
-            j, block = slots[(position, goal)]
-            q_GBA.append(q_members[j][block * batch : (block + 1) * batch])
-        if partner.probs is None:
-            per_partner.append(q_GBA[0])
-        else:
-            q_B1GA = np.stack(q_GBA, axis=1)[:, None].astype(np.float64)
-            probs_B1G = np.ascontiguousarray(  # the operand layout mix_goal_beliefs passes
-                np.broadcast_to(np.asarray(partner.probs, np.float64), q_B1GA.shape[:3])
-            )
-            per_partner.append(np.einsum("bpg,bpga->bpa", probs_B1G, q_B1GA)[:, 0])
-    if not per_partner:
+    partners = checked.partners
+    if layout is None or not partners:
         return np.zeros((batch, 0, n_actions))
-    return np.stack(per_partner, axis=1)
+    per_partner: list[np.ndarray | None] = [None] * len(partners)
+    for position, partner in enumerate(partners):
+        if partner.probs is None:
+            j, block = layout.slots[(position, partner.goals[0])]
+            per_partner[position] = q_members[j][block * batch : (block + 1) * batch]
+    if layout.mixes:
+        q_all = np.concatenate(q_members[1:])  # the impact members' rows, one after the other
+        for positions, units_PG in layout.mixes:
+            # (B, P', G, A) float64 in C order, the operand mix_goal_beliefs passes
+            if batch == 1:
+                q_BPGA = q_all[units_PG][None].astype(np.float64)
+            else:
+                rows_PGB = units_PG[:, :, None] * batch + np.arange(batch)
+                q_BPGA = q_all[rows_PGB].transpose(2, 0, 1, 3).astype(np.float64, order="C")
+            probs_PG = np.array([partners[k].probs for k in positions], np.float64)
+            probs_BPG = (
+                probs_PG[None]
+                if batch == 1
+                else np.ascontiguousarray(np.broadcast_to(probs_PG, q_BPGA.shape[:3]))
+            )
+            q_BPA = np.einsum("bpg,bpga->bpa", probs_BPG, q_BPGA)
+            for i, position in enumerate(positions):
+                per_partner[position] = q_BPA[:, i]
+    return np.stack(per_partner, axis=1)  # type: ignore[arg-type]  # every slot filled
 
 
 def models_used(

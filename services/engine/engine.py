@@ -151,7 +151,7 @@ class InferenceEngine:
             results = act_row(checked, request, members, group, self._rng)
             if results is not None:
                 return results
-        inputs, slots = member_inputs(checked, members, group)
+        inputs, layout = member_inputs(checked, members, group)
         q_members = forward_group(group, inputs)
         if method == "jl":
             q_task_BA = q_members[0]
@@ -161,7 +161,7 @@ class InferenceEngine:
         q_impact_BPA = np.zeros((batch, 0, n_actions))  # sl, jl: the task/joint network alone
         if method in ("nail", "aail"):
             blend_method = "nail" if method == "nail" else "aail"
-            q_impact_BPA = impact_q(checked, q_members, slots)
+            q_impact_BPA = impact_q(checked, q_members, layout)
         if not (np.isfinite(q_task_BA).all() and np.isfinite(q_impact_BPA).all()):
             raise InvalidRequest("observations", "values so large that the Q-values overflow")
         temperature = request.temperature or group.nets[0].alpha or DEFAULT_TEMPERATURE
