@@ -67,3 +67,41 @@ def test_general_path_layouts_are_remembered(tiny_zoo) -> None:
     assert all(a is b for a, b in zip(first[0].models, second[0].models, strict=True))
     assert [r.probs for r in first] == [r.probs for r in second]
     assert [m.partner_index for m in first[0].models] == [None, 1, 1, 2, 2]
+
+
+@pytest.mark.parametrize("batch", [1, 3])
+def test_goal_distributions_mix_as_mix_goal_beliefs_does(tiny_zoo, batch: int) -> None:
+    """`impact_q` mixes equal-size distributions in one einsum over precomputed rows: each
+    partner's expected Q is `mix_goal_beliefs` of its own goals' Q-values, bit for bit (an
+    announced partner and a distribution of another size beside them)."""
+    from policy.blend import mix_goal_beliefs
+    from services.engine import ActRequest, InferenceEngine, PartnerSpec
+    from services.engine.assembly import impact_q, member_inputs
+    from services.engine.networks import forward_group
+    from services.engine.validation import check_request
+
+    engine = InferenceEngine(tiny_zoo.store)
+    rng = np.random.default_rng(batch)
+    goals = ["b3", "c1"]
+    partners = (
+        PartnerSpec(1, goal_probs=dict(zip(goals, rng.dirichlet([1, 1]).tolist(), strict=True))),
+        PartnerSpec(2, goal="c1"),
+        PartnerSpec(3, goal_probs=dict(zip(goals, rng.dirichlet([1, 1]).tolist(), strict=True))),
+        PartnerSpec(4, goal_probs={"b3": 1.0}),
+    )
+    request = ActRequest("particle", "a2", rng.random((batch, 20)), partners)
+    checked = check_request(request, 4096)
+    members, group = engine._resolve_members(request, checked)
+    inputs, layout = member_inputs(checked, members, group)
+    q_members = forward_group(group, inputs)
+    got = impact_q(checked, q_members, layout)
+    assert layout is not None and got.shape == (batch, 4, 5)
+    for position, partner in enumerate(checked.partners):
+        blocks = [layout.slots[(position, goal)] for goal in partner.goals]
+        q_BGA = np.stack([q_members[j][k * batch : (k + 1) * batch] for j, k in blocks], axis=1)
+        if partner.probs is None:
+            np.testing.assert_array_equal(got[:, position], q_BGA[:, 0])
+            continue
+        probs = np.broadcast_to(np.asarray(partner.probs), (batch, 1, len(blocks)))
+        want = mix_goal_beliefs(q_BGA[:, None].astype(np.float64), probs)[:, 0]
+        np.testing.assert_array_equal(got[:, position], want)
