@@ -21,7 +21,7 @@ Closed loop and paced. wrk sends each request the moment the previous answer is 
 loop: no time between steps) and, in the "paced" cases, `--pause-ms` after it (default 5 ms:
 a 200 Hz control loop, faster than most robots step). The difference matters for sessions: the
 server scores step t + 1's evidence right after sending step t's answer
-(`Session.prepare_next`, ~60 µs), which a paced client never waits for and a closed-loop one
+(`Session.prepare_next`, ~50 µs), which a paced client never waits for and a closed-loop one
 waits for in part (wrk's turnaround hides ~30 µs of it). The act and the step are paced alike.
 
 Why the top-8 case: a blend of the belief's top goals only (99 % of the mass, at most 8; the

@@ -25,12 +25,12 @@ COEXIST_PYTHON_BELIEF=1 (read at import), or a build without a C compiler, keeps
 from __future__ import annotations
 
 import math
-import os
 from collections.abc import Sequence
-from types import ModuleType
 from typing import NamedTuple
 
 import numpy as np
+
+from policy._extensions import load
 
 MAX_TOP = 64  # top goals the compiled views list at most (policy/_belief_row.c)
 
@@ -44,17 +44,7 @@ class BeliefView(NamedTuple):
     entropy: float  # and entropy
 
 
-def _extension() -> ModuleType | None:
-    if os.environ.get("COEXIST_PYTHON_BELIEF", "").strip() in ("1", "true", "yes"):
-        return None
-    try:
-        from policy import _belief_row
-    except ImportError:  # built without a C compiler
-        return None
-    return _belief_row
-
-
-_EXTENSION = _extension()
+_EXTENSION = load("_belief_row", "COEXIST_PYTHON_BELIEF")
 COMPILED = _EXTENSION is not None
 
 

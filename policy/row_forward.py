@@ -23,28 +23,19 @@ the same on every x86-64 with AVX2); tests/policy/test_row_forward.py bounds the
 
 from __future__ import annotations
 
-import os
 from collections.abc import Sequence
-from types import ModuleType
 
 import numpy as np
+
+from policy._extensions import load
 
 Layers = Sequence[tuple[np.ndarray, np.ndarray]]
 
 __all__ = ["COMPILED", "VARIANT", "all_finite", "numpy_row_forward", "row_forward"]
 
 
-def _compiled() -> ModuleType | None:
-    if os.environ.get("COEXIST_PYTHON_FORWARD", "").strip() in ("1", "true", "yes"):
-        return None
-    try:
-        from policy import _row_forward
-    except ImportError:  # built without a C compiler
-        return None
-    return _row_forward if _row_forward.VARIANT != "none" else None
-
-
-_EXTENSION = _compiled()
+_LOADED = load("_row_forward", "COEXIST_PYTHON_FORWARD")
+_EXTENSION = _LOADED if _LOADED is not None and _LOADED.VARIANT != "none" else None
 COMPILED = _EXTENSION is not None
 VARIANT: str = _EXTENSION.VARIANT if _EXTENSION is not None else "numpy"
 

@@ -32,8 +32,8 @@ Scoring ahead (`prepare_next`, on by default; `prefetch=False` turns it off). St
 evidence is scored on o_t, which step t already holds: right after step t's answer is sent, the
 transport calls `prepare_next`, which runs the likelihood pass on o_t for every action
 (`goal_inference.likelihood_table`, G x P x A numbers), so that step t + 1 only picks its
-actions' entries instead of running the pass while the client waits (~60 of a REST step's
-~250 µs of work). The numbers are those of the pass run at step t + 1, bit for bit; a step
+actions' entries instead of running the pass while the client waits (~50 of a REST step's
+~200 µs of work). The numbers are those of the pass run at step t + 1, bit for bit; a step
 uses the table only if it was made for that step, for those partners (`LikelihoodTable.pick`)
 and with the task networks the aliases resolve to at that step (a hot reload in between: the
 pass runs again). New settings drop it. The CPU work is the same, moved off the step's
