@@ -11,8 +11,8 @@ The belief itself (prior, forgetting, floor) is pure maths in `policy.belief`.
 | views    | per partner p its view of the pair, `domain.partner_view(obs, N, p)`, as   |
 |          | one proven gather of the observation when the domain's view is a selection |
 | forward  | one stacked pass per spec partition: the same (P, pair_obs_dim) rows go    |
-|          | through all G networks, (1, P, F) @ (G, F, H) ... -> (G, P, A); with 2-3   |
-|          | partners one such pass per partner (faster: `ROW_BY_ROW_MAX`)              |
+|          | through all G networks, (1, P, F) @ (G, F, H) ... -> (G, P, A); in numpy,  |
+|          | with 2-3 partners one such pass per partner (faster: `ROW_BY_ROW_MAX`)     |
 | softmax  | log softmax(Q_g / α_g)[a_p] (`policy.belief.boltzmann_log_likelihoods`'s  |
 |          | arithmetic, bit for bit, on the forward's layout: `_log_likelihoods`;      |
 |          | compiled by `policy.belief_compiled.compiled_log_softmax`, the same bits)  |
@@ -67,11 +67,16 @@ from services.engine.validation import check_alias, check_observations, check_ve
 
 VIEW_GATHERS_MAX = 1024  # (env, agent count, partners) layouts remembered (cleared when full)
 ALPHA_MEMO_KEY = ("goal_inference", "alpha_G")  # the group's per-goal training α, memoised
-# 2 or 3 partners: one pass per partner row. Measured with G = 35 nets 8-128-128-5, one
-# OpenBLAS thread: a one-row pass (matrix-vector products) costs ~47 µs, so 2 rows ~95 and 3 ~141,
-# while one (G, P, 128) pass costs ~149 µs for 2 rows and ~207 for 3 (small-M sgemm kernels), and
-# ~146 for 4 rows, where the single pass wins again.
+# numpy (no compiled forward) with 2 or 3 partners: one pass per partner row. Measured with
+# G = 35 nets 8-128-128-5, one OpenBLAS thread: a one-row pass (matrix-vector products) costs
+# ~47 µs, so 2 rows ~95 and 3 ~141, while one (G, P, 128) pass costs ~149 µs for 2 rows and ~207
+# for 3 (small-M sgemm kernels), and ~146 for 4 rows, where the single pass wins again. The
+# compiled forward takes every row in one pass (the weights stream once) and computes each row
+# alone, bit for bit, however many rows come with it.
 ROW_BY_ROW_MAX = 3
+# whether a pass's rows are each what a pass of that row alone gives (then any subset of a
+# table's partners can be served): always compiled; with numpy only row by row
+ROWS_INDEPENDENT = ROW_FORWARD
 # z = Q - max Q with Q finite in float32, so |z| < 2^129: z / α overflows float64 (max ~2^1024)
 # only for α below ~2^-895 ~ 1e-269
 TINY_ALPHA = 1e-250
@@ -152,10 +157,10 @@ def _forward_shared(part: Partition, x_1PF: np.ndarray) -> np.ndarray:
 
 def _forward_all(group: StackedGroup, x_1PF: np.ndarray) -> np.ndarray:
     """Q-values (G, P, A) of every member of the group on the same rows: one stacked pass per
-    spec partition (one in total when every task network has the same architecture), per
-    partner row when there are 2 or 3 (`ROW_BY_ROW_MAX`)."""
+    spec partition (one in total when every task network has the same architecture); with
+    numpy, per partner row when there are 2 or 3 (`ROW_BY_ROW_MAX`)."""
     n_rows = x_1PF.shape[1]
-    if 1 < n_rows <= ROW_BY_ROW_MAX:
+    if not ROW_FORWARD and 1 < n_rows <= ROW_BY_ROW_MAX:
         return np.concatenate([_forward_all(group, x_1PF[:, p : p + 1]) for p in range(n_rows)], 1)
     if len(group.partitions) == 1:
         return _forward_shared(group.partitions[0], x_1PF)
@@ -364,9 +369,10 @@ class LikelihoodTable:
 
     `pick` returns exactly what `checked_log_likelihoods` would on the same observation and
     networks, bit for bit: z - log_norm subtracted per element either way. Rows are
-    independent when the table's forward ran row by row (P <= `ROW_BY_ROW_MAX`, also for P =
-    1), so any such subset of its partners is served; a batched table (P > 3) serves its own
-    partner tuple only (a batched matrix product may round a row differently with other rows).
+    independent with the compiled forward, and with numpy when the table's forward ran row by
+    row (P <= `ROW_BY_ROW_MAX`, also for P = 1), so any subset of such a table's partners is
+    served; a batched numpy table (P > 3) serves its own partner tuple only (a batched matrix
+    product may round a row differently with other rows).
     """
 
     group: StackedGroup  # the task networks it was computed with
@@ -384,10 +390,9 @@ class LikelihoodTable:
         if wanted == self.partners:
             rows: Sequence[int] = range(len(wanted))
         elif (
-            len(self.partners) <= ROW_BY_ROW_MAX
-            and len(wanted) <= ROW_BY_ROW_MAX
-            and set(wanted) <= set(self.partners)
-        ):
+            ROWS_INDEPENDENT
+            or (len(self.partners) <= ROW_BY_ROW_MAX and len(wanted) <= ROW_BY_ROW_MAX)
+        ) and set(wanted) <= set(self.partners):
             rows = [self.partners.index(p) for p in wanted]
         else:
             return None
