@@ -36,7 +36,6 @@
 #define MAX_LAYERS 16
 
 typedef void (*matvec_fn)(const float *x, const float *W, const float *b, float *y, int n_i, int n_o);
-typedef void (*relu_fn)(float *h, int n);
 
 #if defined(__x86_64__) && defined(__GNUC__)
 #include <immintrin.h>
