@@ -18,6 +18,9 @@ no padding): numpy's batched 3-D matmul does not reach BLAS speed, one 2-D produ
 does, so at batch 256 the members' BLAS calls win. A single observation row is cheapest as R
 one-row members (K task views + one view per impact net): R matrix-vector products in one
 stacked call, ~2x faster than the padded (G, K, D) stack (`forward_rows`, `Partition`).
+Where `policy.row_forward` is compiled, `forward_rows` and every partition of at most
+`ROW_FORWARD_MAX_ROWS` rows per member run in its single C loop (each weight read once) instead
+of numpy's matmul.
 """
 
 from __future__ import annotations
