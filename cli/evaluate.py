@@ -2,8 +2,9 @@
 (`--suite inference`: the online goal-inference experiments, `cli.evaluate_inference`;
 `--suite cooking`: the kitchen experiment of Fig. 9, `cli.evaluate_cooking`).
 
-    coexist eval --suite paper [--server URL] [--episodes N] [--pairs K] [--out reports/paper]
-                 [--store-url URL] [--fast]
+    coexist eval --suite paper [--server URL] [--episodes N] [--replicates R] [--seed S]
+                 [--aligned-pairs K] [--non-aligned-pairs K] [--mixed-pairs K]
+                 [--five-agent-sets K] [--out reports/paper] [--store-url URL] [--fast]
 
 In-process by default: the `InferenceEngine` (the code the servers run) over the model store.
 With `--server http://host:port` (REST) or `--server grpc://host:port` the episodes go through a
@@ -31,6 +32,23 @@ ServerOpt = Annotated[
 ]
 StoreOpt = Annotated[str | None, typer.Option(help="Model store URL (default: embedded SQLite).")]
 CountOpt = Annotated[int | None, typer.Option(min=1, help="Default: 200 (--fast: 6).")]
+PAPER_COUNTS = (
+    "episodes",
+    "five_agent_episodes",
+    "replicates",
+    "aligned_pairs",
+    "non_aligned_pairs",
+    "mixed_pairs",
+    "pair_episodes",
+    "five_agent_sets",
+    "set_episodes",
+    "max_steps",
+    "seed",
+)
+ClassOpt = Annotated[
+    int | None,
+    typer.Option(min=0, help="Pairs of this strict class drawn per replicate (paper suite)."),
+]
 
 
 def _progress_factory(bars: Any) -> Any:
@@ -48,13 +66,13 @@ def _progress_factory(bars: Any) -> Any:
 @contextmanager
 def _fast_store(config: Any) -> Iterator[Any]:
     """A temporary store holding a tiny zoo for the suite's goals."""
-    from evaluation.config import pair_scenarios, paper_scenarios
+    from evaluation.config import goal_set_scenarios, pair_scenarios, paper_scenarios
     from evaluation.prepare import train_tiny_zoo
     from model_store.sql import SqlModelStore
 
     with tempfile.TemporaryDirectory(prefix="coexist-eval-") as tmp:
         store = SqlModelStore(f"sqlite:///{tmp}/models.db")
-        scenarios = paper_scenarios(config) + pair_scenarios(config)
+        scenarios = paper_scenarios(config) + pair_scenarios(config) + goal_set_scenarios(config)
         combos = [s.goals for s in scenarios[:3]] + [s.goals for s in scenarios[3:5]]
         train_tiny_zoo(
             store,
@@ -82,8 +100,10 @@ def _command(
     words += ["--fast"] if config.fast else []
     words += ["--server", server] if server else []
     words += ["--store-url", store_url] if store_url else []
-    for name in ("episodes", "five_agent_episodes", "pairs", "pair_episodes", "max_steps", "seed"):
+    for name in PAPER_COUNTS:
         words += [f"--{name.replace('_', '-')}", str(getattr(config, name))]
+    if config.regret_bound is not None:
+        words += ["--regret-bound", str(config.regret_bound)]
     words += ["--alias", config.alias, "--partner-alias", config.partner_alias, "--out", str(out)]
     words += ["--timing-log", str(log)] if log else []
     for run_dir in run_dirs:
@@ -104,7 +124,29 @@ def evaluate(
         int | None, typer.Option(min=1, help="Default: 100 (--fast: 4).")
     ] = None,
     pairs: Annotated[
-        int | None, typer.Option(min=0, help="Sampled goal pairs. Default: 100 (--fast: 3).")
+        int | None,
+        typer.Option(min=0, help="--suite inference: sampled goal pairs. Default: 100."),
+    ] = None,
+    replicates: Annotated[
+        int | None,
+        typer.Option(
+            min=1,
+            help="Replicates (seeds seed, seed+1, ...), each drawing its own "
+            "pairs, goal sets and starts. Default: 3 (--fast: 1).",
+        ),
+    ] = None,
+    aligned_pairs: ClassOpt = None,
+    non_aligned_pairs: ClassOpt = None,
+    mixed_pairs: ClassOpt = None,
+    five_agent_sets: Annotated[
+        int | None, typer.Option(min=0, help="Five-agent goal sets per replicate. Default: 8.")
+    ] = None,
+    set_episodes: Annotated[
+        int | None, typer.Option(min=1, help="Episodes per goal set. Default: 40.")
+    ] = None,
+    regret_bound: Annotated[
+        float | None,
+        typer.Option(min=0.0, help="AAIL-B's ε (default: the task network's training α)."),
     ] = None,
     pair_episodes: Annotated[
         int | None, typer.Option(min=1, help="Episodes per pair. Default: 20 (--fast: 3).")
@@ -130,6 +172,13 @@ def evaluate(
         "partners"
     ),
     fast: Annotated[bool, typer.Option(help="A few short episodes (tests the harness).")] = False,
+    print_combos: Annotated[
+        bool,
+        typer.Option(
+            help="Print the goal combinations of this run, comma-separated (for "
+            "`coexist train joint --combos`), and exit."
+        ),
+    ] = False,
 ) -> None:
     """Run the paper's experiments (§4.2) and write REPORT.md with tables, plots and verdicts."""
     from rich.console import Console
@@ -156,7 +205,10 @@ def evaluate(
 
         paper_only = {"five_agent_episodes": five_agent_episodes, "pairs": pairs,
                       "pair_episodes": pair_episodes, "timing_log": timing_log,
-                      "run_dir": run_dir, "fast": fast}  # fmt: skip
+                      "run_dir": run_dir, "fast": fast, "replicates": replicates,
+                      "aligned_pairs": aligned_pairs, "non_aligned_pairs": non_aligned_pairs,
+                      "mixed_pairs": mixed_pairs, "five_agent_sets": five_agent_sets,
+                      "set_episodes": set_episodes, "regret_bound": regret_bound}  # fmt: skip
         evaluate_cooking_suite(
             server=server, store_url=store_url, out=out, seed=seed, episodes=episodes,
             max_steps=max_steps, alias=alias, partner_alias=partner_alias, paper_only=paper_only,
@@ -167,10 +219,19 @@ def evaluate(
             f"unknown suite {suite!r}; expected 'paper', 'inference' or 'cooking'",
             param_hint="--suite",
         )
+    if pairs is not None:
+        raise typer.BadParameter(
+            "used by --suite inference only; the paper suite draws pairs per class "
+            "(--aligned-pairs, --non-aligned-pairs, --mixed-pairs)",
+            param_hint="--pairs",
+        )
     base = fast_config() if fast else SuiteConfig()
     overrides: dict[str, Any] = {
-        "episodes": episodes, "five_agent_episodes": five_agent_episodes, "pairs": pairs,
-        "pair_episodes": pair_episodes, "max_steps": max_steps,
+        "episodes": episodes, "five_agent_episodes": five_agent_episodes,
+        "replicates": replicates, "aligned_pairs": aligned_pairs,
+        "non_aligned_pairs": non_aligned_pairs, "mixed_pairs": mixed_pairs,
+        "pair_episodes": pair_episodes, "five_agent_sets": five_agent_sets,
+        "set_episodes": set_episodes, "max_steps": max_steps, "regret_bound": regret_bound,
     }  # fmt: skip
     try:
         config = replace(
@@ -182,6 +243,12 @@ def evaluate(
         )
     except ValueError as err:
         raise typer.BadParameter(str(err)) from None
+    if print_combos:
+        from evaluation.config import goal_set_scenarios, pair_scenarios, paper_scenarios
+
+        scenarios = paper_scenarios(config) + pair_scenarios(config) + goal_set_scenarios(config)
+        print(",".join(dict.fromkeys(s.combo for s in scenarios)))
+        return
     out = out or Path("reports/paper-fast" if fast else "reports/paper")
     console = Console()
     with ExitStack() as stack:

@@ -21,8 +21,7 @@ larger than AAIL's own difference from SL. Tightening can only turn a pass into 
 | 4     | training cost of that coverage for N = 2 (measured wall time per       | AAIL < JL            |
 |       | network, else env transitions per network)                             |                      |
 
-On the pair sample the unit is a pair (per-pair means, `evaluation.pairs`); success gaps use
-the per-pair success rates and their Wilcoxon test instead of McNemar's.
+Goal pairs and goal sets beyond the paper's scenarios are judged by `evaluation.targets`.
 """
 
 from __future__ import annotations
@@ -30,7 +29,6 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
-from evaluation.pairs import PairGroup
 from evaluation.rollout import CellResult
 from evaluation.scaling import KindTraining, networks_needed
 from evaluation.stats import compare_cells
@@ -148,46 +146,6 @@ SIMILAR = f"AAIL ≈ NAIL on team return (p >= {ALPHA_STRONG:g}, abs(A − N) <=
 def _similar(diff: float, p: float, gain_over_sl: float, shown: str) -> Check:
     passed = p >= ALPHA_STRONG and abs(diff) <= abs(gain_over_sl)
     return Check(SIMILAR, passed, f"{shown} ({_p(p)}); AAIL − SL = {gain_over_sl:.2f}")
-
-
-def _pair_check(group: PairGroup, method: str, other: str, text: str, passes: str) -> Check:
-    test = group.test(method, other, "team")
-    if test is None:
-        return Check(text, False, f"no pair ran both {method.upper()} and {other.upper()}")
-    diff, p = test.diff.mean, test.p
-    if passes == "similar":
-        gain = group.test("aail", "sl", "team")
-        shown = f"mean per-pair AAIL − NAIL = {test.diff} over {test.n_pairs} pairs"
-        return _similar(diff, p, gain.diff.mean if gain else float("nan"), shown)
-    passed = diff > 0 and p < ALPHA_STRONG
-    return Check(
-        text,
-        passed,
-        f"mean per-pair {method.upper()} − {other.upper()} = {test.diff} ({_p(p)}, "
-        f"{test.n_pairs} pairs, {method.upper()} higher in {test.better:.0%})",
-    )
-
-
-def claim_aligned_pairs(group: PairGroup) -> Claim:
-    checks = (
-        _pair_check(
-            group, "aail", "sl", f"AAIL team return > SL (p < {ALPHA_STRONG:g})", "greater"
-        ),
-        _pair_check(
-            group, "nail", "sl", f"NAIL team return > SL (p < {ALPHA_STRONG:g})", "greater"
-        ),
-        _pair_check(group, "aail", "nail", SIMILAR, "similar"),
-    )
-    return Claim("1 (pairs)", "goal-aligned, over the sampled aligned pairs", "", checks)
-
-
-def claim_non_aligned_pairs(group: PairGroup) -> Claim:
-    success = {m: group.means[m]["ego_success"].mean for m in ("sl", "nail", "aail")}
-    ego = {m: group.means[m]["ego"].mean for m in ("sl", "nail", "aail")}
-    test = group.test("aail", "nail", "ego_success")
-    p = test.p if test is not None else 1.0
-    checks = _non_aligned_checks(success, ego, p, "pair, Wilcoxon")
-    return Claim("2 (pairs)", "non-aligned, over the sampled non-aligned pairs", "", checks)
 
 
 def claim_scaling(costs: Sequence[KindTraining], agents: Sequence[int] = (2, 3, 4, 5)) -> Claim:

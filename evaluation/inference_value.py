@@ -36,16 +36,16 @@ import numpy as np
 
 from envs.particle.batched import BatchedParticleWorld
 from envs.particle.goals import GOAL_IDS, goal_indices
-from envs.particle.scenarios import start_states
+from envs.particle.scenarios import sample_goal_pairs, start_states
 from evaluation.backend import EngineBackend
-from evaluation.config import Scenario, SuiteConfig, pair_scenarios, paper_scenarios
+from evaluation.config import Scenario, SuiteConfig, paper_scenarios
 from evaluation.inference import (
     SESSION_BLEND_MASS,
     SESSION_BLEND_MAX_GOALS,
     ego_probs_with_belief,
     partner_probs,
 )
-from evaluation.pairs import pair_means
+from evaluation.pairs import units_of
 from evaluation.rollout import (
     Cell,
     CellResult,
@@ -83,7 +83,6 @@ class ValueConfig:
         """The paper suite's settings these scenarios come from (same start seeds)."""
         return SuiteConfig(
             episodes=self.episodes,
-            pairs=self.pairs,
             pair_episodes=self.pair_episodes,
             max_steps=self.max_steps,
             seed=self.seed,
@@ -94,10 +93,20 @@ class ValueConfig:
 
 
 def value_scenarios(config: ValueConfig) -> tuple[list[Scenario], list[Scenario]]:
-    """The aligned and non-aligned scenarios, and the sampled pairs, of the paper suite."""
+    """The paper suite's aligned and non-aligned scenarios, and `pairs` goal pairs drawn from
+    the whole 35 × 35 catalogue (start seeds 1000 seed + 100 + i; the analysis keeps the
+    strictly aligned and strictly non-aligned ones, `envs.particle.scenarios.pair_class`)."""
     suite = config.suite_config()
     named = [s for s in paper_scenarios(suite) if s.n_agents == 2]
-    return named, pair_scenarios(suite)
+    if config.pairs == 0:
+        return named, []
+    base = 1000 * config.seed
+    drawn = sample_goal_pairs(base + 7, config.pairs)
+    pairs = [
+        Scenario(f"pair:{ego}+{partner}", ego, (partner,), config.pair_episodes, base + 100 + i)
+        for i, (ego, partner, _) in enumerate(drawn)
+    ]
+    return named, pairs
 
 
 @dataclass
@@ -283,15 +292,15 @@ def run_value(
         scenarios[s.name] = compare(s.name, values, success, config, float(top1[s.name].mean()))
     groups = {}
     pair_cells = [c for s in pairs for c in by_name[s.name].values()]
-    for label, flag in (("aligned pairs", True), ("non-aligned pairs", False)):
-        members = [p for p in pair_means(pair_cells) if p.scenario.aligned is flag]
+    for label, kind in (("aligned pairs", "aligned"), ("non-aligned pairs", "non_aligned")):
+        members = [u for u in units_of(pair_cells) if u.pair_class == kind]
         if not members:
             continue
         values = {
-            m: {k: np.array([p.by_method[m][k] for p in members]) for k in MEASURES}
+            m: {k: np.array([u.by_method[m][k] for u in members]) for k in MEASURES}
             for m in VALUE_METHODS
         }
-        success = {m: np.array([p.by_method[m]["ego_success"] for p in members]) for m in values}
-        hits = np.concatenate([top1[p.scenario.name] for p in members])
+        success = {m: np.array([u.by_method[m]["ego_success"] for u in members]) for m in values}
+        hits = np.concatenate([top1[s.name] for u in members for s in u.scenarios])
         groups[label] = compare(label, values, success, config, float(hits.mean()))
     return ValueResult(config, scenarios, groups, baseline + [c.result for c in inferred], walls)

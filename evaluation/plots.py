@@ -3,8 +3,8 @@
 | function              | paper    | what                                                        |
 |-----------------------|----------|-------------------------------------------------------------|
 | `plot_returns`        | Figs 5, 7| bars per method: each agent's return and the team's, ± SE   |
-| `plot_pairs`          | (ours)   | the pair sample: team and ego return per method, ± SE over  |
-|                       |          | pairs, aligned and non-aligned                              |
+| `plot_pairs`          | (ours)   | goal pairs per strict class and goal sets: each unit's team |
+|                       |          | return minus SL's, and the stuck episodes per method        |
 | `plot_directions`     | Fig. 6   | quiver of the expected acceleration over ego positions      |
 | `plot_training`       | Fig. 4   | training returns from the lineage's curve summaries         |
 | `plot_episode_strip`  |          | rendered frames of one episode, one row per method          |
@@ -27,11 +27,17 @@ from envs.particle.goals import INFLUENCE_BOXES_G4, TARGET_BOXES_G4, goal_index
 from envs.particle.render import render_frame
 from evaluation.config import METHOD_LABELS, Scenario
 from evaluation.directions import DirectionField
-from evaluation.pairs import PairGroup
+from evaluation.pairs import UnitGroup
 from evaluation.stats import MethodSummary
 
 SYMLOG_RATIO = 30.0  # largest / smallest bar beyond which the y axis is symlog
-COLOURS = {"sl": "#7f7f7f", "nail": "#ff7f0e", "aail": "#1f77b4", "jl": "#2ca02c"}
+COLOURS = {
+    "sl": "#7f7f7f",
+    "nail": "#ff7f0e",
+    "aail": "#1f77b4",
+    "aail_bounded": "#9467bd",
+    "jl": "#2ca02c",
+}
 
 
 def _save(fig: Any, path: Path) -> Path:
@@ -96,21 +102,41 @@ def plot_returns(
     return _save(fig, path)
 
 
-def plot_pairs(groups: Sequence[PairGroup], path: Path) -> Path:
-    fig, axes = plt.subplots(1, len(groups), figsize=(5.2 * len(groups), 3.8), squeeze=False)
-    for ax, group in zip(axes[0], groups, strict=True):
-        series = {
-            m: [
-                (v["ego"].mean, v["ego"].se),
-                (v["others"].mean, v["others"].se),
-                (v["team"].mean, v["team"].se),
+def plot_pairs(groups: Sequence[UnitGroup], path: Path) -> Path:
+    """Top: each unit's team return minus SL's, one column of dots per method (symlog);
+    bottom: the share of episodes that ended with the ego outside its target (stuck)."""
+    fig, axes = plt.subplots(2, len(groups), figsize=(4.2 * len(groups), 6.4), squeeze=False)
+    rng = np.random.default_rng(0)  # jitter only
+    for k, group in enumerate(groups):
+        methods = [m for m in group.rows if m != "sl"]
+        top, bottom = axes[0][k], axes[1][k]
+        for x, method in enumerate(methods):
+            diffs = [
+                u.by_method[method]["team"] - u.by_method["sl"]["team"]
+                for u in group.units
+                if method in u.by_method and "sl" in u.by_method
             ]
-            for m, v in group.means.items()
-        }
-        _bars(ax, ["ego", "partner", "team"], series)
-        counts = ", ".join(f"{METHOD_LABELS[m]} {n}" for m, n in group.n_pairs.items())
-        ax.set_title(f"{group.label} pairs (mean ± SE over pairs; {counts})", fontsize=9)
-    axes[0][0].legend(fontsize=8)
+            jitter = rng.uniform(-0.18, 0.18, len(diffs))
+            top.scatter(x + jitter, diffs, s=9, alpha=0.7, color=COLOURS.get(method))
+        top.axhline(0, color="black", linewidth=0.6)
+        top.set_yscale("symlog", linthresh=1.0)
+        top.set_xticks(range(len(methods)), [METHOD_LABELS.get(m, m) for m in methods])
+        top.set_title(f"{group.label} ({len(group.units)})", fontsize=9)
+        shares = [group.rows[m].stuck_episodes / max(group.rows[m].episodes, 1) for m in group.rows]
+        names = [METHOD_LABELS.get(m, m) for m in group.rows]
+        bars = bottom.bar(names, shares, color=[COLOURS.get(m) for m in group.rows])
+        for bar, method in zip(bars, group.rows, strict=True):
+            bottom.annotate(
+                str(group.rows[method].stuck_episodes),
+                (bar.get_x(), bar.get_height()),
+                fontsize=7,
+                xytext=(1, 2),
+                textcoords="offset points",
+            )
+        bottom.set_ylim(0, 1)
+        bottom.tick_params(axis="x", labelsize=8)
+    axes[0][0].set_ylabel("team return − SL's, per unit")
+    axes[1][0].set_ylabel("stuck episodes (share; count on the bar)")
     return _save(fig, path)
 
 

@@ -165,8 +165,10 @@ def run_cells(
     env: str = "particle",
     record_episode: int = 0,
     progress: ProgressFn | None = None,
+    regret_bound: float | None = None,
 ) -> RunOutput:
-    """Run every cell's episodes to the end (module docstring); results in cell order."""
+    """Run every cell's episodes to the end (module docstring); results in cell order.
+    `regret_bound` is aail_bounded's ε (None: the engine's default)."""
     if not cells:
         raise ValueError("cells: expected at least one cell")
     layout = _Layout(cells, seed, max_steps)
@@ -207,6 +209,7 @@ def run_cells(
                 partners=ego_partners[k],
                 method=cell.method,  # type: ignore[arg-type]
                 alias=alias,
+                regret_bound=regret_bound if cell.method == "aail_bounded" else None,
             )
             actions_BN[rows, 0] = sample_actions(act(request), layout.u_TBN[t, rows, 0])
         for goal, slots in layout.partner_slots.items():

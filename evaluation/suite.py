@@ -8,7 +8,8 @@
 | JL check     | which scenarios have a joint network (JL runs only there)            |
 | two agents   | aligned + non-aligned scenarios, every method, one batched world     |
 | five agents  | the five-agent scenario                                              |
-| pairs        | the sampled goal pairs (SL, NAIL, AAIL; JL where trained)            |
+| pairs        | goal pairs drawn per strict class, every replicate (JL where trained) |
+| goal sets    | five-agent goal sets drawn from the whole catalogue                  |
 | fields       | Fig. 6 direction fields for the non-aligned scenario                 |
 | training     | lineage curve summaries and costs (needs the store)                  |
 """
@@ -23,7 +24,13 @@ from pathlib import Path
 import numpy as np
 
 from evaluation.backend import ModelRecord, PolicyBackend
-from evaluation.config import Scenario, SuiteConfig, pair_scenarios, paper_scenarios
+from evaluation.config import (
+    Scenario,
+    SuiteConfig,
+    goal_set_scenarios,
+    pair_scenarios,
+    paper_scenarios,
+)
 from evaluation.directions import DirectionField, direction_fields
 from evaluation.rollout import Cell, CellResult, ProgressFn, run_cells
 from evaluation.scaling import KindTraining, registered_versions, training_costs
@@ -41,7 +48,7 @@ class SuiteResult:
     backend: str
     scenarios: list[Scenario]
     cells: dict[str, dict[str, CellResult]]  # scenario name -> method -> result
-    pair_results: list[CellResult]
+    pair_results: list[CellResult]  # goal pairs and five-agent goal sets (`evaluation.pairs`)
     jl_available: dict[str, bool]  # scenario name -> a joint network exists
     models: set[tuple[str, ModelRecord]] = field(default_factory=set)
     wall_s: dict[str, float] = field(default_factory=dict)
@@ -120,11 +127,14 @@ def run_suite(
 ) -> SuiteResult:
     """Every experiment of the suite (module docstring)."""
     scenarios, pairs = paper_scenarios(config), pair_scenarios(config)
-    missing = missing_networks(backend, scenarios + pairs, config)
+    sets = goal_set_scenarios(config)
+    missing = missing_networks(backend, scenarios + pairs + sets, config)
     if missing:
         raise LookupError("networks the suite needs are not served: " + "; ".join(missing))
     want_jl = "jl" in config.methods
-    jl = {s.name: want_jl and has_joint_network(backend, s, config) for s in scenarios + pairs}
+    jl = {
+        s.name: want_jl and has_joint_network(backend, s, config) for s in scenarios + pairs + sets
+    }
     result = SuiteResult(config, backend.description, scenarios, {}, [], jl)
 
     def run(label: str, chosen: Sequence[Scenario]) -> list[CellResult]:
@@ -139,6 +149,7 @@ def run_suite(
             partner_alias=config.partner_alias,
             env=config.env,
             progress=progress(label, config.max_steps) if progress else None,
+            regret_bound=config.regret_bound,
         )
         result.wall_s[label] = time.perf_counter() - start
         result.models |= out.models
@@ -151,6 +162,8 @@ def run_suite(
         result.cells.setdefault(r.scenario.name, {})[r.method] = r
     if pairs:
         result.pair_results = run(f"{len(pairs)} goal pairs", pairs)
+    if sets:
+        result.pair_results += run(f"{len(sets)} five-agent goal sets", sets)
 
     start = time.perf_counter()
     non_aligned = next(s for s in scenarios if s.name == "non_aligned")
@@ -175,6 +188,8 @@ def run_suite(
 def _cell_json(c: CellResult) -> dict[str, object]:
     return {
         "goals": list(c.scenario.goals),
+        "replicate": c.scenario.replicate,
+        "start_seed": c.scenario.start_seed,
         "method": c.method,
         "returns": c.returns_EN.round(4).tolist(),
         "success": c.success_EN.tolist(),

@@ -14,6 +14,10 @@ Methods (`METHODS`):
 - **SL**: the task network alone, Q = Q_t.
 - **NAIL** (paper §4.2, "simple averaging"): the plain mean of the *raw* Q-vectors of the task
   network and the active impact networks, Q = (Q_t + Σ_i Q_i) / (1 + P_active).
+- **AAIL-bounded** (`aail_bounded`, ours): AAIL's policy with a bound ε on the ego's own
+  regret, `regret_bound` (eq. R1 of `policy.regret_bound`): actions within ε of the task's best
+  share the task policy's probability on them as AAIL says; every other action keeps its task
+  probability. Diagnostics (entropy, weights) are AAIL's.
 - **AAIL** (eqs. 8-10): π_t = Boltzmann(Q_t, α), π_i = Boltzmann(Q_i, α);
   w_t = 1 - |A|^H(π_t) / |A| (eq. 9); w_i = JSD(π_t ‖ π_i), the Jensen-Shannon distance
   (eq. 10); ŵ_i = w_i / Σ_j w_j, or equal ŵ_i = 1 / P_active when Σ_j w_j = 0 (every impact
@@ -53,7 +57,7 @@ for any small B; `_rows_are_faster` encodes that crossover.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Literal
 
 import numpy as np
@@ -69,6 +73,7 @@ from policy._validate import (
 )
 from policy.blend_fast import FLAT_STD_RTOL, RowBlend, blend_row
 from policy.maths import boltzmann, js_distance, normalized_entropy, task_weight
+from policy.regret_bound import bound_rows, check_regret_bound
 
 __all__ = [
     "FLAT_STD_RTOL",
@@ -81,8 +86,8 @@ __all__ = [
     "standardise",
 ]
 
-BlendMethod = Literal["sl", "nail", "aail"]
-METHODS: tuple[BlendMethod, ...] = ("sl", "nail", "aail")
+BlendMethod = Literal["sl", "nail", "aail", "aail_bounded"]
+METHODS: tuple[BlendMethod, ...] = ("sl", "nail", "aail", "aail_bounded")
 # the row-by-row path takes AAIL inputs with B (2 + P) <= 12, SL and NAIL inputs with B <= 2,
 # and never more than 64 actions (module docstring)
 FAST_AAIL_WORK, FAST_MAX_ROWS, FAST_MAX_ACTIONS = 12, 2, 64
@@ -181,24 +186,50 @@ def blend(
     partner_mask_BP: ArrayLike | None = None,
     *,
     normalise: bool = True,
+    regret_bound: float | None = None,
 ) -> BlendResult:
-    """Blend the task and impact Q-vectors of each row with `method` ("sl", "nail", "aail");
-    `normalise=False`: AAIL's eq. 8 on the raw Q-vectors (module docstring)."""
+    """Blend the task and impact Q-vectors of each row with `method` ("sl", "nail", "aail",
+    "aail_bounded", which needs `regret_bound` ε); `normalise=False`: AAIL's eq. 8 on the raw
+    Q-vectors (module docstring)."""
     q_task, q_impact, mask, alpha_B1 = _checked(
         method, q_task_BA, q_impact_BPA, alpha, partner_mask_BP
     )
+    epsilon = _epsilon(method, regret_bound)
+    base: BlendMethod = "aail" if method == "aail_bounded" else method
     if blend_fast.COMPILED:
         arrays = blend_fast.compiled_rows(
-            method, q_task, q_impact, alpha_B1[:, 0], mask, normalise=normalise
+            base, q_task, q_impact, alpha_B1[:, 0], mask, normalise=normalise
         )
-        return BlendResult(*arrays)
-    if _rows_are_faster(method, q_impact.shape):
+        result = BlendResult(*arrays)
+    elif _rows_are_faster(base, q_impact.shape):
         rows = zip(
             q_task.tolist(), q_impact.tolist(), alpha_B1[:, 0].tolist(), mask.tolist(), strict=True
         )
-        blended = [blend_row(method, *row, normalise=normalise) for row in rows]
-        return _as_arrays(blended, q_impact.shape[1])
-    return _vectorised(method, q_task, q_impact, mask, alpha_B1, normalise)
+        blended = [blend_row(base, *row, normalise=normalise) for row in rows]
+        result = _as_arrays(blended, q_impact.shape[1])
+    else:
+        result = _vectorised(base, q_task, q_impact, mask, alpha_B1, normalise)
+    return result if epsilon is None else _bounded(result, q_task, alpha_B1, epsilon)
+
+
+def _epsilon(method: BlendMethod, regret_bound: float | None) -> float | None:
+    """ε for `aail_bounded` (required there), None for the other methods (refused there)."""
+    if method != "aail_bounded":
+        if regret_bound is not None:
+            raise ValueError(f"regret_bound: applies to method aail_bounded only, not {method!r}")
+        return None
+    if regret_bound is None:
+        raise ValueError("regret_bound: required for method aail_bounded")
+    return check_regret_bound(regret_bound)
+
+
+def _bounded(
+    result: BlendResult, q_task: np.ndarray, alpha_B1: np.ndarray, epsilon: float
+) -> BlendResult:
+    """AAIL's result with its policy bounded (eq. R1, `policy.regret_bound`)."""
+    probs_task = boltzmann(q_task, alpha_B1[:, 0])
+    probs = bound_rows(np.asarray(result.probs_BA), q_task, probs_task, epsilon)
+    return replace(result, probs_BA=probs)
 
 
 def _rows_are_faster(method: BlendMethod, shape_BPA: tuple[int, ...]) -> bool:
@@ -218,10 +249,16 @@ def blend_vectorised(
     partner_mask_BP: ArrayLike | None = None,
     *,
     normalise: bool = True,
+    regret_bound: float | None = None,
 ) -> BlendResult:
     """`blend` on the vectorised numpy path whatever the size (the reference for the fast path)."""
-    checked = _checked(method, q_task_BA, q_impact_BPA, alpha, partner_mask_BP)
-    return _vectorised(method, *checked, normalise)
+    q_task, q_impact, mask, alpha_B1 = _checked(
+        method, q_task_BA, q_impact_BPA, alpha, partner_mask_BP
+    )
+    epsilon = _epsilon(method, regret_bound)
+    base: BlendMethod = "aail" if method == "aail_bounded" else method
+    result = _vectorised(base, q_task, q_impact, mask, alpha_B1, normalise)
+    return result if epsilon is None else _bounded(result, q_task, alpha_B1, epsilon)
 
 
 def _checked(

@@ -45,6 +45,8 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
+from policy.regret_bound import bound_row
+
 if TYPE_CHECKING:
     from policy.blend import BlendMethod
 
@@ -341,13 +343,19 @@ def blend_row(
     alpha: float,
     mask_P: Sequence[bool] | None = None,
     normalise: bool = True,
+    regret_bound: float | None = None,
 ) -> RowBlend:
-    """`policy.blend.blend` of one row, on trusted inputs (module docstring): compiled when
-    `COMPILED` (~2.5 µs for 4 partners against ~35), else `blend_row_python`; the same bits."""
+    """`policy.blend.blend` of one row, on trusted inputs (module docstring; `aail_bounded`
+    with a checked `regret_bound`): compiled when `COMPILED`, else `blend_row_python`; the same
+    bits (`aail_bounded`'s bound itself equal to rounding, `policy.regret_bound`)."""
+    base: BlendMethod = "aail" if method == "aail_bounded" else method
     if COMPILED:
-        result: RowBlend = _compiled(method, q_task_A, q_impact_PA, alpha, mask_P, normalise)
+        result: RowBlend = _compiled(base, q_task_A, q_impact_PA, alpha, mask_P, normalise)
+    else:
+        result = blend_row_python(base, q_task_A, q_impact_PA, alpha, mask_P, normalise)
+    if method != "aail_bounded" or regret_bound is None:
         return result
-    return blend_row_python(method, q_task_A, q_impact_PA, alpha, mask_P, normalise)
+    return result._replace(probs_A=bound_row(result.probs_A, q_task_A, alpha, regret_bound))
 
 
 def compiled_rows(

@@ -40,6 +40,11 @@ class SoftQConfig:
     """Replay capacity per network (oldest transitions overwritten)."""
     target_every: int = 250
     """Hard copy of the online weights into the target network every this many updates."""
+    explore_eps: float = 0.0
+    """Share of the learner's actions while training drawn uniformly at random instead of from
+    its Boltzmann policy. Soft Q-learning is off-policy (eq. 5 bootstraps on V of the next
+    state, not on the action taken), so this widens what the replay sees without changing what
+    is learned. 0: Boltzmann exploration at α alone (Algorithm 1)."""
     envs_per_net: int = 16
     """Parallel environments per network in the batched simulator."""
     updates_per_step: int = 1
@@ -54,6 +59,10 @@ class SoftQConfig:
     """Episodes per network in the quality gate."""
     eval_steps: int = 200
     """Steps per gate episode."""
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.explore_eps <= 1.0:
+            raise ValueError(f"explore_eps: expected a share in [0, 1], got {self.explore_eps}")
 
     def to_dict(self) -> dict[str, Any]:
         data = asdict(self)
@@ -82,9 +91,37 @@ class TaskConfig(SoftQConfig):
 
 @dataclass(frozen=True)
 class ImpactConfig(SoftQConfig):
-    """Impact networks: one per partner goal, trained by self-play on eq. 6 (paper §3.2)."""
+    """Impact networks: one per partner goal, trained by self-play on eq. 6 (paper §3.2).
+
+    Exploration (`explore_eps`, `episode_steps`): the impact reward is the change of the
+    partner's soft value, and one push moves that value by far more than α, so the impact
+    Q-values of different actions soon differ by many α and the Boltzmann policy at α = 0.02 is
+    practically greedy. Trained that way, an action that looked bad early is never taken again
+    and its Q-value never corrected: many networks of the first zoo never chose some push they
+    need to reach their influence area (`c2` never pushed left, `c3` never down). A quarter of
+    uniformly random actions and shorter episodes (more starts spread over the world) keep every
+    push in the replay everywhere; the direction gate (`trainer.gates`) checks the result.
+    `reports/paper/impact_training.md` has the measurements behind the two values."""
 
     total_steps: int = 8_000
+    explore_eps: float = 0.3
+    """Share of uniformly random actions while training (see the class docstring)."""
+    episode_steps: int = 60
+    """Training episodes are cut after this many steps: restarts spread the ego over the world."""
+    direction_states: int = 2048
+    """Direction gate (`trainer.particle_directions`): states spread over the world it checks."""
+    probe_step: float = 0.05
+    """Direction gate: how far the ego is moved to see which push raises the partner's value."""
+    min_value_gain: float = 0.15
+    """Direction gate: a state counts when some push raises the partner's value by more."""
+    min_needed_states: int = 20
+    """Direction gate: a push's recall is judged only when at least this many states need it."""
+    toward_share_min: float = 0.9
+    """Direction gate: share of counted states where the preferred push must raise the
+    partner's value (by at least half of what the best push would)."""
+    push_recall_min: float = 0.75
+    """Direction gate: share of the states that clearly need a push in which the network must
+    prefer it, for every push (no dead action)."""
 
 
 @dataclass(frozen=True)

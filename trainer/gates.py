@@ -11,9 +11,13 @@ goal with the scripted controller (deterministic, so every run below sees the sa
   because this compares what the network *learned* with a deterministic controller; sampling
   noise at α is measured by the success rate and reported (`sampled_own_target_return`).
 
-Impact gate (per partner goal h): on seeded random starts the partner acts with its task network;
-the partner's mean return with the impact-driven ego must exceed its mean return with an ego that
-rests (action 0) on the same starts.
+Impact gate (per partner goal h), two checks that must both pass:
+- helps: on seeded random starts the partner acts with its task network; the partner's mean
+  return with the impact-driven ego must exceed its mean return with an ego that rests (action 0)
+  on the same starts;
+- directions (`trainer.particle_directions`): from states spread over the world, the network's
+  preferred push must raise the partner's value where that value says a push helps, and no push
+  it clearly needs may be dead. Episodes alone passed networks that never pushed left or down.
 """
 
 from __future__ import annotations
@@ -32,7 +36,8 @@ from envs.particle.scripted import scripted_actions
 from envs.particle.world import box_distance, in_target, observations, random_states
 from policy.qnet import StackedQNet
 from policy.torch_ops import sample_boltzmann_t
-from trainer.config import SoftQConfig, TaskConfig
+from trainer.config import ImpactConfig, TaskConfig
+from trainer.particle_directions import dead_pushes, direction_checks
 
 # (state_BN4, obs_BND) -> actions_BN
 EgoPolicy = Callable[[np.ndarray, np.ndarray], np.ndarray]
@@ -58,6 +63,9 @@ class ImpactGate:
     partner_return: float
     partner_return_resting_ego: float
     passed: bool
+    toward_share: float  # `trainer.particle_directions`
+    push_recall: dict[str, float | None]
+    dead_pushes: tuple[str, ...]  # pushes whose recall falls short
 
     def metrics(self) -> dict[str, Any]:
         return asdict(self)
@@ -144,10 +152,11 @@ def impact_gates(
     impact_nets: StackedQNet,
     partner_task_nets: StackedQNet,
     partner_goals: Sequence[int],
-    config: SoftQConfig,
+    config: ImpactConfig,
     seed: int,
 ) -> list[ImpactGate]:
-    """Does each impact network raise its partner's return over a resting ego?"""
+    """Does each impact network raise its partner's return over a resting ego, and push where
+    the partner's value says it should (module docstring)?"""
     n_nets, n_eps = len(partner_goals), config.eval_episodes
     rng = np.random.default_rng(seed)
     partner_B = np.repeat(np.asarray(partner_goals), n_eps)
@@ -172,9 +181,21 @@ def impact_gates(
 
     _, with_impact, _, _ = _run(world, goals_BN, starts, config.eval_steps, make_policy(True))
     _, resting, _, _ = _run(world, goals_BN, starts, config.eval_steps, make_policy(False))
+    directions = direction_checks(impact_nets, partner_task_nets, config, seed)
     gates = []
     for g, goal in enumerate(partner_goals):
         part = slice(g * n_eps, (g + 1) * n_eps)
         helped, idle = with_impact[part].mean(), resting[part].mean()
-        gates.append(ImpactGate(GOAL_IDS[goal], float(helped), float(idle), bool(helped > idle)))
+        check = directions[g]
+        gates.append(
+            ImpactGate(
+                goal=GOAL_IDS[goal],
+                partner_return=float(helped),
+                partner_return_resting_ego=float(idle),
+                passed=bool(helped > idle and check.passed),
+                toward_share=check.toward_share,
+                push_recall=check.push_recall,
+                dead_pushes=tuple(dead_pushes(check, config)),
+            )
+        )
     return gates

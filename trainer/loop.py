@@ -92,7 +92,7 @@ def train_soft_q(
 
     view_GED = torch.from_numpy(rollout.observe())
     for step in range(config.total_steps):
-        act_GE = learner.act(view_GED)
+        act_GE = learner.act(view_GED, explore_eps=config.explore_eps)
         rew_GE, next_GED = rollout.step(act_GE.numpy())
         replay.add(view_GED, act_GE, torch.from_numpy(rew_GE), torch.from_numpy(next_GED))
         view_GED = torch.from_numpy(rollout.observe())

@@ -43,9 +43,10 @@ def print_summary(batches: Sequence[TrainedBatch], console: Console | None = Non
                     f"{gate.scripted_own_target_return:.2f} (scripted)",
                 ]
             elif isinstance(gate, ImpactGate):
+                dead = f", dead: {'/'.join(gate.dead_pushes)}" if gate.dead_pushes else ""
                 cells = [
                     _verdict(gate.passed),
-                    "",
+                    f"{gate.toward_share:.0%} toward{dead}",
                     f"{gate.partner_return:.2f} (partner)",
                     f"{gate.partner_return_resting_ego:.2f} (resting ego)",
                 ]

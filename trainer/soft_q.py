@@ -57,9 +57,17 @@ class StackedSoftQ:
         self.n_updates = 0
 
     @torch.no_grad()
-    def act(self, obs_GED: torch.Tensor) -> torch.Tensor:
-        """Boltzmann exploration at temperature α (eq. 2): one sampled action per env."""
-        return sample_boltzmann_t(self.online(obs_GED), self.alpha, self.generator)
+    def act(self, obs_GED: torch.Tensor, explore_eps: float = 0.0) -> torch.Tensor:
+        """One action per env: Boltzmann at temperature α (eq. 2), replaced by a uniformly
+        random action with probability `explore_eps` (the behaviour policy may differ from the
+        learned one: the soft-Q target of eq. 5 does not depend on the action taken next)."""
+        actions = sample_boltzmann_t(self.online(obs_GED), self.alpha, self.generator)
+        if explore_eps <= 0.0:
+            return actions
+        n_actions = self.spec.n_actions
+        uniform = torch.randint(0, n_actions, actions.shape, generator=self.generator)
+        explore = torch.rand(actions.shape, generator=self.generator) < explore_eps
+        return torch.where(explore, uniform, actions)
 
     def update(self, batch: Batch) -> UpdateStats:
         """One gradient step on J_Q (eq. 4) for all G networks."""

@@ -9,8 +9,20 @@
 |                    |                                  | areas do not overlap                  |
 | `FIVE_AGENTS`      | ego `a2`, partners `a0 b2 c4 e1` | Fig. 7: five agents, not aligned      |
 
-A pair is *aligned* when the ego's target area overlaps the partner's influence area with positive
-area: the ego can then sit where it is rewarded and where the partner wants it at the same time.
+`is_aligned` (any overlap of positive area) is the loose test of the first evaluation. The
+evaluation classifies pairs strictly (`pair_class`), by the ego's target area T and the partner's
+influence area I:
+
+| class         | rule                               | pairs of the 35 × 35 |
+|---------------|------------------------------------|----------------------|
+| `aligned`     | I lies inside T                    | 85 (50 with I ≠ T: `room_to_help`) |
+| `non_aligned` | T and I do not touch (a gap > 0)   | 720                  |
+| `mixed`       | the rest: partial overlap, or only | 420                  |
+|               | a shared edge or corner            |                      |
+
+In an aligned pair the ego can sit where it is rewarded and where the partner wants it at the same
+time; where I ≠ T it can also choose, inside its own target, the part the partner wants (there
+is room to help). In a non-aligned pair every step spent helping is a step away from its target.
 
 Start states are paired: `start_states(seed, ...)` gives the same starts for every method compared
 on that seed. They are kept simple: positions uniform in the unit square, velocities zero, with no
@@ -19,6 +31,8 @@ area, and to every method alike).
 """
 
 from __future__ import annotations
+
+from typing import Literal
 
 import numpy as np
 
@@ -43,6 +57,67 @@ def is_aligned(ego_goal: str, partner_goal: str) -> bool:
     target = TARGET_BOXES_G4[goal_index(ego_goal)]
     influence = INFLUENCE_BOXES_G4[goal_index(partner_goal)]
     return overlap_area(target, influence) > 0.0  # boxes are rounded: shared edges give exactly 0
+
+
+PairClass = Literal["aligned", "non_aligned", "mixed"]
+PAIR_CLASSES: tuple[PairClass, ...] = ("aligned", "non_aligned", "mixed")
+
+
+def _boxes(ego_goal: str, partner_goal: str) -> tuple[np.ndarray, np.ndarray]:
+    return TARGET_BOXES_G4[goal_index(ego_goal)], INFLUENCE_BOXES_G4[goal_index(partner_goal)]
+
+
+def pair_class(ego_goal: str, partner_goal: str) -> PairClass:
+    """The strict class of a pair (module docstring). Boxes are rounded, so a shared edge is
+    exactly a zero gap."""
+    target, influence = _boxes(ego_goal, partner_goal)
+    inside = (
+        influence[0] >= target[0]
+        and influence[1] <= target[1]
+        and influence[2] >= target[2]
+        and influence[3] <= target[3]
+    )
+    if inside:
+        return "aligned"
+    gap_x = max(target[0] - influence[1], influence[0] - target[1])
+    gap_y = max(target[2] - influence[3], influence[2] - target[3])
+    return "non_aligned" if max(gap_x, gap_y) > 0.0 else "mixed"
+
+
+def room_to_help(ego_goal: str, partner_goal: str) -> bool:
+    """An aligned pair whose target strictly contains the influence area (I ≠ T)."""
+    target, influence = _boxes(ego_goal, partner_goal)
+    return pair_class(ego_goal, partner_goal) == "aligned" and not np.array_equal(target, influence)
+
+
+def pairs_of_class(kind: PairClass) -> list[tuple[str, str]]:
+    """Every (ego goal, partner goal) pair of `kind`, in goal order."""
+    if kind not in PAIR_CLASSES:
+        raise ValueError(f"kind: expected one of {PAIR_CLASSES}, got {kind!r}")
+    return [(e, p) for e in GOAL_IDS for p in GOAL_IDS if pair_class(e, p) == kind]
+
+
+def sample_pairs_of_class(seed: int, kind: PairClass, k: int) -> list[tuple[str, str]]:
+    """`k` distinct pairs of `kind` drawn with `seed` (all of them, in goal order, when `k` is at
+    least the class's size)."""
+    if k < 0:
+        raise ValueError(f"k: expected >= 0, got {k}")
+    pool = pairs_of_class(kind)
+    if k >= len(pool):
+        return pool
+    picks = np.random.default_rng(seed).choice(len(pool), size=k, replace=False)
+    return [pool[i] for i in sorted(picks.tolist())]
+
+
+def sample_goal_sets(seed: int, k: int, n_agents: int) -> list[tuple[str, ...]]:
+    """`k` goal sets of `n_agents` goals each, every goal drawn from the whole catalogue (two
+    agents may share a goal, as strangers in one room may)."""
+    if k < 0:
+        raise ValueError(f"k: expected >= 0, got {k}")
+    if not 2 <= n_agents <= MAX_AGENTS:
+        raise ValueError(f"n_agents: expected 2..{MAX_AGENTS}, got {n_agents}")
+    picks = np.random.default_rng(seed).integers(0, N_GOALS, size=(k, n_agents))
+    return [tuple(GOAL_IDS[g] for g in row) for row in picks.tolist()]
 
 
 def start_states(seed: int, n_episodes: int, n_agents: int) -> np.ndarray:

@@ -21,7 +21,7 @@ from typing import NamedTuple
 import numpy as np
 
 from services.engine.errors import InvalidRequest
-from services.engine.messages import Member, ModelUsed
+from services.engine.messages import DEFAULT_TEMPERATURE, ActRequest, Member, ModelUsed
 from services.engine.networks import StackedGroup
 from services.engine.validation import CheckedRequest
 
@@ -179,3 +179,14 @@ def sample_actions(probs_BA: np.ndarray, rng: np.random.Generator) -> np.ndarray
     cdf_BA = np.cumsum(probs_BA, axis=1)
     u_B1 = rng.random((probs_BA.shape[0], 1)) * cdf_BA[:, -1:]
     return np.minimum((cdf_BA <= u_B1).sum(axis=1), probs_BA.shape[1] - 1)
+
+
+def regret_bound_of(request: ActRequest, group: StackedGroup) -> float | None:
+    """ε of `aail_bounded` (`policy.regret_bound`): the request's, else the task network's
+    training α (an action keeps the blend's say when the task policy rates it at least 1/e as
+    likely as its best); None for the other methods."""
+    if request.method != "aail_bounded":
+        return None
+    if request.regret_bound is not None:
+        return float(request.regret_bound)
+    return float(group.nets[0].alpha or DEFAULT_TEMPERATURE)

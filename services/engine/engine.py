@@ -50,7 +50,13 @@ from model_store.errors import InvalidArgument, ModelStoreError
 from model_store.naming import joint_model_name
 from model_store.store import ModelStore
 from policy.blend import BlendMethod, blend
-from services.engine.assembly import impact_q, member_inputs, models_used, sample_actions
+from services.engine.assembly import (
+    impact_q,
+    member_inputs,
+    models_used,
+    regret_bound_of,
+    sample_actions,
+)
 from services.engine.environments import env_runtime
 from services.engine.errors import EngineError, InvalidRequest
 from services.engine.fastpath import act_row
@@ -159,14 +165,21 @@ class InferenceEngine:
             q_task_BA = q_members[0].reshape(batch, -1, n_actions).mean(axis=1)
         blend_method: BlendMethod = "sl"
         q_impact_BPA = np.zeros((batch, 0, n_actions))  # sl, jl: the task/joint network alone
-        if method in ("nail", "aail"):
-            blend_method = "nail" if method == "nail" else "aail"
+        if method in ("nail", "aail", "aail_bounded"):
+            blend_method = method
             q_impact_BPA = impact_q(checked, q_members, layout)
         if not (np.isfinite(q_task_BA).all() and np.isfinite(q_impact_BPA).all()):
             raise InvalidRequest("observations", "values so large that the Q-values overflow")
         temperature = request.temperature or group.nets[0].alpha or DEFAULT_TEMPERATURE
         normalise = checked.runtime.domain.blend_normalisation == "standardise"
-        blended = blend(blend_method, q_task_BA, q_impact_BPA, temperature, normalise=normalise)
+        blended = blend(
+            blend_method,
+            q_task_BA,
+            q_impact_BPA,
+            temperature,
+            normalise=normalise,
+            regret_bound=regret_bound_of(request, group),
+        )
         partner_weights_BP = blended.partner_weights_BP
         if blend_method == "sl":  # no impact network was evaluated: every partner weighs 0
             partner_weights_BP = np.zeros((batch, len(checked.partners)))
@@ -222,9 +235,15 @@ class InferenceEngine:
         """(P, G) log π_g(actions[p] | partner p's view of the ego's `observation`), goals in
         the env's catalogue order: every task network in one stacked pass."""
         return goal_log_likelihoods(
-            self.cache, env, observation, partners, actions,
-            alias=alias, versions=versions, temperature=temperature,
-        )  # fmt: skip
+            self.cache,
+            env,
+            observation,
+            partners,
+            actions,
+            alias=alias,
+            versions=versions,
+            temperature=temperature,
+        )
 
     def recover_partner_actions(
         self, env: str, previous: np.ndarray, current: np.ndarray, partners: Sequence[int]

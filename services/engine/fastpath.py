@@ -42,7 +42,7 @@ from policy.belief_compiled import compiled_mix
 from policy.blend import BlendMethod
 from policy.blend_fast import blend_row
 from policy.row_forward import all_finite
-from services.engine.assembly import models_used
+from services.engine.assembly import models_used, regret_bound_of
 from services.engine.errors import InvalidRequest
 from services.engine.gathers import Builder, Gather, find_gather
 from services.engine.messages import DEFAULT_TEMPERATURE, ActRequest, ActResult, Member, ModelUsed
@@ -217,10 +217,17 @@ def act_row(
                 mixed = [acc + p * q for acc, q in zip(mixed, q_rows[row], strict=True)]
             q_impact.append(mixed)
 
-    method: BlendMethod = request.method  # type: ignore[assignment]  # sl, nail or aail here
+    method: BlendMethod = request.method  # type: ignore[assignment]  # not jl here
     temperature = request.temperature or group.nets[0].alpha or DEFAULT_TEMPERATURE
     normalise = checked.runtime.domain.blend_normalisation == "standardise"
-    blended = blend_row(method, q_task, q_impact, temperature, normalise=normalise)
+    blended = blend_row(
+        method,
+        q_task,
+        q_impact,
+        temperature,
+        normalise=normalise,
+        regret_bound=regret_bound_of(request, group),
+    )
     weights = blended.partner_weights_P if method != "sl" else [0.0] * len(checked.partners)
     rng = default_rng if request.seed is None else np.random.default_rng(request.seed)
     probs = blended.probs_A

@@ -5,7 +5,7 @@
 | `PartnerSpec`  | one partner: its index in the ego's observation layout and its goal    |
 |                | (one announced `goal`, or `goal_probs`, a distribution over goals)     |
 | `ActRequest`   | env, ego goal, observations (B, obs_dim), partners, method, temperature,|
-|                | seed, alias and pinned versions                                        |
+|                | regret bound, seed, alias and pinned versions                          |
 | `ModelUsed`    | one network a result was computed with (name, version, sha256, role)   |
 | `ActResult`    | one per observation row: probabilities, sampled and greedy action,     |
 |                | blend diagnostics, models used                                         |
@@ -24,11 +24,12 @@ from typing import Literal
 
 import numpy as np
 
-Method = Literal["aail", "nail", "sl", "jl"]
-METHODS: tuple[Method, ...] = ("aail", "nail", "sl", "jl")
+Method = Literal["aail_bounded", "aail", "nail", "sl", "jl"]
+METHODS: tuple[Method, ...] = ("aail_bounded", "aail", "nail", "sl", "jl")
 Role = Literal["task", "impact", "joint"]
 Member = tuple[Role, str]  # one network a request needs: its role and the goal it serves
 DEFAULT_ALIAS = "production"
+DEFAULT_METHOD: Method = "aail_bounded"  # measured: reports/paper/REPORT.md
 DEFAULT_TEMPERATURE = 0.02  # used when neither the request nor the model's lineage gives one
 
 
@@ -45,8 +46,9 @@ class ActRequest:
     ego_goal: str
     observations: np.ndarray  # (B, obs_dim): the ego's observations (B = 1 for /v1/act)
     partners: tuple[PartnerSpec, ...] = ()
-    method: Method = "aail"
+    method: Method = DEFAULT_METHOD
     temperature: float | None = None  # default: the task (or joint) model's training α
+    regret_bound: float | None = None  # aail_bounded's ε; default: the task model's training α
     seed: int | None = None  # seeds the sampled action(s); one stream over the B rows
     alias: str = DEFAULT_ALIAS  # the alias every model is resolved by
     versions: Mapping[str, int] = field(default_factory=dict)  # pinned versions by model name

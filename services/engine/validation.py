@@ -225,6 +225,16 @@ def check_request(request: ActRequest, max_batch: int) -> CheckedRequest:
         not _is_real(temperature) or not math.isfinite(temperature) or temperature <= 0
     ):
         raise InvalidRequest("temperature", f"expected a finite number > 0, got {temperature!r}")
+    regret_bound = request.regret_bound
+    if regret_bound is not None:
+        if request.method != "aail_bounded":
+            raise InvalidRequest(
+                "regret_bound", f"applies to method aail_bounded only, not {request.method!r}"
+            )
+        if not _is_real(regret_bound) or not math.isfinite(regret_bound) or regret_bound < 0:
+            raise InvalidRequest(
+                "regret_bound", f"expected a finite number >= 0, got {regret_bound!r}"
+            )
     seed = request.seed
     if seed is not None and (not _is_int(seed) or seed < 0):
         raise InvalidRequest("seed", f"expected an integer >= 0, got {seed!r}")

@@ -23,7 +23,7 @@ calls them `observations[0]`), a batch of states is `states[b]`, a row of a batc
 filled from numpy in one call each (`np.array(values)`, `extend(ndarray)`): microseconds for a
 256-row batch, where reading one `Vector` message per row costs about 1 µs a row. Unset proto3
 fields take the REST
-defaults: method "aail", alias "production", no temperature, no seed; an unset belief field the
+defaults: method "aail_bounded", alias "production", no temperature, no seed; an unset belief field the
 `SessionSettings` / `BeliefConfig` default. `infer` is refused outside an Episode (a unary call
 has no history of the partner's actions).
 """
@@ -49,7 +49,7 @@ from services.engine import (
     observations_from_states,
 )
 from services.engine.environments import env_runtime
-from services.engine.messages import DEFAULT_ALIAS
+from services.engine.messages import DEFAULT_ALIAS, DEFAULT_METHOD
 from services.grpc_api import repeated
 from services.grpc_api.gen.coexist.v1 import policy_pb2 as pb
 from services.sessions import Observed, SessionPartner, SessionSettings, SessionStepResult
@@ -84,8 +84,9 @@ def _request(settings: Settings, observations: np.ndarray, seed_offset: int = 0)
         ego_goal=settings.ego_goal,
         observations=observations,
         partners=_partners(settings.partners),
-        method=settings.method or "aail",  # type: ignore[arg-type]  # the engine checks it
+        method=settings.method or DEFAULT_METHOD,  # type: ignore[arg-type]  # the engine checks it
         temperature=settings.temperature if settings.HasField("temperature") else None,
+        regret_bound=settings.regret_bound if settings.HasField("regret_bound") else None,
         seed=settings.seed + seed_offset if settings.HasField("seed") else None,
         alias=settings.alias or DEFAULT_ALIAS,
         versions=dict(settings.versions),
@@ -207,8 +208,9 @@ def session_settings(settings: pb.EpisodeSettings) -> SessionSettings:
     blend = {k: getattr(b, k) for k in ("blend_mass", "blend_max_goals") if b.HasField(k)}
     return SessionSettings(
         env=settings.env, ego_goal=settings.ego_goal, partners=partners,
-        method=settings.method or "aail",  # type: ignore[arg-type]  # the session checks it
+        method=settings.method or DEFAULT_METHOD,  # type: ignore[arg-type]  # the session checks it
         temperature=settings.temperature if settings.HasField("temperature") else None,
+        regret_bound=settings.regret_bound if settings.HasField("regret_bound") else None,
         seed=settings.seed if settings.HasField("seed") else None,
         alias=settings.alias or DEFAULT_ALIAS, versions=dict(settings.versions),
         belief=BeliefConfig(**belief), **blend,

@@ -66,8 +66,9 @@ def request_with(
     key = settings.DESCRIPTOR.full_name.encode() + settings.SerializeToString(deterministic=True)
     t = _remembered(_SETTINGS, key, convert)
     return ActRequest(
-        t.env, t.ego_goal, observations, t.partners, t.method, t.temperature, seed, t.alias,
-        t.versions,
+        env=t.env, ego_goal=t.ego_goal, observations=observations, partners=t.partners,
+        method=t.method, temperature=t.temperature, regret_bound=t.regret_bound, seed=seed,
+        alias=t.alias, versions=t.versions,
     )  # fmt: skip
 
 

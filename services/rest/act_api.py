@@ -103,8 +103,8 @@ def _act(
         partners = tuple(PartnerSpec(p.index, p.goal, p.goal_probs) for p in body.partners)
         request = ActRequest(
             env=body.env, ego_goal=body.ego_goal, observations=obs, partners=partners,
-            method=body.method, temperature=body.temperature, seed=body.seed,
-            alias=body.alias, versions=body.versions,
+            method=body.method, temperature=body.temperature, regret_bound=body.regret_bound,
+            seed=body.seed, alias=body.alias, versions=body.versions,
         )  # fmt: skip
         answer = run(request)
     except EngineError as exc:

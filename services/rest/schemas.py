@@ -20,7 +20,17 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-MethodName = Literal["aail", "nail", "sl", "jl"]
+MethodName = Literal["aail_bounded", "aail", "nail", "sl", "jl"]
+METHOD_HELP = (
+    "blending method: aail_bounded (AAIL with a bound on the ego's own regret, the default), "
+    "aail (the paper's eqs. 8-10), nail (plain average), sl (task network alone), jl (joint "
+    "network)"
+)
+REGRET_BOUND_HELP = (
+    "aail_bounded only: ε >= 0, in the task network's Q units; actions whose task Q is more "
+    "than ε below the best keep their task-policy probability (default: the task model's "
+    "training α)"
+)
 
 
 class PartnerIn(BaseModel):
@@ -44,10 +54,11 @@ class ActFields(BaseModel):
     env: str = Field(description="environment name (see GET /v1/envs)", examples=["particle"])
     ego_goal: str = Field(description="the ego agent's goal", examples=["a2"])
     partners: list[PartnerIn] = Field(default_factory=list)
-    method: MethodName = Field(default="aail", description="blending method")
+    method: MethodName = Field(default="aail_bounded", description=METHOD_HELP)
     temperature: float | None = Field(
         default=None, description="Boltzmann temperature > 0 (default: the model's training α)"
     )
+    regret_bound: float | None = Field(default=None, description=REGRET_BOUND_HELP)
     seed: int | None = Field(default=None, description="seeds the sampled action(s)")
     alias: str = Field(default="production", description="alias every model is resolved by")
     versions: dict[str, int] = Field(

@@ -15,7 +15,13 @@ from __future__ import annotations
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from services.rest.schemas import ActResponse, MethodName, PartnerIn
+from services.rest.schemas import (
+    METHOD_HELP,
+    REGRET_BOUND_HELP,
+    ActResponse,
+    MethodName,
+    PartnerIn,
+)
 
 
 # The session bodies are strict: JSON numbers stay numbers and booleans booleans (`"floor":
@@ -68,10 +74,11 @@ class SessionBody(BaseModel):
     partners: list[SessionPartnerIn] = Field(
         default_factory=list, examples=[[{"index": 1, "infer": True}]]
     )
-    method: MethodName = Field(default="aail", description="blending method")
+    method: MethodName = Field(default="aail_bounded", description=METHOD_HELP)
     temperature: float | None = Field(
         default=None, description="Boltzmann temperature > 0 of the act (default: the model's α)"
     )
+    regret_bound: float | None = Field(default=None, description=REGRET_BOUND_HELP)
     seed: int | None = Field(default=None, description="step t samples with seed + t")
     alias: str = Field(default="production", description="alias every model is resolved by")
     versions: dict[str, int] = Field(
@@ -135,6 +142,7 @@ class SessionSettingsOut(BaseModel):
     partners: list[SessionPartnerIn]
     method: MethodName
     temperature: float | None
+    regret_bound: float | None
     seed: int | None
     alias: str
     versions: dict[str, int]

@@ -96,8 +96,8 @@ def _settings(body: SessionBody) -> SessionSettings:
     return SessionSettings(
         env=body.env, ego_goal=body.ego_goal,
         partners=tuple(SessionPartner(p.index, p.goal, p.goal_probs, p.infer) for p in body.partners),
-        method=body.method, temperature=body.temperature, seed=body.seed, alias=body.alias,
-        versions=body.versions,
+        method=body.method, temperature=body.temperature, regret_bound=body.regret_bound,
+        seed=body.seed, alias=body.alias, versions=body.versions,
         belief=BeliefConfig(forgetting=b.forgetting, floor=b.floor, temperature=b.temperature),
         blend_mass=b.blend_mass, blend_max_goals=b.blend_max_goals,
     )  # fmt: skip
@@ -165,7 +165,8 @@ def _session_json(info: SessionInfo) -> dict[str, Any]:
         "beliefs": _beliefs(info.beliefs),
         "settings": {
             "env": s.env, "ego_goal": s.ego_goal, "partners": partners, "method": s.method,
-            "temperature": s.temperature, "seed": s.seed, "alias": s.alias,
+            "temperature": s.temperature, "regret_bound": s.regret_bound, "seed": s.seed,
+            "alias": s.alias,
             "versions": dict(s.versions), "belief": belief,
         },
     }  # fmt: skip

@@ -4,8 +4,9 @@ Every bad input becomes `InvalidRequest(field, message)` in the REST body's nami
 | field                        | rule                                                             |
 |------------------------------|------------------------------------------------------------------|
 | `env`, `ego_goal`, `method`, | as for `/v1/act` (`services.engine.validation`), checked on a    |
-| `temperature`, `seed`,       | stand-in observation of the smallest scene that holds every      |
-| `alias`, `versions`          | partner                                                          |
+| `temperature`,               | stand-in observation of the smallest scene that holds every      |
+| `regret_bound`, `seed`,      | partner                                                          |
+| `alias`, `versions`          |                                                                  |
 | `partners[i].index`          | 1..max_agents-1 of the env, no index twice                       |
 | `partners[i].goal(_probs)`   | at most one of the two; a known goal / a distribution summing to |
 |                              | 1; with `infer` it is the belief's prior                         |
@@ -106,8 +107,9 @@ def _dry_act_request(settings: SessionSettings, runtime: EnvRuntime) -> ActReque
     return ActRequest(
         env=settings.env, ego_goal=settings.ego_goal,
         observations=np.zeros((1, runtime.domain.obs_dim(n_agents))), partners=specs,
-        method=settings.method, temperature=settings.temperature, seed=settings.seed,
-        alias=settings.alias, versions=settings.versions,
+        method=settings.method, temperature=settings.temperature,
+        regret_bound=settings.regret_bound, seed=settings.seed, alias=settings.alias,
+        versions=settings.versions,
     )  # fmt: skip
 
 

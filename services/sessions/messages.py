@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 from policy.belief import BeliefConfig
 from services.engine import ActResult, Method
-from services.engine.messages import DEFAULT_ALIAS
+from services.engine.messages import DEFAULT_ALIAS, DEFAULT_METHOD
 
 TOP_GOALS = 3  # goals listed per partner belief
 
@@ -43,8 +43,9 @@ class SessionSettings:
     env: str
     ego_goal: str
     partners: tuple[SessionPartner, ...] = ()
-    method: Method = "aail"
+    method: Method = DEFAULT_METHOD
     temperature: float | None = None  # of the act pass (default: the task model's training α)
+    regret_bound: float | None = None  # aail_bounded's ε (default: the task model's training α)
     seed: int | None = None  # step t samples with seed + t
     alias: str = DEFAULT_ALIAS
     versions: Mapping[str, int] = field(default_factory=dict)

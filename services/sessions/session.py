@@ -377,8 +377,9 @@ class Session:
         if settings.seed is not None:
             request = ActRequest(
                 env=settings.env, ego_goal=settings.ego_goal, observations=obs_1D,
-                method=settings.method, temperature=settings.temperature, seed=settings.seed + t,
-                alias=settings.alias, versions=settings.versions,
+                method=settings.method, temperature=settings.temperature,
+                regret_bound=settings.regret_bound, seed=settings.seed + t, alias=settings.alias,
+                versions=settings.versions,
             )  # fmt: skip
         ready = CheckedRequest(checked.runtime, obs_1D, n_agents, tuple(partners))
         try:

@@ -1,4 +1,4 @@
-"""Pair-sample aggregation and the claim checks on hand-made results."""
+"""Goal-pair aggregation, the paper's claims and the product's targets on hand-made results."""
 
 from __future__ import annotations
 
@@ -11,54 +11,86 @@ from evaluation.claims import (
     claim_aligned,
     claim_five,
     claim_non_aligned,
-    claim_non_aligned_pairs,
     claim_scaling,
 )
 from evaluation.config import Scenario
-from evaluation.pairs import pair_groups, pair_means, pair_test
+from evaluation.pairs import pair_groups, unit_test, units_of
+from evaluation.targets import targets_of
 from evaluation.rollout import CellResult
 from evaluation.scaling import KindTraining
 
 
-def cell(scenario: Scenario, method: str, ego: list[float], other: list[float],
-         success: list[bool] | None = None) -> CellResult:  # fmt: skip
+def cell(
+    scenario: Scenario,
+    method: str,
+    ego: list[float],
+    other: list[float],
+    success: list[bool] | None = None,
+    reached: list[bool] | None = None,
+) -> CellResult:
     n = len(ego)
     success = [True] * n if success is None else success
+    reached = [True] * n if reached is None else reached
     return CellResult(
         scenario=scenario,
         method=method,
         returns_EN=np.stack([ego, other], axis=1).astype(float),
         success_EN=np.stack([success, [True] * n], axis=1),
-        reached_EN=np.ones((n, 2), dtype=bool),
+        reached_EN=np.stack([reached, [True] * n], axis=1),
         length_E=np.full(n, 10),
         solved_E=np.array(success),
         trajectory_TN4=np.zeros((1, 2, 4)),
     )
 
 
-ALIGNED = Scenario("pair:c+c4", "c", ("c4",), 2, 1)  # is_aligned
-OTHER = Scenario("pair:a2+b3", "a2", ("b3",), 2, 2)  # not aligned
+ALIGNED = Scenario("pair:c+c4", "c", ("c4",), 2, 1)  # influence c0 inside column c
+OTHER = Scenario("pair:a2+b3", "a2", ("b3",), 2, 2)  # influence d1, far from a2
 
 
-def test_pair_means_and_groups_by_hand() -> None:
+def test_units_groups_and_stuck_episodes_by_hand() -> None:
     results = [
         cell(ALIGNED, "aail", [-1, -3], [-2, -2]),
         cell(ALIGNED, "sl", [-2, -2], [-6, -4]),
-        cell(OTHER, "aail", [-5, -5], [-1, -1], [True, False]),
-        cell(OTHER, "sl", [-4, -4], [-3, -3]),
+        # one episode never reached the target, one left it and did not come back
+        cell(
+            OTHER,
+            "aail",
+            [-5, -5, -5, -5],
+            [-1] * 4,
+            [True, False, False, True],
+            reached=[True, False, True, True],
+        ),
+        cell(OTHER, "sl", [-4] * 4, [-3] * 4),
+        # a second replicate of the same pair pools into one unit
+        cell(Scenario("pair:a2+b3#1", "a2", ("b3",), 2, 1002, 1), "aail", [-7, -7], [-1, -1]),
+        cell(Scenario("pair:a2+b3#1", "a2", ("b3",), 2, 1002, 1), "sl", [-4, -4], [-3, -3]),
     ]
-    means = {p.scenario.name: p for p in pair_means(results)}
-    assert means["pair:c+c4"].by_method["aail"] == {
-        "ego": -2.0, "others": -2.0, "team": -4.0, "ego_success": 1.0, "length": 10.0,
-    }  # fmt: skip
-    assert means["pair:a2+b3"].by_method["aail"]["ego_success"] == 0.5
-    groups = {g.label: g for g in pair_groups(results)}
-    assert set(groups) == {"aligned", "non-aligned"}
-    aligned = groups["aligned"]
-    assert aligned.means["sl"]["team"].mean == pytest.approx(-7.0)
-    test = aligned.test("aail", "sl", "team")
+    units = {u.combo: u for u in units_of(results)}
+    aligned = units["c+c4"]
+    assert aligned.by_method["aail"] == {
+        "ego": -2.0,
+        "others": -2.0,
+        "team": -4.0,
+        "ego_success": 1.0,
+        "stuck": 0.0,
+        "never": 0.0,
+        "length": 10.0,
+    }
+    other = units["a2+b3"]
+    assert other.episodes == 6 and len(other.scenarios) == 2
+    assert other.stuck_episodes == {"aail": 2, "sl": 0}
+    assert other.by_method["aail"]["never"] == pytest.approx(1 / 6)
+    assert other.regret("aail") == pytest.approx((-4 - (-17 / 3)) / 4)
+    groups = pair_groups(results)
+    assert set(groups) == {"aligned", "room_to_help", "non_aligned"}
+    group = groups["aligned"]
+    assert group.rows["sl"].means["team"].mean == pytest.approx(-7.0)
+    test = group.test("aail", "sl", "team")
     assert test is not None and test.diff.mean == pytest.approx(3.0) and test.better == 1.0
-    assert pair_test(aligned.pairs, "aail", "jl", "team") is None  # no pair ran JL
+    assert unit_test(group.units, "aail", "jl", "team") is None  # no pair ran JL
+    row = groups["non_aligned"].rows["aail"]
+    assert (row.stuck_episodes, row.units_with_stuck, row.episodes) == (2, 1, 6)
+    assert groups["non_aligned"].worst("aail")[0].combo == "a2+b3"
 
 
 def test_verdict_counts_checks() -> None:
@@ -110,18 +142,55 @@ def test_claim_non_aligned_thresholds() -> None:
     assert [c.passed for c in claim.checks] == [True, False, False]
 
 
-def test_claim_non_aligned_on_pairs_and_five_agents() -> None:
+NON_ALIGNED = [("a2", "b3"), ("a0", "e4"), ("a1", "d1"), ("b0", "e2"), ("a4", "d0"), ("a3", "e0"),
+               ("b4", "e3"), ("a0", "d4"), ("b1", "d0"), ("a2", "e4")]  # fmt: skip
+
+
+def test_targets_on_pairs() -> None:
     results = []
-    for k in range(8):
-        s = Scenario(f"pair:{k}", "a2", ("b3",), 2, k)  # 8 pairs: exact p = 2 / 2^8
+    for k, (ego, partner) in enumerate(NON_ALIGNED):
+        s = Scenario(f"pair:{ego}+{partner}", ego, (partner,), 2, k)
         results += [
             cell(s, "sl", [-10.0 - k] * 2, [-5.0] * 2),
-            cell(s, "aail", [-10.5 - k] * 2, [-4.0] * 2),
+            cell(s, "aail_bounded", [-10.5 - k] * 2, [-4.0] * 2),  # regret ~4 %, team +0.5
+            cell(s, "aail", [-10.0 - k] * 2, [-5.0] * 2, [k != 3, True]),  # one stuck episode
             cell(s, "nail", [-30.0 - k] * 2, [-3.0] * 2, [False, False]),
         ]
-    [group] = pair_groups(results)
-    assert group.label == "non-aligned"
-    assert claim_non_aligned_pairs(group).verdict == "reproduced"
+    aligned = [("c", "c4"), ("2", "c2"), ("b", "d0"), ("c", "c")]  # the last: I = T
+    for k, (ego, partner) in enumerate(aligned):
+        s = Scenario(f"pair:{ego}+{partner}", ego, (partner,), 2, 50 + k)
+        gain = 0.0 if partner == "c" else 1.0
+        results += [
+            cell(s, "sl", [-5.0] * 2, [-5.0] * 2),
+            cell(s, "aail_bounded", [-5.0] * 2, [-5.0 + gain] * 2),
+            cell(s, "aail", [-5.0] * 2, [-5.5] * 2),  # 10 % below SL's team return
+        ]
+    groups = pair_groups(results)
+    assert len(groups["room_to_help"].units) == 3
+    targets = {(t.key, t.method): t for t in targets_of(groups, ("aail_bounded", "aail"))}
+    non_aligned = targets[("T1", "aail_bounded")]
+    assert non_aligned.verdict == "met", non_aligned
+    failed = [c.text for c in targets[("T1", "aail")].checks if not c.passed]
+    assert failed == ["AAIL ego success >= 0.99", "no stuck episode"]
+    # 3 room-to-help pairs cannot reach p < 0.01 (exact Wilcoxon: 0.25); the 2 % share holds
+    t2 = targets[("T2", "aail_bounded")]
+    assert [c.passed for c in t2.checks] == [True, False] and "3 pairs" in t2.checks[1].detail
+    assert [c.passed for c in targets[("T2", "aail")].checks] == [False, False]
+
+
+def test_five_agent_target_needs_every_set() -> None:
+    goals = [("a0", "b2", "c4", "e1"), ("b2", "c4", "e1", "a0"), ("d", "1", "c4", "e1")]
+    sets = [Scenario(f"set:{k}", "a2", goals[k], 2, 600 + k) for k in range(3)]
+    results = []
+    for k, s in enumerate(sets):
+        results += [cell(s, "sl", [-5.0] * 2, [-20.0] * 2),
+                    cell(s, "aail_bounded", [-5.0] * 2, [-20.0 + (0.5 if k else -0.1)] * 2)]  # fmt: skip
+    [target] = targets_of(pair_groups(results), ("aail_bounded",))
+    assert target.key == "T3" and target.verdict == "not met"
+    assert "below SL in 1 of 3 sets (worst -0.10)" in target.checks[0].detail
+
+
+def test_claim_five_agents() -> None:
     five = Scenario("five_agents", "a2", ("a0", "b2", "c4", "e1"), 2, 3)
     cells = scenario_cells(five, {"sl": 0.0, "aail": 2.0, "nail": 1.0})
     for c in cells.values():  # a 2-column stand-in for the five agents is enough here

@@ -226,7 +226,9 @@ def test_extreme_q_and_alpha_give_no_nan(method: str, alpha: float) -> None:
 
 def test_bad_inputs_are_named() -> None:
     q_t, q_i = np.zeros((2, 3)), np.zeros((2, 1, 3))
-    with pytest.raises(ValueError, match=r"method: .*'softmax'.*\('sl', 'nail', 'aail'\)"):
+    with pytest.raises(
+        ValueError, match=r"method: .*'softmax'.*\('sl', 'nail', 'aail', 'aail_bounded'\)"
+    ):
         blend("softmax", q_t, q_i, 1.0)  # type: ignore[arg-type]
     with pytest.raises(ValueError, match=r"q_task_BA: expected shape \(B, A\), got \(3,\)"):
         blend("aail", np.zeros(3), q_i, 1.0)

@@ -42,8 +42,10 @@ def reference(
     method: str,
     alpha: float,
     versions: dict[str, int] | None = None,
+    regret_bound: float | None = None,
 ):
-    """(probs, task entropy, task weight, partner weights) of one row, computed naively."""
+    """(probs, task entropy, task weight, partner weights) of one row, computed naively;
+    aail_bounded's ε defaults to `alpha` (the engine's default is the task model's α)."""
     blocks = obs_D.reshape(-1, 4)
     ego, others = blocks[0], list(blocks[1:]) or [PHANTOM]
     if method == "jl":
@@ -64,7 +66,9 @@ def reference(
                 sum(p * _q(store, names[g], pinned.get(names[g]), pair) for g, p in goals.items())
             )
     q_impact = np.array(q_impacts).reshape(1, len(q_impacts), 5)
-    out = blend(cast(BlendMethod, method), q_task[None], q_impact, alpha)
+    if method == "aail_bounded" and regret_bound is None:
+        regret_bound = alpha
+    out = blend(cast(BlendMethod, method), q_task[None], q_impact, alpha, regret_bound=regret_bound)
     weights = out.partner_weights_BP[0] if method != "sl" else np.zeros(len(partners))
     return out.probs_BA[0], out.task_entropy_B[0], out.task_weight_B[0], weights
 
@@ -86,7 +90,7 @@ def _check_row(result, ref) -> None:
         np.testing.assert_allclose(result.partner_weights, w_partners, atol=ATOL)
 
 
-@pytest.mark.parametrize("method", ["sl", "nail", "aail"])
+@pytest.mark.parametrize("method", ["sl", "nail", "aail", "aail_bounded"])
 @pytest.mark.parametrize("n_partners", [0, 1, 2, 3, 4])
 def test_engine_matches_naive_reference(tiny_zoo, method: str, n_partners: int) -> None:
     store = tiny_zoo.store
@@ -114,7 +118,7 @@ def test_engine_single_agent_uses_the_phantom(tiny_zoo) -> None:
     assert result.task_weight == 1.0 and result.partner_weights == []
 
 
-@pytest.mark.parametrize("method", ["nail", "aail"])
+@pytest.mark.parametrize("method", ["nail", "aail", "aail_bounded"])
 def test_engine_goal_distributions(tiny_zoo, method: str) -> None:
     engine = InferenceEngine(tiny_zoo.store)
     obs_BD = np.random.default_rng(5).random((4, 16))
@@ -163,8 +167,18 @@ def test_temperature_from_request_lineage_or_default(tiny_zoo) -> None:
     ):
         [result] = engine.act(
             ActRequest("particle", goal, obs, _specs(partners), temperature=temperature)
+        )  # the default method, aail_bounded: ε is the task model's α whatever the temperature
+        model_alpha = 0.02 if goal == "b3" else tiny_zoo.alpha
+        ref = reference(
+            tiny_zoo.store,
+            obs[0],
+            goal,
+            partners,
+            "aail_bounded",
+            expected,
+            regret_bound=model_alpha,
         )
-        _check_row(result, reference(tiny_zoo.store, obs[0], goal, partners, "aail", expected))
+        _check_row(result, ref)
 
 
 def test_networks_of_different_architectures(tiny_zoo) -> None:
@@ -178,7 +192,7 @@ def test_networks_of_different_architectures(tiny_zoo) -> None:
     results = engine.act(ActRequest("particle", "a2", obs_BD, _specs(partners), versions=pinned))
     for row, result in zip(obs_BD, results, strict=True):
         ref = reference(
-            tiny_zoo.store, row, "a2", partners, "aail", tiny_zoo.alpha, versions=pinned
+            tiny_zoo.store, row, "a2", partners, "aail_bounded", tiny_zoo.alpha, versions=pinned
         )
         _check_row(result, ref)
     assert results[0].models[1].version == version == 2

@@ -30,6 +30,7 @@ def _engine_result(client, **kw):
         "ego_goal": "a2",
         "observations": np.array([OBS]),
         "seed": 7,
+        "method": BODY["method"],
     }
     fields["partners"] = (PartnerSpec(1, goal="b3"),)
     fields.update(kw)
@@ -77,7 +78,7 @@ def test_act_returns_the_contract_shape(act_client) -> None:
 def test_act_defaults_and_options(act_client) -> None:
     minimal = {"env": "particle", "ego_goal": "c1", "observation": OBS[:4]}
     body = act_client.post("/v1/act", json=minimal).json()
-    assert body["method"] == "aail" and body["diagnostics"]["partner_weights"] == []
+    assert body["method"] == "aail_bounded" and body["diagnostics"]["partner_weights"] == []
     sl = act_client.post("/v1/act", json={**BODY, "method": "sl", "temperature": 0.5}).json()
     assert sl["probs"] == pytest.approx(
         _engine_result(act_client, method="sl", temperature=0.5).probs
@@ -174,7 +175,7 @@ def test_envs(act_client) -> None:
     assert env["observation_layouts"]["1"] == ["self.x", "self.y", "self.vx", "self.vy"]
     assert len(env["observation_layouts"]["5"]) == 20
     assert env["state_layout"] == ["x", "y", "vx", "vy"]
-    assert env["methods"] == ["aail", "nail", "sl", "jl"]
+    assert env["methods"] == ["aail_bounded", "aail", "nail", "sl", "jl"]
 
 
 def test_openapi_documents_the_routes(act_client) -> None:

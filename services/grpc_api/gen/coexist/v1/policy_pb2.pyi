@@ -60,7 +60,7 @@ class BeliefSettings(_message.Message):
     def __init__(self, forgetting: _Optional[float] = ..., floor: _Optional[float] = ..., temperature: _Optional[float] = ..., blend_mass: _Optional[float] = ..., blend_max_goals: _Optional[int] = ...) -> None: ...
 
 class ActRequest(_message.Message):
-    __slots__ = ("env", "ego_goal", "observation", "state", "ego_index", "partners", "method", "temperature", "seed", "alias", "versions")
+    __slots__ = ("env", "ego_goal", "observation", "state", "ego_index", "partners", "method", "temperature", "seed", "alias", "versions", "regret_bound")
     class VersionsEntry(_message.Message):
         __slots__ = ("key", "value")
         KEY_FIELD_NUMBER: _ClassVar[int]
@@ -79,6 +79,7 @@ class ActRequest(_message.Message):
     SEED_FIELD_NUMBER: _ClassVar[int]
     ALIAS_FIELD_NUMBER: _ClassVar[int]
     VERSIONS_FIELD_NUMBER: _ClassVar[int]
+    REGRET_BOUND_FIELD_NUMBER: _ClassVar[int]
     env: str
     ego_goal: str
     observation: _containers.RepeatedScalarFieldContainer[float]
@@ -90,7 +91,8 @@ class ActRequest(_message.Message):
     seed: int
     alias: str
     versions: _containers.ScalarMap[str, int]
-    def __init__(self, env: _Optional[str] = ..., ego_goal: _Optional[str] = ..., observation: _Optional[_Iterable[float]] = ..., state: _Optional[_Union[State, _Mapping]] = ..., ego_index: _Optional[int] = ..., partners: _Optional[_Iterable[_Union[PartnerSpec, _Mapping]]] = ..., method: _Optional[str] = ..., temperature: _Optional[float] = ..., seed: _Optional[int] = ..., alias: _Optional[str] = ..., versions: _Optional[_Mapping[str, int]] = ...) -> None: ...
+    regret_bound: float
+    def __init__(self, env: _Optional[str] = ..., ego_goal: _Optional[str] = ..., observation: _Optional[_Iterable[float]] = ..., state: _Optional[_Union[State, _Mapping]] = ..., ego_index: _Optional[int] = ..., partners: _Optional[_Iterable[_Union[PartnerSpec, _Mapping]]] = ..., method: _Optional[str] = ..., temperature: _Optional[float] = ..., seed: _Optional[int] = ..., alias: _Optional[str] = ..., versions: _Optional[_Mapping[str, int]] = ..., regret_bound: _Optional[float] = ...) -> None: ...
 
 class Matrix(_message.Message):
     __slots__ = ("rows", "cols", "values")
@@ -103,7 +105,7 @@ class Matrix(_message.Message):
     def __init__(self, rows: _Optional[int] = ..., cols: _Optional[int] = ..., values: _Optional[_Iterable[float]] = ...) -> None: ...
 
 class ActBatchRequest(_message.Message):
-    __slots__ = ("env", "ego_goal", "observations", "states", "ego_index", "partners", "method", "temperature", "seed", "alias", "versions", "observation_matrix", "format")
+    __slots__ = ("env", "ego_goal", "observations", "states", "ego_index", "partners", "method", "temperature", "seed", "alias", "versions", "observation_matrix", "format", "regret_bound")
     class VersionsEntry(_message.Message):
         __slots__ = ("key", "value")
         KEY_FIELD_NUMBER: _ClassVar[int]
@@ -124,6 +126,7 @@ class ActBatchRequest(_message.Message):
     VERSIONS_FIELD_NUMBER: _ClassVar[int]
     OBSERVATION_MATRIX_FIELD_NUMBER: _ClassVar[int]
     FORMAT_FIELD_NUMBER: _ClassVar[int]
+    REGRET_BOUND_FIELD_NUMBER: _ClassVar[int]
     env: str
     ego_goal: str
     observations: _containers.RepeatedCompositeFieldContainer[Vector]
@@ -137,10 +140,11 @@ class ActBatchRequest(_message.Message):
     versions: _containers.ScalarMap[str, int]
     observation_matrix: Matrix
     format: BatchFormat
-    def __init__(self, env: _Optional[str] = ..., ego_goal: _Optional[str] = ..., observations: _Optional[_Iterable[_Union[Vector, _Mapping]]] = ..., states: _Optional[_Iterable[_Union[State, _Mapping]]] = ..., ego_index: _Optional[int] = ..., partners: _Optional[_Iterable[_Union[PartnerSpec, _Mapping]]] = ..., method: _Optional[str] = ..., temperature: _Optional[float] = ..., seed: _Optional[int] = ..., alias: _Optional[str] = ..., versions: _Optional[_Mapping[str, int]] = ..., observation_matrix: _Optional[_Union[Matrix, _Mapping]] = ..., format: _Optional[_Union[BatchFormat, str]] = ...) -> None: ...
+    regret_bound: float
+    def __init__(self, env: _Optional[str] = ..., ego_goal: _Optional[str] = ..., observations: _Optional[_Iterable[_Union[Vector, _Mapping]]] = ..., states: _Optional[_Iterable[_Union[State, _Mapping]]] = ..., ego_index: _Optional[int] = ..., partners: _Optional[_Iterable[_Union[PartnerSpec, _Mapping]]] = ..., method: _Optional[str] = ..., temperature: _Optional[float] = ..., seed: _Optional[int] = ..., alias: _Optional[str] = ..., versions: _Optional[_Mapping[str, int]] = ..., observation_matrix: _Optional[_Union[Matrix, _Mapping]] = ..., format: _Optional[_Union[BatchFormat, str]] = ..., regret_bound: _Optional[float] = ...) -> None: ...
 
 class EpisodeSettings(_message.Message):
-    __slots__ = ("env", "ego_goal", "partners", "method", "temperature", "seed", "alias", "versions", "belief")
+    __slots__ = ("env", "ego_goal", "partners", "method", "temperature", "seed", "alias", "versions", "belief", "regret_bound")
     class VersionsEntry(_message.Message):
         __slots__ = ("key", "value")
         KEY_FIELD_NUMBER: _ClassVar[int]
@@ -157,6 +161,7 @@ class EpisodeSettings(_message.Message):
     ALIAS_FIELD_NUMBER: _ClassVar[int]
     VERSIONS_FIELD_NUMBER: _ClassVar[int]
     BELIEF_FIELD_NUMBER: _ClassVar[int]
+    REGRET_BOUND_FIELD_NUMBER: _ClassVar[int]
     env: str
     ego_goal: str
     partners: _containers.RepeatedCompositeFieldContainer[PartnerSpec]
@@ -166,7 +171,8 @@ class EpisodeSettings(_message.Message):
     alias: str
     versions: _containers.ScalarMap[str, int]
     belief: BeliefSettings
-    def __init__(self, env: _Optional[str] = ..., ego_goal: _Optional[str] = ..., partners: _Optional[_Iterable[_Union[PartnerSpec, _Mapping]]] = ..., method: _Optional[str] = ..., temperature: _Optional[float] = ..., seed: _Optional[int] = ..., alias: _Optional[str] = ..., versions: _Optional[_Mapping[str, int]] = ..., belief: _Optional[_Union[BeliefSettings, _Mapping]] = ...) -> None: ...
+    regret_bound: float
+    def __init__(self, env: _Optional[str] = ..., ego_goal: _Optional[str] = ..., partners: _Optional[_Iterable[_Union[PartnerSpec, _Mapping]]] = ..., method: _Optional[str] = ..., temperature: _Optional[float] = ..., seed: _Optional[int] = ..., alias: _Optional[str] = ..., versions: _Optional[_Mapping[str, int]] = ..., belief: _Optional[_Union[BeliefSettings, _Mapping]] = ..., regret_bound: _Optional[float] = ...) -> None: ...
 
 class ObservedAction(_message.Message):
     __slots__ = ("index", "action")

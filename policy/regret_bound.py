@@ -1,0 +1,91 @@
+"""AAIL with a bound on the ego's own regret (method `aail_bounded`): our addition to §3.3.
+
+Why. Eq. 9 lowers the task weight w_t wherever the task policy is unsure, and the particle
+world's blend standardises every Q-vector before eq. 8. Just outside its target area the ego's
+task network is often unsure in that sense (one step more or less costs little), and an impact
+network whose Q-vector is nearly flat there is blown up to the same unit spread as the task's:
+the blend then prefers resting or turning back, the state barely changes, and the ego parks
+beside its target for the rest of the episode (`reports/paper/discussion.md`). The paper's
+lemmas bound the regret of a blended *Q-function*; nothing bounds what the blended *policy*
+costs the ego step after step.
+
+What. Let π_t = Boltzmann(Q_t, α) be the task policy, π_C the AAIL policy (eqs. 8-10) and
+ε >= 0 the regret bound. The actions within ε of the task's best,
+
+    S_ε = {a : Q_t(a) >= max_b Q_t(b) - ε},
+
+share the task policy's probability on them as the blend says; every other action keeps exactly
+its task probability:
+
+    π_B(a) = π_t(S_ε) · π_C(a) / π_C(S_ε)   for a in S_ε,                       (R1)
+    π_B(a) = π_t(a)                         otherwise.
+
+Then the one-step regret against the task policy is bounded,
+
+    Σ_a π_t(a) Q_t(a) - Σ_a π_B(a) Q_t(a) = π_t(S_ε) (E_{π_t|S_ε} Q_t - E_{π_C|S_ε} Q_t) <= ε,
+
+so following π_B instead of π_t costs the ego at most ε / (1 - γ) of its discounted value
+(performance-difference lemma). Where the task is indifferent (inside its target area, every
+action within ε) π_B is the AAIL policy and the ego helps freely; where one action is clearly
+better (on its way to the target) π_B is the task policy, sampling noise included, so the ego
+moves and explores exactly as SL does. With ε = 0 (and no ties) π_B = π_t; as ε grows π_B
+tends to π_C. When π_C puts no probability on S_ε at all (underflow), π_B = π_t.
+
+The engine's default ε is the task network's temperature α: an action keeps the blend's say when
+the task policy rates it at least 1/e as likely as its best. Both shapes below give the same
+numbers to rounding (tested): `bound_rows` for batches (numpy), `bound_row` for the engine's
+single-row path (Python floats, where numpy's per-call cost would dominate).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+__all__ = ["bound_row", "bound_rows", "check_regret_bound"]
+
+
+def check_regret_bound(value: float) -> float:
+    """`value` as a float if it is a finite ε >= 0; ValueError naming `regret_bound` otherwise."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ValueError(f"regret_bound: expected a number >= 0, got {value!r}")
+    epsilon = float(value)
+    if not math.isfinite(epsilon) or epsilon < 0.0:
+        raise ValueError(f"regret_bound: expected a finite number >= 0, got {value!r}")
+    return epsilon
+
+
+def bound_rows(
+    probs_blend_BA: np.ndarray, q_task_BA: np.ndarray, probs_task_BA: np.ndarray, epsilon: float
+) -> np.ndarray:
+    """π_B of eq. R1 for each row, (B, A): `probs_blend_BA` is π_C, `probs_task_BA` π_t."""
+    inside_BA = q_task_BA >= q_task_BA.max(axis=1, keepdims=True) - epsilon
+    task_mass_B1 = np.where(inside_BA, probs_task_BA, 0.0).sum(axis=1, keepdims=True)
+    blend_inside_BA = np.where(inside_BA, probs_blend_BA, 0.0)
+    blend_mass_B1 = blend_inside_BA.sum(axis=1, keepdims=True)
+    usable_B1 = blend_mass_B1 > 0.0
+    share_BA = blend_inside_BA / np.where(usable_B1, blend_mass_B1, 1.0)
+    bounded_BA = np.where(inside_BA, task_mass_B1 * share_BA, probs_task_BA)
+    return np.where(usable_B1, bounded_BA, probs_task_BA)
+
+
+def bound_row(
+    probs_blend_A: Sequence[float], q_task_A: Sequence[float], alpha: float, epsilon: float
+) -> list[float]:
+    """`bound_rows` of one row, π_t computed here from `q_task_A` at `alpha` (eq. 2)."""
+    q_max = max(q_task_A)
+    weights = [math.exp((q - q_max) / alpha) for q in q_task_A]
+    total = math.fsum(weights)
+    probs_task = [w / total for w in weights]
+    inside = [q >= q_max - epsilon for q in q_task_A]
+    blend_mass = math.fsum(p for p, keep in zip(probs_blend_A, inside, strict=True) if keep)
+    if blend_mass <= 0.0:
+        return probs_task
+    task_mass = math.fsum(p for p, keep in zip(probs_task, inside, strict=True) if keep)
+    scale = task_mass / blend_mass
+    return [
+        pb * scale if keep else pt
+        for pb, pt, keep in zip(probs_blend_A, probs_task, inside, strict=True)
+    ]
