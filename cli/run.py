@@ -40,7 +40,13 @@ def run(
     partners: Annotated[
         str, typer.Option(help="Comma-separated partner goals (agents 1..N-1).")
     ] = "b3",
-    method: Annotated[str, typer.Option(help="Ego method: aail, nail, sl or jl.")] = "aail",
+    method: Annotated[
+        str, typer.Option(help="Ego method: aail_bounded, aail, nail, sl or jl.")
+    ] = "aail_bounded",
+    regret_bound: Annotated[
+        float | None,
+        typer.Option(min=0.0, help="aail_bounded's ε (default: the task network's training α)."),
+    ] = None,
     episodes: Annotated[int, typer.Option(min=1, help="Number of episodes.")] = 20,
     seed: Annotated[int, typer.Option(min=0, help="Seed of start states and sampling.")] = 0,
     max_steps: Annotated[int, typer.Option(min=1, help="Steps before truncation.")] = 200,
@@ -70,7 +76,7 @@ def run(
             task = progress.add_task(f"{episodes} episodes", total=episodes)
             results = run_episodes(
                 client, env=env, ego_goal=ego, partner_goals=partner_goals, method=method,
-                episodes=episodes, seed=seed, max_steps=max_steps, alias=alias, greedy=greedy,
+                regret_bound=regret_bound, episodes=episodes, seed=seed, max_steps=max_steps, alias=alias, greedy=greedy,
                 record_first=gif is not None, on_episode=lambda _: progress.advance(task),
             )  # fmt: skip
     except (CoexistError, ValueError) as err:

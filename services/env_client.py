@@ -56,7 +56,8 @@ class EpisodeClient(Protocol):
         ego_goal: str,
         *,
         partners: Any = None,
-        method: str = "aail",
+        method: str = "aail_bounded",
+        regret_bound: float | None = None,
         seed: int | None = None,
         alias: str = "production",
     ) -> EpisodeSession: ...
@@ -125,7 +126,8 @@ def run_episodes(
     ego_goal: str,
     partner_goals: Sequence[str],
     env: str = "particle",
-    method: str = "aail",
+    method: str = "aail_bounded",
+    regret_bound: float | None = None,
     episodes: int = 20,
     seed: int = 0,
     max_steps: int = 200,
@@ -155,6 +157,7 @@ def run_episodes(
             client, env, goals, method, alias, starts_ENS[e], agent_seeds=[
                 agent_seed(seed, e, i) for i in range(len(goals))
             ], episode=e, max_steps=max_steps, greedy=greedy, record=record,
+            regret_bound=regret_bound,
         )  # fmt: skip
         results.append(result)
         if on_episode is not None:
@@ -175,6 +178,7 @@ def _run_one(
     max_steps: int,
     greedy: bool,
     record: bool,
+    regret_bound: float | None = None,
 ) -> EpisodeResult:
     env = ParticleCoexistenceEnv(
         goals=goals, max_steps=max_steps, render_mode="rgb_array" if record else None
@@ -187,6 +191,7 @@ def _run_one(
                 client.episode(
                     env_name, goal, partners=partners if i == 0 else None,
                     method=method if i == 0 else "sl", seed=agent_seeds[i], alias=alias,
+                    regret_bound=regret_bound if i == 0 else None,
                 )
             )
             for i, goal in enumerate(goals)

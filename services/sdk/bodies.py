@@ -107,15 +107,18 @@ def _settings(
     seed: int | None,
     alias: str,
     versions: Mapping[str, int] | None,
+    regret_bound: float | None = None,
 ) -> dict[str, Any]:
-    if temperature is not None and not math.isfinite(temperature):
-        raise _bad("temperature", "expected a finite number")
+    for name, value in (("temperature", temperature), ("regret_bound", regret_bound)):
+        if value is not None and not math.isfinite(value):
+            raise _bad(name, "expected a finite number")
     return {
         "env": env,
         "ego_goal": ego_goal,
         "partners": normalise_partners(partners),
         "method": method,
         "temperature": temperature,
+        "regret_bound": regret_bound,
         "seed": seed,
         "alias": alias,
         "versions": dict(versions or {}),
@@ -130,14 +133,17 @@ def act_body(
     state: Any = None,
     ego_index: int = 0,
     partners: Partners = None,
-    method: str = "aail",
+    method: str = "aail_bounded",
     temperature: float | None = None,
+    regret_bound: float | None = None,
     seed: int | None = None,
     alias: str = "production",
     versions: Mapping[str, int] | None = None,
 ) -> dict[str, Any]:
     """The JSON body of `POST /v1/act`."""
-    body = _settings(env, ego_goal, partners, method, temperature, seed, alias, versions)
+    body = _settings(
+        env, ego_goal, partners, method, temperature, seed, alias, versions, regret_bound
+    )
     body.update(observation_fields(observation, state, ego_index))
     return body
 
@@ -159,15 +165,18 @@ def act_batch_body(
     states: Any = None,
     ego_index: int = 0,
     partners: Partners = None,
-    method: str = "aail",
+    method: str = "aail_bounded",
     temperature: float | None = None,
+    regret_bound: float | None = None,
     seed: int | None = None,
     alias: str = "production",
     versions: Mapping[str, int] | None = None,
     columns: bool = False,
 ) -> dict[str, Any]:
     """The JSON body of `POST /v1/act:batch`; `columns`: ask for the columnar answer."""
-    body = _settings(env, ego_goal, partners, method, temperature, seed, alias, versions)
+    body = _settings(
+        env, ego_goal, partners, method, temperature, seed, alias, versions, regret_bound
+    )
     if columns:
         body["format"] = "columns"
     if (observations is None) == (states is None):
@@ -185,14 +194,17 @@ def episode_settings(
     ego_goal: str,
     *,
     partners: Partners = None,
-    method: str = "aail",
+    method: str = "aail_bounded",
     temperature: float | None = None,
+    regret_bound: float | None = None,
     seed: int | None = None,
     alias: str = "production",
     versions: Mapping[str, int] | None = None,
 ) -> dict[str, Any]:
     """The settings of an episode: `act_body`'s fields without the observation."""
-    return _settings(env, ego_goal, partners, method, temperature, seed, alias, versions)
+    return _settings(
+        env, ego_goal, partners, method, temperature, seed, alias, versions, regret_bound
+    )
 
 
 def _inferring(partners: Partners, infer: Sequence[int]) -> list[dict[str, Any]]:
@@ -213,8 +225,9 @@ def session_body(
     *,
     partners: Partners = None,
     infer: Sequence[int] = (),
-    method: str = "aail",
+    method: str = "aail_bounded",
     temperature: float | None = None,
+    regret_bound: float | None = None,
     seed: int | None = None,
     alias: str = "production",
     versions: Mapping[str, int] | None = None,
@@ -223,7 +236,7 @@ def session_body(
     """The JSON body of `POST /v1/sessions` (also an Episode's settings): `episode_settings`'s
     fields with `infer` marked on partners, plus `belief` (forgetting, floor, temperature,
     blend_mass, blend_max_goals; left out: the server's defaults)."""
-    body = _settings(env, ego_goal, None, method, temperature, seed, alias, versions)
+    body = _settings(env, ego_goal, None, method, temperature, seed, alias, versions, regret_bound)
     body["partners"] = _inferring(partners, infer)
     if belief is not None:
         if not isinstance(belief, Mapping):

@@ -65,15 +65,16 @@ class AsyncGrpcCoexistClient:
         state: ArrayLike | None = None,
         ego_index: int = 0,
         partners: Partners = None,
-        method: str = "aail",
+        method: str = "aail_bounded",
         temperature: float | None = None,
+        regret_bound: float | None = None,
         seed: int | None = None,
         alias: str = "production",
         versions: Mapping[str, int] | None = None,
     ) -> Action:
         body = act_body(
             env, ego_goal, observation, state=state, ego_index=ego_index, partners=partners,
-            method=method, temperature=temperature, seed=seed, alias=alias, versions=versions,
+            method=method, temperature=temperature, regret_bound=regret_bound, seed=seed, alias=alias, versions=versions,
         )  # fmt: skip
         response = await self._call(self._stub.Act, proto.act_request(body))
         return proto.action_from_proto(response)
@@ -87,15 +88,16 @@ class AsyncGrpcCoexistClient:
         states: ArrayLike | None = None,
         ego_index: int = 0,
         partners: Partners = None,
-        method: str = "aail",
+        method: str = "aail_bounded",
         temperature: float | None = None,
+        regret_bound: float | None = None,
         seed: int | None = None,
         alias: str = "production",
         versions: Mapping[str, int] | None = None,
     ) -> ActionColumns:
         body = act_batch_body(
             env, ego_goal, observations, states=states, ego_index=ego_index, partners=partners,
-            method=method, temperature=temperature, seed=seed, alias=alias, versions=versions,
+            method=method, temperature=temperature, regret_bound=regret_bound, seed=seed, alias=alias, versions=versions,
             columns=True,
         )  # fmt: skip
         return await self._columns(body)
@@ -127,8 +129,9 @@ class AsyncGrpcCoexistClient:
         *,
         partners: Partners = None,
         infer: Sequence[int] = (),
-        method: str = "aail",
+        method: str = "aail_bounded",
         temperature: float | None = None,
+        regret_bound: float | None = None,
         seed: int | None = None,
         alias: str = "production",
         versions: Mapping[str, int] | None = None,
@@ -136,7 +139,7 @@ class AsyncGrpcCoexistClient:
     ) -> AsyncGrpcEpisode:
         settings = session_body(
             env, ego_goal, partners=partners, infer=infer, method=method,
-            temperature=temperature, seed=seed, alias=alias, versions=versions, belief=belief,
+            temperature=temperature, regret_bound=regret_bound, seed=seed, alias=alias, versions=versions, belief=belief,
         )  # fmt: skip
         return AsyncGrpcEpisode(self._stub, settings)
 

@@ -87,15 +87,16 @@ class GrpcCoexistClient:
         state: ArrayLike | None = None,
         ego_index: int = 0,
         partners: Partners = None,
-        method: str = "aail",
+        method: str = "aail_bounded",
         temperature: float | None = None,
+        regret_bound: float | None = None,
         seed: int | None = None,
         alias: str = "production",
         versions: Mapping[str, int] | None = None,
     ) -> Action:
         body = act_body(
             env, ego_goal, observation, state=state, ego_index=ego_index, partners=partners,
-            method=method, temperature=temperature, seed=seed, alias=alias, versions=versions,
+            method=method, temperature=temperature, regret_bound=regret_bound, seed=seed, alias=alias, versions=versions,
         )  # fmt: skip
         return proto.action_from_proto(self._call(self._stub.Act, proto.act_request(body)))
 
@@ -108,15 +109,16 @@ class GrpcCoexistClient:
         states: ArrayLike | None = None,
         ego_index: int = 0,
         partners: Partners = None,
-        method: str = "aail",
+        method: str = "aail_bounded",
         temperature: float | None = None,
+        regret_bound: float | None = None,
         seed: int | None = None,
         alias: str = "production",
         versions: Mapping[str, int] | None = None,
     ) -> ActionColumns:
         body = act_batch_body(
             env, ego_goal, observations, states=states, ego_index=ego_index, partners=partners,
-            method=method, temperature=temperature, seed=seed, alias=alias, versions=versions,
+            method=method, temperature=temperature, regret_bound=regret_bound, seed=seed, alias=alias, versions=versions,
             columns=True,
         )  # fmt: skip
         return self._columns(body)
@@ -149,8 +151,9 @@ class GrpcCoexistClient:
         *,
         partners: Partners = None,
         infer: Sequence[int] = (),
-        method: str = "aail",
+        method: str = "aail_bounded",
         temperature: float | None = None,
+        regret_bound: float | None = None,
         seed: int | None = None,
         alias: str = "production",
         versions: Mapping[str, int] | None = None,
@@ -159,7 +162,7 @@ class GrpcCoexistClient:
         """An `Episode` stream: settings sent with the first step, step t seeded with seed + t."""
         settings = session_body(
             env, ego_goal, partners=partners, infer=infer, method=method,
-            temperature=temperature, seed=seed, alias=alias, versions=versions, belief=belief,
+            temperature=temperature, regret_bound=regret_bound, seed=seed, alias=alias, versions=versions, belief=belief,
         )  # fmt: skip
         return GrpcEpisode(self._stub, settings)
 

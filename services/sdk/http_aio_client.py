@@ -53,8 +53,9 @@ class AsyncCoexistClient:
         state: ArrayLike | None = None,
         ego_index: int = 0,
         partners: Partners = None,
-        method: str = "aail",
+        method: str = "aail_bounded",
         temperature: float | None = None,
+        regret_bound: float | None = None,
         seed: int | None = None,
         alias: str = "production",
         versions: Mapping[str, int] | None = None,
@@ -68,6 +69,7 @@ class AsyncCoexistClient:
             partners=partners,
             method=method,
             temperature=temperature,
+            regret_bound=regret_bound,
             seed=seed,
             alias=alias,
             versions=versions,
@@ -83,15 +85,16 @@ class AsyncCoexistClient:
         states: ArrayLike | None = None,
         ego_index: int = 0,
         partners: Partners = None,
-        method: str = "aail",
+        method: str = "aail_bounded",
         temperature: float | None = None,
+        regret_bound: float | None = None,
         seed: int | None = None,
         alias: str = "production",
         versions: Mapping[str, int] | None = None,
     ) -> ActionColumns:
         body = act_batch_body(
             env, ego_goal, observations, states=states, ego_index=ego_index, partners=partners,
-            method=method, temperature=temperature, seed=seed, alias=alias, versions=versions,
+            method=method, temperature=temperature, regret_bound=regret_bound, seed=seed, alias=alias, versions=versions,
             columns=True,
         )  # fmt: skip
         return await self._columns(body)
@@ -119,8 +122,9 @@ class AsyncCoexistClient:
         *,
         partners: Partners = None,
         infer: Sequence[int] = (),
-        method: str = "aail",
+        method: str = "aail_bounded",
         temperature: float | None = None,
+        regret_bound: float | None = None,
         seed: int | None = None,
         alias: str = "production",
         versions: Mapping[str, int] | None = None,
@@ -130,7 +134,7 @@ class AsyncCoexistClient:
         """As `CoexistClient.create_session`, awaited."""
         body = session_body(
             env, ego_goal, partners=partners, infer=infer, method=method,
-            temperature=temperature, seed=seed, alias=alias, versions=versions, belief=belief,
+            temperature=temperature, regret_bound=regret_bound, seed=seed, alias=alias, versions=versions, belief=belief,
         )  # fmt: skip
         headers = new_affinity()
         info = SessionInfo.from_json(await self._request("POST", "/v1/sessions", body, headers))

@@ -97,8 +97,9 @@ class CoexistClient:
         state: ArrayLike | None = None,
         ego_index: int = 0,
         partners: Partners = None,
-        method: str = "aail",
+        method: str = "aail_bounded",
         temperature: float | None = None,
+        regret_bound: float | None = None,
         seed: int | None = None,
         alias: str = "production",
         versions: Mapping[str, int] | None = None,
@@ -113,6 +114,7 @@ class CoexistClient:
             partners=partners,
             method=method,
             temperature=temperature,
+            regret_bound=regret_bound,
             seed=seed,
             alias=alias,
             versions=versions,
@@ -128,8 +130,9 @@ class CoexistClient:
         states: ArrayLike | None = None,
         ego_index: int = 0,
         partners: Partners = None,
-        method: str = "aail",
+        method: str = "aail_bounded",
         temperature: float | None = None,
+        regret_bound: float | None = None,
         seed: int | None = None,
         alias: str = "production",
         versions: Mapping[str, int] | None = None,
@@ -137,7 +140,7 @@ class CoexistClient:
         """`act_batch`'s answer as arrays, one per field (the server's columnar format)."""
         body = act_batch_body(
             env, ego_goal, observations, states=states, ego_index=ego_index, partners=partners,
-            method=method, temperature=temperature, seed=seed, alias=alias, versions=versions,
+            method=method, temperature=temperature, regret_bound=regret_bound, seed=seed, alias=alias, versions=versions,
             columns=True,
         )  # fmt: skip
         return self._columns(body)
@@ -165,15 +168,16 @@ class CoexistClient:
         ego_goal: str,
         *,
         partners: Partners = None,
-        method: str = "aail",
+        method: str = "aail_bounded",
         temperature: float | None = None,
+        regret_bound: float | None = None,
         seed: int | None = None,
         alias: str = "production",
         versions: Mapping[str, int] | None = None,
     ) -> HttpEpisode:
         """A session for one episode: settings given once, then `session.act(obs)` per step."""
         settings = episode_settings(
-            env, ego_goal, partners=partners, method=method, temperature=temperature,
+            env, ego_goal, partners=partners, method=method, temperature=temperature, regret_bound=regret_bound,
             seed=seed, alias=alias, versions=versions,
         )  # fmt: skip
         return HttpEpisode(self, settings)
@@ -185,8 +189,9 @@ class CoexistClient:
         *,
         partners: Partners = None,
         infer: Sequence[int] = (),
-        method: str = "aail",
+        method: str = "aail_bounded",
         temperature: float | None = None,
+        regret_bound: float | None = None,
         seed: int | None = None,
         alias: str = "production",
         versions: Mapping[str, int] | None = None,
@@ -197,7 +202,7 @@ class CoexistClient:
         `partners={1: None}` (uniform prior) or `infer=[1]` (the announced goal is the prior)."""
         body = session_body(
             env, ego_goal, partners=partners, infer=infer, method=method,
-            temperature=temperature, seed=seed, alias=alias, versions=versions, belief=belief,
+            temperature=temperature, regret_bound=regret_bound, seed=seed, alias=alias, versions=versions, belief=belief,
         )  # fmt: skip
         headers = new_affinity()
         info = SessionInfo.from_json(self._request("POST", "/v1/sessions", body, headers))
@@ -226,7 +231,8 @@ class HttpEpisode:
         action = self._client.act(
             s["env"], s["ego_goal"], observation, state=state, ego_index=ego_index,
             partners=s["partners"], method=s["method"], temperature=s["temperature"],
-            seed=step_seed(s["seed"], self.step), alias=s["alias"], versions=s["versions"],
+            regret_bound=s["regret_bound"], seed=step_seed(s["seed"], self.step),
+            alias=s["alias"], versions=s["versions"],
         )  # fmt: skip
         self.step += 1
         return action

@@ -55,8 +55,8 @@ def _settings_kwargs(body: dict[str, Any]) -> dict[str, Any]:
         partners.append(partner)
     kwargs["partners"] = partners
     kwargs["versions"] = body["versions"]
-    for key in ("temperature", "seed"):
-        if body[key] is not None:
+    for key in ("temperature", "regret_bound", "seed"):
+        if body.get(key) is not None:
             kwargs[key] = body[key]
     if body.get("belief"):  # episodes only (session_body); unset fields: the server's defaults
         kwargs["belief"] = _build(pb.BeliefSettings, dict(body["belief"]))

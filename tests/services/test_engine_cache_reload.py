@@ -251,7 +251,7 @@ def test_status_stats_and_envs(tiny_zoo) -> None:
         "self.x", "self.y", "self.vx", "self.vy", "other1.x", "other1.y", "other1.vx", "other1.vy",
     ]  # fmt: skip
     assert info.state_layout == ("x", "y", "vx", "vy")
-    assert info.methods == ("aail", "nail", "sl", "jl")
+    assert info.methods == ("aail_bounded", "aail", "nail", "sl", "jl")
 
 
 @pytest.mark.parametrize(

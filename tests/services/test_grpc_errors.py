@@ -66,6 +66,10 @@ ACT_CASES = [
     ("negative temperature", act(temperature=-0.1), INVALID, "temperature"),
     ("zero temperature", act(temperature=0.0), INVALID, "temperature"),
     ("NaN temperature", act(temperature=NAN), INVALID, "temperature"),
+    ("negative regret bound", act(method="aail_bounded", regret_bound=-0.1), INVALID,
+     "regret_bound"),
+    ("NaN regret bound", act(regret_bound=NAN), INVALID, "regret_bound"),
+    ("regret bound with nail", act(method="nail", regret_bound=0.1), INVALID, "regret_bound"),
     ("negative seed", act(seed=-1), INVALID, "seed"),
     ("bad alias", act(alias="no spaces allowed"), INVALID, "alias"),
     ("version 0", act(versions={"particle/task/a2": 0}), INVALID, "versions[particle/task/a2]"),
@@ -142,7 +146,7 @@ def test_malformed_protobuf_is_invalid_argument(live: LiveServer, method: str) -
         raw(b"\x0a\xff\xff\xff\xff\x0f")  # field 1 claims a length far past the end
     assert info.value.code() == INVALID
     assert field_of(info.value) == "request"
-    assert live.stub.Act(act()).method == "aail"  # still serving
+    assert live.stub.Act(act()).method == "aail_bounded"  # still serving
 
 
 def test_episode_errors_name_the_step(live: LiveServer) -> None:
@@ -155,7 +159,7 @@ def test_episode_errors_name_the_step(live: LiveServer) -> None:
     steps = [pb.EpisodeStep(settings=settings, observation=OBS_2), pb.EpisodeStep(observation=OBS_2),
              pb.EpisodeStep(observation=OBS_2[:5])]  # fmt: skip
     responses = live.stub.Episode(iter(steps))
-    assert next(responses).method == "aail" and next(responses).method == "aail"
+    assert next(responses).method == "aail_bounded" and next(responses).method == "aail_bounded"
     with pytest.raises(grpc.RpcError) as info:
         next(responses)
     assert info.value.code() == INVALID and field_of(info.value) == "observation"
@@ -184,4 +188,4 @@ def test_unexpected_error_is_internal_and_the_server_keeps_serving(
         live.stub.Act(act())
     assert info.value.code() == grpc.StatusCode.INTERNAL
     assert "a bug" not in info.value.details()  # no internals leak
-    assert live.stub.Act(act()).method == "aail"
+    assert live.stub.Act(act()).method == "aail_bounded"

@@ -61,7 +61,7 @@ def test_act_equals_engine(live: LiveServer) -> None:
         ActRequest("particle", "a2", np.array([OBS_2]), (PartnerSpec(1, goal="b3"),), seed=7)
     )
     assert_same(response, expected, [1])
-    assert response.method == "aail" and len(response.models) == 2  # task a2 + impact b3
+    assert response.method == "aail_bounded" and len(response.models) == 2  # task a2 + impact b3
     assert abs(sum(response.probs) - 1.0) < 1e-9
 
 
@@ -141,7 +141,7 @@ def test_list_envs_describes_the_particle_world(live: LiveServer) -> None:
     assert list(env.observation_layouts[1].features)[:5] == [
         "self.x", "self.y", "self.vx", "self.vy", "other1.x",
     ]  # fmt: skip
-    assert set(env.methods) == {"aail", "nail", "sl", "jl"}
+    assert set(env.methods) == {"aail_bounded", "aail", "nail", "sl", "jl"}
 
 
 def test_health_is_serving_and_follows_readiness(tiny_zoo_store: SqlModelStore) -> None:
@@ -194,7 +194,7 @@ def test_graceful_stop_finishes_in_flight_calls(
         future = live.stub.Act.future(request)
         time.sleep(0.1)  # the call is in the engine now
         stopped = live.server.stop(grace=5.0)
-        assert future.result(timeout=5).method == "aail"  # answered, not cancelled
+        assert future.result(timeout=5).method == "aail_bounded"  # answered, not cancelled
         assert stopped.wait(timeout=5)
 
 
@@ -205,7 +205,7 @@ def test_cancelled_episodes_free_their_worker_threads(tiny_zoo_store: SqlModelSt
             outbox: queue.SimpleQueue[pb.EpisodeStep] = queue.SimpleQueue()
             responses = live.stub.Episode(iter(outbox.get, None))
             outbox.put(pb.EpisodeStep(settings=settings, observation=OBS_2))
-            assert next(responses).method == "aail"
+            assert next(responses).method == "aail_bounded"
             responses.cancel()  # the client goes away mid-episode
         request = pb.ActRequest(env="particle", ego_goal="a2", observation=OBS_2)
-        assert live.stub.Act(request, timeout=5).method == "aail"
+        assert live.stub.Act(request, timeout=5).method == "aail_bounded"

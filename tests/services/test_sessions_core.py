@@ -289,6 +289,8 @@ BAD_SETTINGS = [
     ("partners[0].infer", dict(partners=(SessionPartner(1, infer=True),), method="jl")),
     ("method", dict(method="best")),
     ("temperature", dict(temperature=-1.0)),
+    ("regret_bound", dict(regret_bound=-0.5)),
+    ("regret_bound", dict(method="sl", regret_bound=0.5)),
     ("seed", dict(seed=-3)),
     ("belief.forgetting", dict(belief=BeliefConfig(forgetting=1.5))),
     ("belief.floor", dict(belief=BeliefConfig(floor=0.5))),

@@ -247,6 +247,8 @@ def test_observed_at_step_0_is_a_422(client: TestClient) -> None:
         ("partners[0].infer", {"partners": [{"index": 1, "infer": "maybe"}]}),
         ("partners[0].index", {"partners": [{"index": 9, "infer": True}]}),
         ("ego_goal", {"ego_goal": "zz"}),
+        ("regret_bound", {"regret_bound": -1.0}),
+        ("regret_bound", {"method": "aail", "regret_bound": 0.1}),
     ],
 )
 def test_bad_settings_are_a_422_naming_the_field(
