@@ -15,9 +15,9 @@ from evaluation.claims import (
 )
 from evaluation.config import Scenario
 from evaluation.pairs import pair_groups, unit_test, units_of
-from evaluation.targets import targets_of
 from evaluation.rollout import CellResult
 from evaluation.scaling import KindTraining
+from evaluation.targets import targets_of
 
 
 def cell(
