@@ -11,14 +11,17 @@ Version 1 of each: random weights (numpy, scaled so policies depend on the obser
 between goals), lineage α 0.05. Every goal has its networks because goal inference scores all
 task networks of an env. The two version 2s are registered by the trainer's own `publish_batch`
 (so their lineage has the shape training gives: config, seed, code version, a curve, the impact
-network's parent task version), from untrained networks and a made-up curve.
+network's parent task version), with version 1's weights and a made-up curve: promoting one
+changes no policy, so the tests that play episodes do not depend on the one that promotes.
 """
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import safetensors.numpy
+import torch
 
 from envs.registry import get_domain
 from model_store.entities import Lineage
@@ -62,12 +65,22 @@ def _register_env(store: SqlModelStore, env: str, seed_offset: int) -> None:
             )  # fmt: skip
 
 
+def _retrained(store: SqlModelStore, name: str) -> StackedQNet:
+    """Version 1's weights as a one-member stack: a "retrained" version 2 that acts exactly as
+    version 1, so promoting it (a test does) changes no episode another test plays."""
+    spec = QNetSpec.from_json(store.get_version(name, 1).spec)
+    tensors = safetensors.numpy.load(store.load_weights(name, 1))
+    return StackedQNet.from_members(spec, [{k: torch.tensor(v) for k, v in tensors.items()}])
+
+
 def _second_versions(store: SqlModelStore) -> None:
-    spec = QNetSpec(obs_dim=8, n_actions=5, hidden=(8,))
-    task = TrainedBatch("task", [("a2",)], StackedQNet(spec, 1), spec, TaskConfig(), 11, CURVE)
+    nets = _retrained(store, "particle/task/a2")
+    task_config = replace(TaskConfig(), hidden=nets.spec.hidden)
+    task = TrainedBatch("task", [("a2",)], nets, nets.spec, task_config, 11, CURVE)
     publish_batch(store, task, serve_alias="candidate", registered_by="pytest")
-    impact = TrainedBatch("impact", [("b3",)], StackedQNet(spec, 1), spec, ImpactConfig(), 12,
-                          CURVE)  # fmt: skip
+    nets = _retrained(store, "particle/impact/b3")
+    impact_config = replace(ImpactConfig(), hidden=nets.spec.hidden)
+    impact = TrainedBatch("impact", [("b3",)], nets, nets.spec, impact_config, 12, CURVE)
     parents: dict[tuple[str, ...], list[str]] = {("b3",): ["particle/task/b3/1"]}
     publish_batch(store, impact, parents=parents, serve_alias="candidate", registered_by="pytest")
 
