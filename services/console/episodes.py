@@ -83,9 +83,8 @@ def check_episode(settings: EpisodeSettings) -> None:
         )
     for j in settings.inferred:
         if not 1 <= j < n_agents:
-            raise InvalidRequest(
-                "infer", f"partner {j} does not exist (partners: 1..{n_agents - 1})"
-            )
+            existing = f"partners: 1..{n_agents - 1}" if n_agents > 1 else "the ego is alone"
+            raise InvalidRequest("infer", f"partner {j} does not exist ({existing})")
     if len(set(settings.inferred)) != len(settings.inferred):
         raise InvalidRequest("infer", "a partner is named twice")
     methods, known = settings.methods, runtime.info.methods

@@ -2,7 +2,8 @@
 serve` whose reads need a token: the registry lists the zoo, promoting through the page moves
 the alias (checked over REST), the change feed is live, a wrong token is refused, live particle
 and kitchen episodes render, SL and AAIL differ side by side, a link reproduces an episode, and
-a training job is submitted, followed and cancelled. Screenshots go to docs/console."""
+a training job is submitted, followed and cancelled. Screenshots: `console_browser.screenshot_dir`
+(COEXIST_SCREENSHOT_DIR=docs/console refreshes the README's)."""
 
 from __future__ import annotations
 
@@ -13,7 +14,14 @@ from typing import Any
 
 import httpx
 import pytest
-from console_browser import VIEWPORT, launch_chromium, screenshot, serve_console, sync_playwright
+from console_browser import (
+    VIEWPORT,
+    launch_chromium,
+    screenshot,
+    screenshot_dir,
+    serve_console,
+    sync_playwright,
+)
 from console_zoo import build_console_zoo
 
 from model_store.entities import Lineage
@@ -66,6 +74,11 @@ def browser() -> Iterator[Any]:
         chromium.close()
 
 
+@pytest.fixture(scope="module")
+def shots(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return screenshot_dir(tmp_path_factory)
+
+
 @pytest.fixture
 def open_page(browser: Any, server: dict[str, str]) -> Iterator[Any]:
     """`open_page(route, token=READ)`: a fresh laptop-sized tab at `/console/#/route`, the token
@@ -100,7 +113,9 @@ def _use_token(page: Any, token: str) -> None:
     page.click("#token-form button[type=submit]")
 
 
-def test_the_registry_lists_the_zoo_with_lineage(open_page: Any, server: dict[str, str]) -> None:
+def test_the_registry_lists_the_zoo_with_lineage(
+    open_page: Any, server: dict[str, str], shots: Path
+) -> None:
     expect = _expect()
     page = open_page("registry")
     names = [m["name"] for m in _rest(server, "/v1/registry/models?page_size=1000")["models"]]
@@ -117,7 +132,7 @@ def test_the_registry_lists_the_zoo_with_lineage(open_page: Any, server: dict[st
     expect(lineage).to_contain_text("registered by")
     points = lineage.locator("polyline.series").get_attribute("points") or ""
     assert len(points.split()) == 5  # the curve registered with the version, point for point
-    screenshot(page, "registry", full_page=True)
+    screenshot(page, shots, "registry", full_page=True)
     lineage.get_by_role("link", name="particle/task/b3/1").click()  # the parent network
     expect(page.locator("#model-title")).to_have_text("particle/task/b3")
     expect(page.locator(".lineage h4")).to_have_text("particle/task/b3 v1: lineage")
@@ -173,11 +188,17 @@ def test_a_wrong_token_is_refused_on_the_page(open_page: Any, server: dict[str, 
 
 
 def _wait_played(page: Any) -> None:
-    _expect()(page.locator("#player")).to_have_attribute("data-ended", "true", timeout=WAIT_MS)
-    page.locator("#pl-time").press("Home")  # pause at step 0
+    """Wait for the whole episode, pause, go to step 0."""
+    expect = _expect()
+    expect(page.locator("#player")).to_have_attribute("data-ended", "true", timeout=WAIT_MS)
+    if page.locator("#pl-play").inner_text() == "Pause":
+        page.click("#pl-play")
+    expect(page.locator("#pl-play")).to_have_text("Play")
+    page.locator("#pl-time").press("Home")
+    expect(page.locator("#player")).to_have_attribute("data-t", "0")
 
 
-def test_a_live_particle_episode_renders_frame_by_frame(open_page: Any) -> None:
+def test_a_live_particle_episode_renders_frame_by_frame(open_page: Any, shots: Path) -> None:
     page = open_page(f"episodes?{EPISODE}&infer=1&methods=aail")
     _wait_played(page)
     frames = []
@@ -192,10 +213,12 @@ def test_a_live_particle_episode_renders_frame_by_frame(open_page: Any) -> None:
     positions = [frame["lanes"][0]["agents"] for frame in frames]
     moved = sum(before != after for before, after in itertools.pairwise(positions))
     assert moved >= 20  # agent positions change from frame to frame
-    screenshot(page, "episode-particle")
+    screenshot(page, shots, "episode-particle")
 
 
-def test_sl_and_aail_side_by_side_differ_and_a_link_reproduces_it(open_page: Any) -> None:
+def test_sl_and_aail_side_by_side_differ_and_a_link_reproduces_it(
+    open_page: Any, shots: Path
+) -> None:
     page = open_page(f"episodes?{EPISODE}&methods=sl,aail")
     _wait_played(page)
     frames = []
@@ -207,7 +230,7 @@ def test_sl_and_aail_side_by_side_differ_and_a_link_reproduces_it(open_page: Any
     assert sl[0] == aail[0]  # the same start, the same random numbers
     assert sl != aail  # different trajectories
     assert frames[-1]["lanes"][0]["returns"] != frames[-1]["lanes"][1]["returns"]
-    screenshot(page, "episode-sl-vs-aail")
+    screenshot(page, shots, "episode-sl-vs-aail")
     link = page.locator("#pl-link").get_attribute("href")
     again = open_page(link.split("#/", 1)[1])
     _wait_played(again)
@@ -216,7 +239,7 @@ def test_sl_and_aail_side_by_side_differ_and_a_link_reproduces_it(open_page: Any
     assert again.evaluate(READ_LANES)["lanes"] == frames[12]["lanes"]
 
 
-def test_a_kitchen_episode_renders(open_page: Any) -> None:
+def test_a_kitchen_episode_renders(open_page: Any, shots: Path) -> None:
     page = open_page(f"episodes?{KITCHEN}&methods=sl,aail")
     _wait_played(page)
     page.click("#pl-step")
@@ -226,11 +249,11 @@ def test_a_kitchen_episode_renders(open_page: Any) -> None:
     cells = page.locator(".lane").first.locator(".layer-static rect")
     _expect()(cells).to_have_count(55)  # the 11 × 5 kitchen of paper Fig. 8
     assert page.locator(".lane").first.locator(".layer-objects circle").count() > 0
-    screenshot(page, "episode-kitchen")
+    screenshot(page, shots, "episode-kitchen")
 
 
 @pytest.mark.slow
-def test_a_job_is_submitted_followed_and_cancelled(open_page: Any, tmp_path: Path) -> None:
+def test_a_job_is_submitted_followed_and_cancelled(open_page: Any, shots: Path) -> None:
     expect = _expect()
     page = open_page("jobs", token=ADMIN)
     page.select_option("#job-env", "particle")
@@ -241,6 +264,6 @@ def test_a_job_is_submitted_followed_and_cancelled(open_page: Any, tmp_path: Pat
     expect(page.locator("#job-progress-text")).to_contain_text("steps", timeout=90_000)
     assert float(page.locator("#job-progress").get_attribute("value") or 0) > 0
     expect(page.locator("#job-log")).to_contain_text("task e4..e4:")
-    screenshot(page, "jobs")
+    screenshot(page, shots, "jobs")
     page.get_by_role("button", name="Cancel job").click()
     expect(page.locator("#job-status")).to_have_text("cancelled", timeout=WAIT_MS)

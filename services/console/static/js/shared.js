@@ -7,7 +7,10 @@ let envsPromise = null;
 
 /** GET /v1/envs once: goals, action meanings and methods come from the server. */
 export function envs() {
-  envsPromise ??= request("/v1/envs").then((body) => body.envs);
+  envsPromise ??= request("/v1/envs").then((body) => body.envs, (err) => {
+    envsPromise = null; // ask again next time
+    throw err;
+  });
   return envsPromise;
 }
 
