@@ -172,6 +172,28 @@ def test_changes_made_elsewhere_appear_without_a_reload(
     expect(page.locator('.versions-table tr[data-version="2"]')).to_contain_text("latest")
 
 
+def test_archive_and_delete_through_the_page(open_page: Any, server: dict[str, str]) -> None:
+    expect = _expect()
+    spec = qnet_spec(obs_dim=8, n_actions=5, hidden=(16,))
+    with SqlModelStore(server["store_url"]) as store:  # a version no alias points at
+        version = store.register_version(
+            "particle/task/d4", spec=spec, weights=qnet_weights(spec, seed=4),
+            lineage=Lineage(registered_by="pytest"), aliases=(),
+        ).version  # fmt: skip
+    page = open_page("registry?model=particle%2Ftask%2Fd4", token=ADMIN)
+    row = page.locator(f'.versions-table tr[data-version="{version}"]')
+    row.get_by_role("button", name=f"Archive particle/task/d4 version {version}").click()
+    expect(row.locator("td").first).to_have_text("archived")
+    path = f"/v1/registry/models/particle/task/d4/-/versions/{version}"
+    assert _rest(server, path)["status"] == "archived"
+    row.get_by_role("button", name=f"Delete particle/task/d4 version {version}").click()
+    row.get_by_role("button", name=f"Yes, delete v{version}").click()  # asked first
+    expect(page.locator("#notice")).to_contain_text(f"deleted v{version}")
+    expect(row).to_have_count(0)
+    headers = {"Authorization": f"Bearer {ADMIN}"}
+    assert httpx.get(f"{server['url']}{path}", headers=headers).status_code == 404
+
+
 def test_a_wrong_token_is_refused_on_the_page(open_page: Any, server: dict[str, str]) -> None:
     expect = _expect()
     page = open_page("registry", token=None)
