@@ -177,7 +177,10 @@ class _Lane:
                 env=self.settings.env, ego_goal=goal, observations=obs, method="sl",
                 seed=self.seeds[j] + self.t, alias=self.settings.alias,
             )  # fmt: skip
-            result = self.engine.act(request)[0]
+            try:
+                result = self.engine.act(request)[0]
+            except EngineError as err:  # the partner's own task network: its goal is to blame
+                raise err.renamed("partners") from None
             policies.append({"index": j, "probs": result.probs, "action": result.action})
         self.actions = [int(p["action"]) for p in policies]
         partner_weights = [

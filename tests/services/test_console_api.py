@@ -171,6 +171,22 @@ def test_bad_settings_are_a_4xx_naming_the_field(
         assert error["field"] == field, error
 
 
+def test_a_partner_without_a_task_network_is_blamed_on_partners(
+    zoo_url: str, tmp_path: Path
+) -> None:
+    """The ego's networks are there, the partner's own task network is not (its alias)."""
+    copy = tmp_path / "models.db"
+    copy.write_bytes(Path(zoo_url.removeprefix("sqlite:///")).read_bytes())
+    with SqlModelStore(f"sqlite:///{copy}") as store:
+        store.delete_alias("particle/task/c1", "production")
+    with _client(f"sqlite:///{copy}", tmp_path) as guarded:
+        answer = guarded.get(f"{EPISODE}?env=particle&ego_goal=a2&partners=c1&methods=sl")
+    assert answer.status_code == 404
+    assert (
+        answer.json()["error"]["field"] == "partners" and "c1" in answer.json()["error"]["message"]
+    )
+
+
 def test_the_overview_lists_every_model_with_its_versions(client: TestClient) -> None:
     body = client.get("/v1/console/models").json()
     registry = client.get("/v1/registry/models", params={"page_size": 1000}).json()["models"]
