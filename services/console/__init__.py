@@ -16,6 +16,10 @@ so it can read what the read-token setting lets through and write only with the 
 
 `install(app)` adds it after every other route: a request to `/v1/act` is matched before any
 console route is looked at, and no middleware is added.
+
+The page and its files hold no data, and a browser cannot send a bearer token when it loads a
+page: `is_public(path)` names them, for anything that guards every route with the read token
+(the data the page then asks for carries the token).
 """
 
 from __future__ import annotations
@@ -35,7 +39,17 @@ CONTENT_SECURITY_POLICY = (
     "connect-src 'self'; frame-ancestors 'none'; base-uri 'none'; form-action 'self'"
 )
 
+PUBLIC_PATHS = frozenset({"/", "/console", "/console/"})
+PUBLIC_PREFIX = "/console/static/"
+
 pages = APIRouter(include_in_schema=False)
+
+
+def is_public(path: str) -> bool:
+    """Whether `path` is the console's page or one of its files (open whatever the tokens)."""
+    if path in PUBLIC_PATHS:
+        return True
+    return path.startswith(PUBLIC_PREFIX) and ".." not in path.split("/")
 
 
 @pages.get("/")

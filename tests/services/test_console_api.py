@@ -18,7 +18,7 @@ from pydantic import SecretStr
 
 from model_store.sql import SqlModelStore
 from services.app import create_app
-from services.console import STATIC_DIR
+from services.console import STATIC_DIR, is_public
 from services.console.episodes import EpisodeSettings, LiveEpisode
 from services.engine import InferenceEngine
 from services.env_client import run_episodes
@@ -225,7 +225,11 @@ def test_reads_follow_the_read_token(zoo_url: str, tmp_path: Path) -> None:
             for token in (READ, ADMIN):
                 answer = guarded.get(path, headers={"Authorization": f"Bearer {token}"})
                 assert answer.status_code == 200
-        assert guarded.get("/console/").status_code == 200  # the page itself holds no data
+        # the page and its files hold no data, and a browser loads them without a token
+        for path in ("/", "/console/", "/console/static/js/main.js", "/console/static/console.css"):
+            assert is_public(path) and guarded.get(path).status_code in (200, 307), path
+        assert not is_public("/v1/console/models") and not is_public("/console/../v1/envs")
+        assert not is_public("/console/static/../../v1/envs")
 
 
 def _paths(routes: list[Any]) -> Iterator[str]:
