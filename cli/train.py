@@ -97,9 +97,32 @@ def _combos(env: str, combos: str) -> list[list[str]]:
     return out
 
 
+PROGRESS_LINES = 20  # outside a terminal: a line every 5 % of a batch
+
+
+def _progress_lines(description: str, total: int) -> Any:
+    """`advance(done, total)` printing `<description>: <done>/<total> steps` every 5 %."""
+    every = max(1, total // PROGRESS_LINES)
+
+    def advance(done: int, _total: int) -> None:
+        if done % every == 0 or done == _total:
+            print(f"{description}: {done}/{_total} steps", flush=True)
+
+    return advance
+
+
 @contextmanager
 def progress_bars() -> Iterator[Any]:
-    """A rich progress display; yields a factory `(description, total) -> advance(done, total)`."""
+    """A rich progress display; yields a factory `(description, total) -> advance(done, total)`.
+
+    Outside a terminal (a training job's log, `trainer.jobs`) rich would print the bars only
+    when they finish, so plain lines `<description>: <done>/<total> steps` come instead, every
+    5 % of a batch: the log then says how far a job is (the web console draws them as a bar)."""
+    from rich.console import Console
+
+    if not Console().is_terminal:
+        yield _progress_lines
+        return
     from rich.progress import (
         BarColumn,
         MofNCompleteColumn,

@@ -13,14 +13,19 @@ Every network in coexist is evaluated on a *view* built from the ego agent's obs
   reward of eq. 6 (the same pair seen from the partner's side);
 - joint view: the ego's whole observation, for the joint-learner baseline (one net per goal combo).
 
+A domain also draws its envs for the web console (`scene`, `scene_frame`: shapes in the world's
+units, `envs.scene`), so the console needs no environment-specific code either.
+
 Shapes carry suffixes: `obs_BD` is a batch B of observations of size D.
 """
 
 from __future__ import annotations
 
-from typing import Literal, Protocol, runtime_checkable
+from typing import Any, Literal, Protocol, runtime_checkable
 
 import numpy as np
+
+from envs.scene import Scene, SceneFrame
 
 BlendNormalisation = Literal["standardise", "none"]
 
@@ -59,6 +64,15 @@ class Domain(Protocol):
 
     def partner_view(self, obs_BD: np.ndarray, n_agents: int, partner: int) -> np.ndarray:
         """(partner, ego) view: the pair as the partner sees it, shape (B, pair_obs_dim)."""
+        ...
+
+    def scene(self, env: Any) -> Scene:
+        """What does not move in `env` (an env of this domain, from `envs.registry.make_env`),
+        as shapes to draw (`envs.scene`): the web console paints it once per episode."""
+        ...
+
+    def scene_frame(self, env: Any) -> SceneFrame:
+        """Where `env`'s agents and objects are now, in the units of `scene(env)`."""
         ...
 
 

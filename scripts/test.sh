@@ -13,6 +13,15 @@ fi
 # In CI the PostgreSQL tests must run, not skip.
 if [ "${CI:-}" = "true" ]; then export COEXIST_REQUIRE_POSTGRES=1; fi
 
+# The web console's browser tests drive Debian's Chromium (never a downloaded browser); they
+# skip without it on a developer's machine and fail in CI.
+if ! command -v chromium >/dev/null && command -v apt-get >/dev/null && [ "$(id -u)" = 0 ]; then
+  export DEBIAN_FRONTEND=noninteractive
+  (apt-get install -y -qq chromium >/dev/null 2>&1 \
+    || { apt-get update -qq && apt-get install -y -qq chromium >/dev/null; }) \
+    || echo "warning: could not install chromium; the browser tests will skip (and fail in CI)" >&2
+fi
+
 $BIN/ruff check .
 $BIN/mypy .
 $BIN/pytest -n 2 "$@"

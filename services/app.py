@@ -13,8 +13,9 @@ state another worker needs: the store is the only shared state. The exception is
 creating one is refused (docs/architecture.md, "Sessions").
 
 Routes: `/v1/act`, `/v1/act:batch`, `/v1/envs`, `/v1/sessions` (services.rest), the registry under
-`/v1/registry` (services.registry), `/healthz` (liveness), `/readyz` (models loaded, store
-reachable), `/metrics` (Prometheus) and the OpenAPI docs at `/docs`. Every response carries
+`/v1/registry` (services.registry), `/v1/jobs`, `/healthz` (liveness), `/readyz` (models loaded,
+store reachable), `/metrics` (Prometheus), the OpenAPI docs at `/docs` and, after all of them,
+the web console at `/console/` (services.console; `/` redirects there). Every response carries
 `X-Request-ID` (the request's own, else a new one) and every log line written while serving it
 has the id (`services.logging`).
 """
@@ -33,6 +34,7 @@ from prometheus_client import CONTENT_TYPE_LATEST, CollectorRegistry, generate_l
 
 from model_store.defaults import open_store
 from model_store.store import ModelStore
+from services.console import install as install_console
 from services.engine import InferenceEngine
 from services.jobs_api import router as jobs_router
 from services.logging import RequestIdMiddleware
@@ -161,6 +163,7 @@ def create_app(
         """Prometheus metrics: request counts, latency histograms, cache hits, models served."""
         return Response(generate_latest(registry), media_type=CONTENT_TYPE_LATEST)
 
+    install_console(app)  # last: every other route is matched before a console route is tried
     return app
 
 

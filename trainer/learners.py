@@ -66,6 +66,16 @@ class TrainedBatch:
             "steps": self.curves.steps[-1],
         }
 
+    def curve_series(self, g: int) -> dict[str, list[int] | list[float]]:
+        """Member g's whole training curve (registered with its version, drawn by the web
+        console): the training step of each point, the mean return of the episodes that ended
+        since the point before, and the mean loss of the updates since then."""
+        return {
+            "steps": list(self.curves.steps),
+            "mean_return": [row[g] for row in self.curves.returns_G],
+            "loss": [row[g] for row in self.curves.losses_G],
+        }
+
 
 def _indices(goals: Sequence[str]) -> list[int]:
     return [goal_index(g) for g in goals]

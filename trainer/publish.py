@@ -2,7 +2,8 @@
 
 Every member of a `TrainedBatch` becomes one version of its model (`particle/task/a3`, ...):
 architecture spec + safetensors weights, and a lineage holding the training config, seed, code
-version, metrics (gate results, curve summary) and the parent versions it was trained against.
+version, metrics (gate results, curve summary, the whole training curve as `training_curve`:
+steps, mean return, loss) and the parent versions it was trained against.
 The `latest` alias always moves; `production` (or the run's serve alias) moves only when the
 network passed its gate. The
 gate verdict is also written as the model's `gate` tag so `coexist models list` shows it.
@@ -60,6 +61,8 @@ def publish_batch(
         net.load_state_dict(batch.nets.member_state(g))
         passed = batch.gate_passed(g)
         metrics: dict[str, object] = {"curve": batch.curve_summary(g)}
+        if batch.curves.steps:
+            metrics["training_curve"] = batch.curve_series(g)
         gate = batch.gates[g] if batch.gates else None
         if gate is not None:
             metrics["gate"] = gate.metrics()

@@ -23,13 +23,18 @@ reward of `envs.cooking.world` (+20 dish, -0.01 per step while undelivered).
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from envs.base import BlendNormalisation
+from envs.cooking.env import CookingEnv
 from envs.cooking.layouts import MAX_AGENTS
 from envs.cooking.observation import AGENT_DIM, feature_names, obs_dim, select_agents
 from envs.cooking.recipes import RECIPE_NAMES
+from envs.cooking.scene import cooking_frame, cooking_scene
 from envs.cooking.world import ACTION_MEANINGS
+from envs.scene import Scene, SceneFrame
 
 
 class CookingDomain:
@@ -93,6 +98,21 @@ class CookingDomain:
         obs_BD = self._checked(obs_BD, n_agents)
         self._check_partner(n_agents, partner)
         return select_agents(obs_BD, n_agents, [partner, 0])
+
+    def scene(self, env: Any) -> Scene:
+        """The kitchen's cells and stations (`envs.cooking.scene`)."""
+        kitchen = _cooking_env(env)
+        return cooking_scene(kitchen.layout, kitchen.recipes)
+
+    def scene_frame(self, env: Any) -> SceneFrame:
+        kitchen = _cooking_env(env)
+        return cooking_frame(kitchen.layout, kitchen.world.state, kitchen.recipes)
+
+
+def _cooking_env(env: Any) -> CookingEnv:
+    if not isinstance(env, CookingEnv):
+        raise TypeError(f"env: expected a kitchen env, got {type(env).__name__}")
+    return env
 
 
 COOKING = CookingDomain()

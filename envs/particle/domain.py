@@ -32,12 +32,17 @@ real robot's measured states the nearest prediction is a best guess, not a proof
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from envs.base import BlendNormalisation
 from envs.particle.batched import MAX_AGENTS
+from envs.particle.env import ParticleCoexistenceEnv
 from envs.particle.goals import GOAL_IDS
+from envs.particle.scene import particle_frame, particle_scene
 from envs.particle.world import ACTION_MEANINGS, N_ACTIONS, STATE_DIM, step_state
+from envs.scene import Scene, SceneFrame
 
 ALL_ACTIONS_A1 = np.arange(N_ACTIONS)[:, None]
 SAME_PREDICTION_ATOL = 1e-9  # `recover_action`: predictions closer than this are one state
@@ -126,6 +131,20 @@ class ParticleDomain:
         # equal predictions differ by rounding only (~1e-16), distinct ones by far more
         same_A = np.abs(predicted_A4 - nearest_4).max(axis=1) <= SAME_PREDICTION_ATOL
         return int(np.argmax(same_A))  # the lowest action predicting the nearest next state
+
+    def scene(self, env: Any) -> Scene:
+        """The grid and the agents' target and influence areas (`envs.particle.scene`)."""
+        return particle_scene(_particle_env(env).goals)
+
+    def scene_frame(self, env: Any) -> SceneFrame:
+        world = _particle_env(env)
+        return particle_frame(world.goals, world.state().reshape(-1, STATE_DIM))
+
+
+def _particle_env(env: Any) -> ParticleCoexistenceEnv:
+    if not isinstance(env, ParticleCoexistenceEnv):
+        raise TypeError(f"env: expected a particle world env, got {type(env).__name__}")
+    return env
 
 
 PARTICLE = ParticleDomain()

@@ -66,6 +66,7 @@ def test_submitted_job_trains_and_registers_the_network(tmp_path: Path) -> None:
         assert Path(job["run_dir"]) == tmp_path / "jobs" / job["id"]
         log = client.get(f"/v1/jobs/{job['id']}/logs").json()["log"]
         assert "train task --env particle --goals a2" in log and "a2" in log.split("\n", 1)[1]
+        assert "task a2..a2: 20/20 steps" in log  # progress lines: a log is not a terminal
         assert [j["id"] for j in client.get("/v1/jobs").json()["jobs"]] == [job["id"]]
     with SqlModelStore(settings.resolved_store_url()) as store:
         models = store.list_models().items
