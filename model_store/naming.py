@@ -26,7 +26,7 @@ import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
-from model_store.errors import InvalidArgument
+from model_store.errors import InvalidArgument, brief
 
 DEFAULT_ALIAS = "production"
 LATEST_ALIAS = "latest"
@@ -49,7 +49,7 @@ def validate_model_name(name: str, field: str = "name") -> str:
     for segment in name.split("/"):
         if not _SEGMENT.fullmatch(segment):
             raise InvalidArgument(
-                f"{field}: segment {segment!r} of {name!r} must match [A-Za-z0-9][A-Za-z0-9_.+-]*",
+                f"{field}: segment {brief(segment)} of {brief(name)} must match [A-Za-z0-9][A-Za-z0-9_.+-]*",
                 field=field,
             )
     return name
@@ -64,7 +64,7 @@ def path_prefixes(name: str) -> list[str]:
 def validate_alias(alias: str, field: str = "alias") -> str:
     if not isinstance(alias, str) or not _ALIAS.fullmatch(alias):
         raise InvalidArgument(
-            f"{field}: alias {alias!r} must match [a-z][a-z0-9_-]* (at most 64 characters)",
+            f"{field}: alias {brief(alias)} must match [a-z][a-z0-9_-]* (at most 64 characters)",
             field=field,
         )
     return alias
@@ -72,14 +72,14 @@ def validate_alias(alias: str, field: str = "alias") -> str:
 
 def validate_env(env: str, field: str = "env") -> str:
     if not isinstance(env, str) or not _ENV.fullmatch(env):
-        raise InvalidArgument(f"{field}: env {env!r} must match [a-z][a-z0-9_-]*", field=field)
+        raise InvalidArgument(f"{field}: env {brief(env)} must match [a-z][a-z0-9_-]*", field=field)
     return env
 
 
 def validate_goal(goal: str, field: str = "goal") -> str:
     if not isinstance(goal, str) or not _GOAL.fullmatch(goal):
         raise InvalidArgument(
-            f"{field}: goal {goal!r} must match [A-Za-z0-9][A-Za-z0-9_.-]*", field=field
+            f"{field}: goal {brief(goal)} must match [A-Za-z0-9][A-Za-z0-9_.-]*", field=field
         )
     return goal
 
@@ -90,7 +90,7 @@ def validate_tags(tags: Mapping[str, str], field: str = "tags") -> dict[str, str
     for key, value in tags.items():
         if not isinstance(key, str) or not _TAG_KEY.fullmatch(key):
             raise InvalidArgument(
-                f"{field}: tag key {key!r} must match [A-Za-z0-9_.:/-]{{1,64}}",
+                f"{field}: tag key {brief(key)} must match [A-Za-z0-9_.:/-]{{1,64}}",
                 field=f"{field}.{key}",
             )
         if not isinstance(value, str) or len(value) > MAX_TAG_VALUE:

@@ -19,6 +19,7 @@ from model_store.errors import (
     InvalidArgument,
     InvalidArtifact,
     NotFound,
+    brief,
 )
 from model_store.naming import parse_ref, ref_candidates, validate_alias
 from model_store.sql import queries as q
@@ -32,7 +33,8 @@ MAX_VERSION = 2**63 - 1  # the database's BIGINT / SQLite INTEGER range
 def _check_version_number(version: int) -> int:
     if not isinstance(version, int) or isinstance(version, bool) or not 1 <= version <= MAX_VERSION:
         raise InvalidArgument(
-            f"version: expected an integer in 1..{MAX_VERSION}, got {version!r}", field="version"
+            f"version: expected an integer in 1..{MAX_VERSION}, got {brief(version)}",
+            field="version",
         )
     return version
 
@@ -107,7 +109,7 @@ class VersionOps:
             ).first()
             if found is None:
                 field = f"lineage.parents[{i}]"
-                raise InvalidArtifact(f"{field}: no such version {parent!r}", field=field)
+                raise InvalidArtifact(f"{field}: no such version {brief(parent)}", field=field)
 
     def get_version(self, name: str, version: int) -> ModelVersion:
         _check_version_number(version)

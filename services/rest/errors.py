@@ -33,7 +33,7 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 
 from services.engine.errors import EngineError, InvalidRequest, ModelNotFound, ModelUnavailable
-from services.registry.errors import ErrorResponse, error_response
+from services.registry.errors import MAX_DETAILS, ErrorResponse, error_response
 from services.sessions.errors import (
     SessionLimitReached,
     SessionNotFound,
@@ -100,7 +100,7 @@ async def _engine_error(_request: Request, exc: Exception) -> JSONResponse:
 async def _validation_error(_request: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, RequestValidationError)
     details = []
-    for error in exc.errors():
+    for error in exc.errors()[:MAX_DETAILS]:
         if error.get("type") == "json_invalid":
             position = error.get("loc", ("body", "?"))[-1]
             reason = error.get("ctx", {}).get("error", "invalid JSON")

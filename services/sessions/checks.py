@@ -27,6 +27,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from model_store.errors import brief
 from policy.belief import BeliefConfig, PreparedUpdate, initial_log_belief, prior_log_probs
 from services.engine import ActRequest, InvalidRequest, PartnerSpec
 from services.engine.environments import EnvRuntime, env_runtime
@@ -79,14 +80,14 @@ def _check_partner_indices(partners: object, runtime: EnvRuntime) -> tuple[Sessi
             raise InvalidRequest(
                 f"partners[{i}].index",
                 f"expected an integer in {expected} (env {runtime.domain.name!r} has at most "
-                f"{runtime.domain.max_agents} agents), got {index!r}",
+                f"{runtime.domain.max_agents} agents), got {brief(index)}",
             )
         if index in seen:
             raise InvalidRequest(f"partners[{i}].index", f"partner index {index} given twice")
         seen.add(int(index))
         if not isinstance(partner.infer, bool):
             raise InvalidRequest(
-                f"partners[{i}].infer", f"expected true or false, got {partner.infer!r}"
+                f"partners[{i}].infer", f"expected true or false, got {brief(partner.infer)}"
             )
     return tuple(partners)
 
@@ -114,11 +115,11 @@ def _dry_act_request(settings: SessionSettings, runtime: EnvRuntime) -> ActReque
 def _check_blend(settings: SessionSettings) -> None:
     mass = settings.blend_mass
     if not isinstance(mass, int | float) or isinstance(mass, bool) or not 0 < mass <= 1:
-        raise InvalidRequest("belief.blend_mass", f"expected a number in (0, 1], got {mass!r}")
+        raise InvalidRequest("belief.blend_mass", f"expected a number in (0, 1], got {brief(mass)}")
     max_goals = settings.blend_max_goals
     if max_goals is not None and (not _is_int(max_goals) or max_goals < 1):
         raise InvalidRequest(
-            "belief.blend_max_goals", f"expected null or an integer >= 1, got {max_goals!r}"
+            "belief.blend_max_goals", f"expected null or an integer >= 1, got {brief(max_goals)}"
         )
 
 
@@ -192,7 +193,7 @@ def check_observed(
             shown = ", ".join(map(str, inferred_indices)) or "none"
             raise InvalidRequest(
                 f"observed[{j}].index",
-                f"{entry.index!r} is not an inferred partner (inferred partners: {shown}); "
+                f"{brief(entry.index)} is not an inferred partner (inferred partners: {shown}); "
                 "create the session with infer on that partner",
             )
         if entry.index in seen:
@@ -202,6 +203,6 @@ def check_observed(
         if action is not None and (not _is_int(action) or not 0 <= action < n_actions):
             raise InvalidRequest(
                 f"observed[{j}].action",
-                f"expected an action in 0..{n_actions - 1} (or none: recover it), got {action!r}",
+                f"expected an action in 0..{n_actions - 1} (or none: recover it), got {brief(action)}",
             )
     return tuple(observed)

@@ -14,6 +14,7 @@ Bad input to a step (observation length, an `observed` entry, ...) is `InvalidRe
 
 from __future__ import annotations
 
+from model_store.errors import brief
 from services.engine.errors import EngineError
 
 
@@ -27,7 +28,7 @@ class SessionNotFound(SessionError, LookupError):
     code = "session_not_found"
 
     def __init__(self, session_id: str, reason: str) -> None:
-        super().__init__("session_id", f"session {session_id!r} not found: {reason}")
+        super().__init__("session_id", f"session {brief(session_id)} not found: {reason}")
         self.session_id = session_id
 
 
@@ -49,7 +50,7 @@ class StepConflict(SessionError):
     def __init__(self, session_id: str, expected: int, actual: int) -> None:
         super().__init__(
             "expected_step",
-            f"session {session_id!r} is at step {actual}, not {expected} (another request "
+            f"session {brief(session_id)} is at step {actual}, not {expected} (another request "
             "stepped it, or a retry of an answered step)",
         )
         self.expected = expected

@@ -18,7 +18,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from model_store.errors import InvalidArgument
+from model_store.errors import InvalidArgument, brief
 
 JOB_KINDS = ("task", "impact", "joint", "zoo")
 
@@ -39,7 +39,7 @@ class JobSpec:
 
         if self.kind not in JOB_KINDS:
             raise InvalidArgument(
-                f"kind: expected one of {JOB_KINDS}, got {self.kind!r}", field="kind"
+                f"kind: expected one of {JOB_KINDS}, got {brief(self.kind)}", field="kind"
             )
         try:
             domain = get_domain(self.env)

@@ -33,7 +33,7 @@ from typing import Any
 from sqlalchemy import Engine, or_, select, update
 from sqlalchemy.orm import Session, sessionmaker
 
-from model_store.errors import Conflict, NotFound
+from model_store.errors import Conflict, NotFound, brief
 from model_store.sql.engine import BEGIN_MODE_OPTION, create_store_engine
 from model_store.sql.migrate import ensure_schema
 from model_store.sql.orm import TrainingJobRow
@@ -116,7 +116,7 @@ class JobTable:
         with self._read() as s, s.begin():
             row = s.get(TrainingJobRow, job_id)
             if row is None:
-                raise NotFound(f"job {job_id!r} not found")
+                raise NotFound(f"job {brief(job_id)} not found")
             return _job(row)
 
     def has_unfinished(self) -> bool:
@@ -152,7 +152,7 @@ class JobTable:
         with self._read() as s, s.begin():
             status = s.scalar(select(TrainingJobRow.status).where(TrainingJobRow.id == job_id))
         if status is None:
-            raise NotFound(f"job {job_id!r} not found", field="id")
+            raise NotFound(f"job {brief(job_id)} not found", field="id")
         return JobStatus(status)
 
     def finish(self, job_id: str, exit_code: int, log_tail: str) -> None:
@@ -173,7 +173,7 @@ class JobTable:
         with self._write() as s, s.begin():
             row = s.get(TrainingJobRow, job_id)
             if row is None:
-                raise NotFound(f"job {job_id!r} not found", field="id")
+                raise NotFound(f"job {brief(job_id)} not found", field="id")
             if row.status == JobStatus.queued.value:
                 row.status, row.finished_at = JobStatus.cancelled.value, _now()
                 row.log_tail = CANCELLED_WHILE_QUEUED + "\n"
