@@ -39,9 +39,12 @@ from services.logging import RequestIdMiddleware
 from services.metrics import EngineCollector, HttpMetrics, SessionCollector
 from services.registry import router as registry_router
 from services.registry.errors import install_error_handlers as install_registry_errors
+from services.registry.errors import unexpected_response
+from services.registry.versions_routes import FORM_OVERHEAD_BYTES
 from services.rest import install_error_handlers as install_act_errors
 from services.rest import router as act_router
 from services.rest import sessions_router
+from services.rest.body_limit import BodyLimit
 from services.sessions import SessionStore
 from services.settings import Settings, get_settings
 from services.warmup import warm_up
@@ -142,8 +145,16 @@ def create_app(
     registry.register(EngineCollector(lambda: app.state.engine))
     registry.register(SessionCollector(lambda: getattr(app.state, "sessions", None)))
     http_metrics = HttpMetrics(registry)
+    # Outermost last: request ids, then metrics, then the body limit (pure ASGI, cheap checks).
+    app.add_middleware(
+        BodyLimit,
+        max_bytes=settings.max_body_bytes,
+        upload_max_bytes=settings.max_artifact_bytes + FORM_OVERHEAD_BYTES,
+    )
     app.add_middleware(_AsgiWrapper, wrap=http_metrics.middleware)
-    app.add_middleware(RequestIdMiddleware)  # outermost: the id is set before anything logs
+    # outermost: the id is set before anything logs, and an error no handler took is answered
+    # here (with the id; Starlette's last-resort handler would close the connection)
+    app.add_middleware(RequestIdMiddleware, on_error=unexpected_response)
 
     @app.get("/healthz", tags=["health"])
     async def healthz() -> dict[str, str]:

@@ -39,6 +39,7 @@ from model_store.errors import StoreUnavailable
 
 # isort: split
 from services.deps import ReadAuth, WriteAuth
+from services.rest.json_body import FastJsonRoute
 from trainer.jobs import JobRunner, JobSpec, JobStatus, JobTable
 from trainer.jobs.runner import append_log, read_log, read_log_from
 from trainer.jobs.table import CANCELLED_WHILE_QUEUED
@@ -93,7 +94,7 @@ async def _lifespan(app: FastAPI) -> AsyncIterator[None]:
             app.state.jobs = None
 
 
-router = APIRouter(prefix="/v1/jobs", tags=["jobs"], lifespan=_lifespan)
+router = APIRouter(prefix="/v1/jobs", tags=["jobs"], lifespan=_lifespan, route_class=FastJsonRoute)
 
 
 def _table(request: Request) -> JobTable:

@@ -15,6 +15,9 @@ by the test suite and by Ray.
 | `COEXIST_REQUIRE_READ_TOKEN`  | false              | server        | reads need a token                                |
 | `COEXIST_DEV_MODE`            | false              | server        | allow the default admin token                     |
 | `COEXIST_MAX_ARTIFACT_BYTES`  | 64 MiB             | server        | upload size limit                                 |
+| `COEXIST_MAX_BODY_BYTES`      | 16 MiB             | server        | JSON request bodies: larger ones are refused      |
+|                               |                    |               | (413) before they are read; fits a batch of       |
+|                               |                    |               | `MAX_BATCH` rows of 208 numbers at full precision |
 | `COEXIST_HOST`                | `127.0.0.1`        | server        | address to listen on (`0.0.0.0` in a container)   |
 | `COEXIST_HTTP_PORT`           | 8000               | server        | REST port                                         |
 | `COEXIST_GRPC_PORT`           | 50051              | server        | gRPC port (0: any free port)                      |
@@ -75,6 +78,7 @@ class Settings(BaseSettings):
     require_read_token: bool = False
     dev_mode: bool = False
     max_artifact_bytes: int = Field(default=DEFAULT_MAX_ARTIFACT_BYTES, gt=0)
+    max_body_bytes: int = Field(default=16 << 20, ge=1024)
     host: str = "127.0.0.1"
     http_port: int = Field(default=8000, ge=0, le=65535)
     grpc_port: int = Field(default=50051, ge=0, le=65535)

@@ -23,8 +23,9 @@ from services.registry.schemas import (
     ModelUpdate,
     VersionOut,
 )
+from services.rest.json_body import FastJsonRoute
 
-router = APIRouter(responses=ERROR_RESPONSES)
+router = APIRouter(responses=ERROR_RESPONSES, route_class=FastJsonRoute)
 
 
 @router.get("/changes", response_model=ChangesOut, tags=["changes"])

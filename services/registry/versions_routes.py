@@ -25,8 +25,9 @@ from services.deps import ReadAuth, SettingsDep, StoreDep, WriteAuth
 from services.registry.errors import ERROR_RESPONSES, ApiError
 from services.registry.multipart import Part, boundary_of, parse_form_data
 from services.registry.schemas import AliasOut, AliasSet, VersionOut
+from services.rest.json_body import FastJsonRoute
 
-router = APIRouter(responses=ERROR_RESPONSES)
+router = APIRouter(responses=ERROR_RESPONSES, route_class=FastJsonRoute)
 FORM_OVERHEAD_BYTES = 1 << 20  # room for the spec, lineage and part headers beside the weights
 MODEL = "/models/{name:path}/-"
 VersionNumber = Annotated[int, Path(ge=1, le=2**63 - 1, description="version number, from 1")]
