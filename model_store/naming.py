@@ -8,6 +8,13 @@
 | ref        | `name@alias`, `name/version` or `name` | `particle/task/a3@latest` |
 |            | (a bare name means `name@production`)  | `particle/task/a3/2`      |
 | tag key    | `[A-Za-z0-9_.:/-]`, 1..64 chars        | `team`                    |
+| version    | an integer in 1..`MAX_VERSION`         | `3`                       |
+
+Version numbers live in Integer columns (32 bits on PostgreSQL), so the API's range is
+1..2^31-1 (`MAX_VERSION`) on every backend: a number past it is an `InvalidArgument` (422) before
+any SQL runs, a number within it that no version has is `NotFound` (404). `parse_ref` refuses a
+ref whose version reading is past the range (`name/99999999999` is not read as a model name
+instead: such a name would be a model nobody can address by version).
 
 Refs whose last segment is a number have two readings: `particle/task/4` is version 4 of
 `particle/task`, or the model `particle/task/4` (a row goal of the particle world) at
@@ -31,6 +38,8 @@ from model_store.errors import InvalidArgument, brief
 DEFAULT_ALIAS = "production"
 LATEST_ALIAS = "latest"
 MAX_NAME_LENGTH = 200
+MAX_VERSION = 2**31 - 1  # model_versions.version and friends are Integer columns
+MAX_SIZE = 2**31 - 1  # a model's obs_dim and n_actions (Integer columns too)
 
 _SEGMENT = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+-]*")
 _ALIAS = re.compile(r"[a-z][a-z0-9_-]{0,63}")
@@ -146,10 +155,13 @@ def parse_ref(ref: str, field: str = "ref") -> Ref:
         name, _, alias = ref.rpartition("@")
         return Ref(validate_model_name(name, field), alias=validate_alias(alias, field))
     head, _, last = ref.rpartition("/")
-    if head and last.isdigit():
+    if head and last.isascii() and last.isdigit():
+        if len(last) > 12 or not 1 <= int(last) <= MAX_VERSION:  # no int() of a huge string
+            raise InvalidArgument(
+                f"{field}: a version is an integer in 1..{MAX_VERSION}, got {brief(last)}",
+                field=field,
+            )
         version = int(last)
-        if version < 1:
-            raise InvalidArgument(f"{field}: versions start at 1, got {last}", field=field)
         return Ref(validate_model_name(head, field), version=version)
     return Ref(validate_model_name(ref, field), alias=DEFAULT_ALIAS)
 

@@ -147,7 +147,8 @@ def get_logs(
     _auth: ReadAuth,
     tail: Annotated[int, Query(ge=1, le=1_000_000)] = 64_000,
     offset: Annotated[
-        int | None, Query(ge=0, description="byte offset to read from (to follow a log)")
+        int | None,
+        Query(ge=0, le=2**63 - 1, description="byte offset to read from (to follow a log)"),
     ] = None,
 ) -> dict[str, Any]:
     """The log file when this machine has it, else the tail the row kept when the job ended."""

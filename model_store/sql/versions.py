@@ -21,13 +21,12 @@ from model_store.errors import (
     NotFound,
     brief,
 )
-from model_store.naming import parse_ref, ref_candidates, validate_alias
+from model_store.naming import MAX_VERSION, parse_ref, ref_candidates, validate_alias
 from model_store.sql import queries as q
 from model_store.sql.convert import now, version_entity
 from model_store.sql.orm import AliasRow, ModelRow, VersionRow
 
 REGISTER_ATTEMPTS = 3  # retries of a version allocation that lost a race (belt and braces)
-MAX_VERSION = 2**63 - 1  # the database's BIGINT / SQLite INTEGER range
 
 
 def _check_version_number(version: int) -> int:

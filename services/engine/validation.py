@@ -26,13 +26,12 @@ from typing import cast
 import numpy as np
 
 from model_store.errors import InvalidArgument, brief
-from model_store.naming import validate_alias, validate_model_name
+from model_store.naming import MAX_VERSION, validate_alias, validate_model_name
 from services.engine.environments import EnvRuntime, env_runtime
 from services.engine.errors import InvalidRequest
 from services.engine.messages import METHODS, ActRequest, PartnerSpec
 
 PROB_SUM_TOL = 1e-6
-MAX_VERSION = 2**63 - 1  # the store keeps version numbers in a signed 64-bit column
 
 
 @dataclass(frozen=True)

@@ -21,6 +21,7 @@ from starlette.concurrency import run_in_threadpool
 from model_store.artifacts import sha256_hex
 from model_store.entities import Lineage
 from model_store.errors import ArtifactTooLarge, InvalidArtifact
+from model_store.naming import MAX_VERSION
 from services.deps import ReadAuth, SettingsDep, StoreDep, WriteAuth
 from services.registry.errors import ERROR_RESPONSES, ApiError
 from services.registry.multipart import Part, boundary_of, parse_form_data
@@ -30,7 +31,9 @@ from services.rest.json_body import FastJsonRoute
 router = APIRouter(responses=ERROR_RESPONSES, route_class=FastJsonRoute)
 FORM_OVERHEAD_BYTES = 1 << 20  # room for the spec, lineage and part headers beside the weights
 MODEL = "/models/{name:path}/-"
-VersionNumber = Annotated[int, Path(ge=1, le=2**63 - 1, description="version number, from 1")]
+VersionNumber = Annotated[
+    int, Path(ge=1, le=MAX_VERSION, description=f"version number, 1..{MAX_VERSION}")
+]
 
 _UPLOAD_BODY: dict[str, Any] = {
     "requestBody": {

@@ -62,6 +62,8 @@ def read_log_from(run_dir: str | Path, offset: int, max_bytes: int) -> tuple[str
     if not file.exists():
         return None
     with file.open("rb") as f:
+        if offset >= os.fstat(f.fileno()).st_size:  # past the end (seek would refuse a huge one)
+            return "", offset
         f.seek(offset)
         data = f.read(max_bytes)
     cut = len(data) - _incomplete_tail(data)
