@@ -2,7 +2,8 @@
 
 | method | path                 | auth  | answers                                                       |
 |--------|----------------------|-------|---------------------------------------------------------------|
-| POST   | `/v1/jobs`           | write | 202 and the job (`queued`); 422 naming a bad field            |
+| POST   | `/v1/jobs`           | write | 202 and the job (`queued`); 422 naming a bad field (seed      |
+|        |                      |       | 0..2^31-1, steps 1..10^6, no unknown fields)                  |
 | GET    | `/v1/jobs`           | read  | `{jobs: [...]}`, newest first (`limit`, default 100)          |
 | GET    | `/v1/jobs/{id}`      | read  | the job: kind, args, status, times, exit code                 |
 | GET    | `/v1/jobs/{id}/logs` | read  | `{id, status, log}`: the last `tail` characters; with         |
@@ -32,28 +33,41 @@ from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Depends, FastAPI, Query, Request
 from fastapi.responses import JSONResponse
-from pydantic import BaseModel, Field
+from pydantic import Field
 
 import services.registry  # noqa: F401  (first: importing services.deps first is a cycle)
 from model_store.errors import StoreUnavailable
 
 # isort: split
 from services.deps import ReadAuth, WriteAuth
+from services.rest.bounded import RequestBody
 from services.rest.json_body import FastJsonRoute
 from trainer.jobs import JobRunner, JobSpec, JobStatus, JobTable
 from trainer.jobs.runner import append_log, read_log, read_log_from
+from trainer.jobs.spec import MAX_SEED, MAX_STEPS, MAX_TEXT
 from trainer.jobs.table import CANCELLED_WHILE_QUEUED
 
 LOG_CHUNK_BYTES = 1 << 20  # the most one `offset` read of a log returns
 
 
-class JobRequest(BaseModel):
+class JobRequest(RequestBody):
+    """A job to run (`trainer.jobs.spec`); unknown fields are refused, as on every route."""
+
     kind: Literal["task", "impact", "joint", "zoo"]
-    env: str = "particle"
-    goals: str = Field(default="all", description="'all' or comma-separated goal ids")
-    combos: str = Field(default="", description="JL combinations: 'a2+b3,c+c4'")
-    seed: int = Field(default=0, ge=0)
-    steps: int | None = Field(default=None, ge=1, description="env steps per batch")
+    env: str = Field(default="particle", max_length=64)
+    goals: str = Field(
+        default="all", max_length=MAX_TEXT, description="'all' or comma-separated goal ids"
+    )
+    combos: str = Field(
+        default="", max_length=MAX_TEXT, description="JL combinations: 'a2+b3,c+c4'"
+    )
+    seed: int = Field(default=0, ge=0, le=MAX_SEED)
+    steps: int | None = Field(
+        default=None,
+        ge=1,
+        le=MAX_STEPS,
+        description="batched environment steps per batch of goals (default: the config's)",
+    )
 
 
 def _store_url(app: FastAPI) -> str:
