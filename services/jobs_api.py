@@ -17,6 +17,12 @@ Jobs live in the model store's database (`training_jobs`), their run directories
 (a restarted server resumes them, `--resume` skips finished batches) and otherwise on the first
 submit; it stops with the app, leaving a running job for the next start. Jobs need a SQL store.
 
+One trainer per job: the trainer dies with the server process that started it, even on
+`kill -9` (its parent-death signal), holds its run directory's lock while it lives, and a
+restarted server stops any trainer of an earlier attempt still holding the directory before the
+next attempt starts (`trainer.jobs.leash`); a runner that cannot renew its job's lease within
+`COEXIST_JOB_LEASE_S` stops its trainer before another server takes the job over.
+
 Cancelling a running job stops its `coexist train` subprocess (SIGTERM, SIGKILL after the
 runner's grace period), from whichever server process answers the DELETE (`trainer.jobs.table`).
 Networks the job registered before that stay in the store as complete versions (each is one
@@ -85,8 +91,9 @@ def _open(app: FastAPI) -> tuple[JobTable, JobRunner]:
     jobs: tuple[JobTable, JobRunner] | None = getattr(app.state, "jobs", None)
     if jobs is None:
         url = _store_url(app)
-        table = JobTable(url)
-        jobs = table, JobRunner(table, store_url=url)
+        lease_s = app.state.settings.job_lease_s
+        table = JobTable(url, stale_after_s=lease_s)
+        jobs = table, JobRunner(table, store_url=url, heartbeat_s=lease_s / 6)
         app.state.jobs = jobs
     return jobs
 

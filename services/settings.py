@@ -38,6 +38,10 @@ by the test suite and by Ray.
 |                               |                    |               | it); `text`: for a terminal (`services.logging`)  |
 | `COEXIST_LOG_LEVEL`           | `info`             | server        | `debug` (also probe access lines), `info`,        |
 |                               |                    |               | `warning`, `error`                                |
+| `COEXIST_JOB_LEASE_S`         | 30                 | server        | a running training job's lease: renewed every     |
+|                               |                    |               | sixth of it; a job whose lease ran out is resumed |
+|                               |                    |               | by another (or the restarted) server, and a       |
+|                               |                    |               | runner that could not renew it stops its trainer  |
 | `COEXIST_SHUTDOWN_GRACE_S`    | 10                 | server        | on SIGTERM: how long in-flight HTTP requests and  |
 |                               |                    |               | gRPC calls may take to finish                     |
 | `COEXIST_TEST_PG_URL`         | `postgresql://postgres@127.0.0.1:5432/test` | tests | the PostgreSQL server of the tests   |
@@ -94,6 +98,7 @@ class Settings(BaseSettings):
     log_format: Literal["json", "text"] = "text"
     log_level: Literal["debug", "info", "warning", "error"] = "info"
     shutdown_grace_s: int = Field(default=10, ge=0, le=3600)
+    job_lease_s: float = Field(default=30.0, ge=1.0, le=3600)
 
     @field_validator("log_format", "log_level", mode="before")
     @classmethod
