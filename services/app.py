@@ -14,7 +14,8 @@ creating one is refused (docs/architecture.md, "Sessions").
 
 Routes: `/v1/act`, `/v1/act:batch`, `/v1/envs`, `/v1/sessions` (services.rest), the registry under
 `/v1/registry` (services.registry), `/healthz` (liveness), `/readyz` (models loaded, store
-reachable), `/metrics` (Prometheus) and the OpenAPI docs at `/docs`. Every response carries
+reachable), `/metrics` (Prometheus) and the OpenAPI docs at `/docs`; with a read token required,
+all of them but `/healthz` behind it (`services.auth`). Every response carries
 `X-Request-ID` (the request's own, else a new one) and every log line written while serving it
 has the id (`services.logging`).
 """
@@ -33,6 +34,7 @@ from prometheus_client import CONTENT_TYPE_LATEST, CollectorRegistry, generate_l
 
 from model_store.defaults import open_store
 from model_store.store import ModelStore
+from services.auth import TOKEN_OK_SCOPE_KEY, TokenGate
 from services.engine import InferenceEngine
 from services.jobs_api import router as jobs_router
 from services.logging import RequestIdMiddleware
@@ -87,6 +89,7 @@ def create_app(
         app.state.sessions = SessionStore(
             app.state.engine,
             max_sessions=settings.max_sessions,
+            max_per_client=settings.max_sessions_per_client,
             ttl_s=settings.session_ttl_s,
             prefetch=settings.session_prefetch,
         )
@@ -101,6 +104,7 @@ def create_app(
                 session_prefetch=settings.session_prefetch,
                 ready=lambda: _readiness(app.state.engine)[0],
                 reuse_port=True,  # uvicorn workers of one server share the gRPC port
+                tokens=settings.accepted_tokens() if settings.reads_need_token else None,
             )
             grpc_server.start()
             app.state.grpc_port = grpc_server.port
@@ -151,6 +155,8 @@ def create_app(
         max_bytes=settings.max_body_bytes,
         upload_max_bytes=settings.max_artifact_bytes + FORM_OVERHEAD_BYTES,
     )
+    if settings.reads_need_token:  # no gate at all (no per-request work) when reads are open
+        app.add_middleware(TokenGate, accepted=settings.accepted_tokens())
     app.add_middleware(_AsgiWrapper, wrap=http_metrics.middleware)
     # outermost: the id is set before anything logs, and an error no handler took is answered
     # here (with the id; Starlette's last-resort handler would close the connection)
@@ -163,8 +169,11 @@ def create_app(
 
     @app.get("/readyz", tags=["health"])
     async def readyz(request: Request) -> JSONResponse:
-        """Readiness: the store is reachable and production models can be served."""
+        """Readiness: the store is reachable and production models can be served. Without the
+        token a server that wants one answers the status alone (`services.auth`)."""
         ready, body = _readiness(request.app.state.engine)
+        if not request.scope.get(TOKEN_OK_SCOPE_KEY, True):
+            body = {"status": body["status"]}
         return JSONResponse(body, status_code=200 if ready else 503)
 
     @app.get("/metrics", tags=["health"])

@@ -11,8 +11,9 @@ by the test suite and by Ray.
 | `COEXIST_ADMIN_TOKEN`         | `dev-token`        | server, CLI   | bearer token for registry and job writes (the     |
 |                               |                    |               | `coexist jobs` CLI sends it; refused at its       |
 |                               |                    |               | default unless `DEV_MODE`)                        |
-| `COEXIST_READ_TOKEN`          | unset              | server        | bearer token for reads                            |
-| `COEXIST_REQUIRE_READ_TOKEN`  | false              | server        | reads need a token                                |
+| `COEXIST_READ_TOKEN`          | unset              | server        | bearer token for reads (inference included)       |
+| `COEXIST_REQUIRE_READ_TOKEN`  | false              | server        | every route but `/healthz` (and gRPC health)      |
+|                               |                    |               | needs the read or admin token (`services.auth`)   |
 | `COEXIST_DEV_MODE`            | false              | server        | allow the default admin token                     |
 | `COEXIST_MAX_ARTIFACT_BYTES`  | 64 MiB             | server        | upload size limit                                 |
 | `COEXIST_MAX_BODY_BYTES`      | 16 MiB             | server        | JSON request bodies: larger ones are refused      |
@@ -28,6 +29,10 @@ by the test suite and by Ray.
 | `COEXIST_MAX_BATCH`           | 4096               | server        | rows allowed in one act:batch                     |
 | `COEXIST_SESSION_TTL_S`       | 300                | server        | a REST session idle this long is forgotten        |
 | `COEXIST_MAX_SESSIONS`        | 1000               | server        | live REST sessions per server process             |
+| `COEXIST_MAX_SESSIONS_PER_CLIENT` | 100            | server        | live REST sessions one client (by address) may    |
+|                               |                    |               | hold; behind a proxy set uvicorn's                |
+|                               |                    |               | `FORWARDED_ALLOW_IPS` to it, else every client    |
+|                               |                    |               | shares the proxy's address                        |
 | `COEXIST_SESSION_PREFETCH`    | true               | server        | after a session step's answer is sent, score the  |
 |                               |                    |               | next step's evidence ahead (REST and `Episode`;   |
 |                               |                    |               | `services.sessions.session`, "Scoring ahead")     |
@@ -48,9 +53,10 @@ by the test suite and by Ray.
 | `COEXIST_REQUIRE_POSTGRES`    | unset              | tests         | PostgreSQL tests fail instead of skipping         |
 | `RAY_ADDRESS`                 | unset              | `--backend ray` | the Ray cluster when `--ray-address` is not given |
 
-Reads are open unless a read token is set or `require_read_token` is true; then a request must
-carry the read token or the admin token (with `require_read_token` and no read token, only the
-admin token). Settings are built by `get_settings()` on first call, never at import time; tests
+Reads are open unless a read token is set or `require_read_token` is true; then every request
+(REST and gRPC: inference, sessions, the registry, jobs, metrics, docs) must carry the read token
+or the admin token (with `require_read_token` and no read token, only the admin token); only
+liveness stays open, and `/readyz` without a token answers its status alone (`services.auth`). Settings are built by `get_settings()` on first call, never at import time; tests
 pass their own `Settings(...)` to `create_app`.
 """
 
@@ -93,6 +99,7 @@ class Settings(BaseSettings):
     max_batch: int = Field(default=4096, ge=1)
     session_ttl_s: float = Field(default=300.0, gt=0, le=86400)
     max_sessions: int = Field(default=1000, ge=1)
+    max_sessions_per_client: int = Field(default=100, ge=1)
     session_prefetch: bool = True
     workers: int = Field(default=1, ge=1)
     log_format: Literal["json", "text"] = "text"
@@ -115,6 +122,11 @@ class Settings(BaseSettings):
     @property
     def reads_need_token(self) -> bool:
         return self.require_read_token or self.read_token is not None
+
+    def accepted_tokens(self) -> tuple[str, ...]:
+        """The tokens a read accepts: the read token (if any) and the admin token."""
+        read = self.read_token.get_secret_value() if self.read_token else ""
+        return tuple(t for t in (read, self.admin_token.get_secret_value()) if t)
 
     def check_secure(self) -> None:
         """Refuse the public default admin token outside development mode."""

@@ -36,6 +36,7 @@ import grpc
 from grpc_health.v1 import health, health_pb2, health_pb2_grpc
 from grpc_reflection.v1alpha import reflection
 
+from services.auth import TokenInterceptor
 from services.engine import InferenceEngine
 from services.grpc_api.errors import parse_or_malformed
 from services.grpc_api.gen.coexist.v1 import policy_pb2 as pb
@@ -147,6 +148,7 @@ def build_grpc_server(
     health_recheck_s: float = 1.0,
     reuse_port: bool = False,
     session_prefetch: bool = True,
+    tokens: tuple[str, ...] | None = None,
 ) -> GrpcServer:
     """A gRPC server (not started) bound to `host:port`; port 0 binds a free port (`.port`).
 
@@ -156,13 +158,18 @@ def build_grpc_server(
     connections over them), as uvicorn workers of one server do; otherwise a port already in
     use is an error. `session_prefetch`: an `Episode` with inferred partners scores the next
     step's evidence after sending each answer (`services.sessions.session`, "Scoring ahead").
+    `tokens`: every call but health checks needs `authorization: Bearer <one of them>`
+    (`services.auth.TokenInterceptor`); None: open.
     """
     if max_workers < 1:
         raise ValueError(f"max_workers: expected >= 1, got {max_workers}")
+    interceptors: list[grpc.ServerInterceptor] = [RequestIdInterceptor()]  # ids, access lines
+    if tokens is not None:
+        interceptors.append(TokenInterceptor(tokens))  # inside: refusals are logged with ids
     server = grpc.server(
         futures.ThreadPoolExecutor(max_workers=max_workers, thread_name_prefix="coexist-grpc"),
         options=[("grpc.so_reuseport", 1 if reuse_port else 0)],
-        interceptors=(RequestIdInterceptor(),),  # request ids + access lines, as over HTTP
+        interceptors=interceptors,
     )
     handlers = _policy_handlers(PolicyServicer(engine, session_prefetch=session_prefetch))
     server.add_generic_rpc_handlers((grpc.method_handlers_generic_handler(SERVICE_NAME, handlers),))
