@@ -13,7 +13,9 @@
 | `method`                  | one of aail, nail, sl, jl; jl needs >= 1 partner, each with a `goal`|
 | `temperature`             | None or a finite number > 0                                         |
 | `seed`                    | None or an integer >= 0                                             |
-| `alias`, `versions[name]` | a valid alias; pinned versions are integers >= 1                    |
+| `alias`, `versions[name]` | a valid alias; pinned names are model names, their versions        |
+|                           | integers in 1..MAX_VERSION; `engine.act` then refuses a pin of a    |
+|                           | model the request does not use                                      |
 """
 
 from __future__ import annotations

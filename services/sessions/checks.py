@@ -5,7 +5,8 @@ Every bad input becomes `InvalidRequest(field, message)` in the REST body's nami
 |------------------------------|------------------------------------------------------------------|
 | `env`, `ego_goal`, `method`, | as for `/v1/act` (`services.engine.validation`), checked on a    |
 | `temperature`, `seed`,       | stand-in observation of the smallest scene that holds every      |
-| `alias`, `versions`          | partner                                                          |
+| `alias`, `versions`          | partner; a pinned name must be a task or impact network of the   |
+|                              | env (or, with jl, the joint network)                             |
 | `partners[i].index`          | 1..max_agents-1 of the env, no index twice                       |
 | `partners[i].goal(_probs)`   | at most one of the two; a known goal / a distribution summing to |
 |                              | 1; with `infer` it is the belief's prior                         |
@@ -22,12 +23,14 @@ Every bad input becomes `InvalidRequest(field, message)` in the REST body's nami
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
 
-from model_store.errors import brief
+from model_store.errors import InvalidArgument, brief
+from model_store.naming import joint_model_name
 from policy.belief import BeliefConfig, PreparedUpdate, initial_log_belief, prior_log_probs
 from services.engine import ActRequest, InvalidRequest, PartnerSpec
 from services.engine.environments import EnvRuntime, env_runtime
@@ -112,6 +115,26 @@ def _dry_act_request(settings: SessionSettings, runtime: EnvRuntime) -> ActReque
     )  # fmt: skip
 
 
+def _check_pins_usable(
+    settings: SessionSettings, runtime: EnvRuntime, partners: Sequence[SessionPartner]
+) -> None:
+    """A pin must name a network the session could use: any task or impact network of the env
+    (beliefs weigh every goal), or with jl its joint network."""
+    usable = {*runtime.task_names.values(), *runtime.impact_names.values()}
+    if settings.method == "jl":
+        ordered = sorted(partners, key=lambda p: p.index)
+        with contextlib.suppress(InvalidArgument, TypeError):  # the act check named it already
+            goals = [p.goal for p in ordered if isinstance(p.goal, str)]
+            usable.add(joint_model_name(runtime.domain.name, settings.ego_goal, goals))
+    for name in settings.versions:
+        if name not in usable:
+            raise InvalidRequest(
+                f"versions[{name}]",
+                f"this session can use no model {name!r}: a pin must name a task or impact "
+                f"network of env {runtime.domain.name!r} (or, with jl, its joint network)",
+            )
+
+
 def _check_blend(settings: SessionSettings) -> None:
     mass = settings.blend_mass
     if not isinstance(mass, int | float) or isinstance(mass, bool) or not 0 < mass <= 1:
@@ -137,6 +160,7 @@ def check_settings(settings: SessionSettings) -> CheckedSettings:
             "combination); use aail or nail with inferred goals",
         )
     check_request(_dry_act_request(settings, runtime), max_batch=1)
+    _check_pins_usable(settings, runtime, partners)
     goals = tuple(runtime.domain.goals)
     config = settings.belief
     if not isinstance(config, BeliefConfig):
