@@ -9,12 +9,14 @@ by the test suite and by Ray.
 | `COEXIST_STORE_URL`           | SQLite in data dir | server, CLI   | model store URL (`sqlite:///…`, `postgresql://…`) |
 | `COEXIST_DATA_DIR`            | `.coexist`         | server, CLI   | where the SQLite file (and bootstrap run) lives   |
 | `COEXIST_ADMIN_TOKEN`         | `dev-token`        | server, CLI   | bearer token for registry and job writes (the     |
-|                               |                    |               | `coexist jobs` CLI sends it; refused at its       |
-|                               |                    |               | default unless `DEV_MODE`)                        |
+|                               |                    |               | `coexist jobs` CLI sends it); unless `DEV_MODE`,  |
+|                               |                    |               | refused at its default and when weak (under 16    |
+|                               |                    |               | characters, whitespace, under 8 distinct ones;    |
+|                               |                    |               | the read token too)                               |
 | `COEXIST_READ_TOKEN`          | unset              | server        | bearer token for reads (inference included)       |
 | `COEXIST_REQUIRE_READ_TOKEN`  | false              | server        | every route but `/healthz` (and gRPC health)      |
 |                               |                    |               | needs the read or admin token (`services.auth`)   |
-| `COEXIST_DEV_MODE`            | false              | server        | allow the default admin token                     |
+| `COEXIST_DEV_MODE`            | false              | server        | allow the default admin token (and weak tokens)   |
 | `COEXIST_MAX_ARTIFACT_BYTES`  | 64 MiB             | server        | upload size limit                                 |
 | `COEXIST_MAX_BODY_BYTES`      | 16 MiB             | server        | JSON request bodies: larger ones are refused      |
 |                               |                    |               | (413) before they are read; fits a batch of       |
@@ -72,6 +74,8 @@ from pydantic_settings import BaseSettings, SettingsConfigDict
 from model_store.sql.sql_store import DEFAULT_MAX_ARTIFACT_BYTES
 
 DEFAULT_ADMIN_TOKEN = "dev-token"
+MIN_TOKEN_CHARS = 16  # outside development mode (`token_weakness`)
+MIN_TOKEN_DISTINCT = 8
 
 
 class InsecureSettings(RuntimeError):
@@ -129,14 +133,41 @@ class Settings(BaseSettings):
         return tuple(t for t in (read, self.admin_token.get_secret_value()) if t)
 
     def check_secure(self) -> None:
-        """Refuse the public default admin token outside development mode."""
-        if self.admin_token.get_secret_value() == DEFAULT_ADMIN_TOKEN and not self.dev_mode:
+        """Refuse an empty admin token always; outside development mode refuse the public
+        default and any token that is easy to guess (`token_weakness`), admin or read."""
+        if not self.admin_token.get_secret_value().strip():
+            raise InsecureSettings("COEXIST_ADMIN_TOKEN is empty: set a secret token")
+        if self.dev_mode:
+            return
+        if self.admin_token.get_secret_value() == DEFAULT_ADMIN_TOKEN:
             raise InsecureSettings(
                 "COEXIST_ADMIN_TOKEN is the public default 'dev-token': set a secret token "
-                "(COEXIST_ADMIN_TOKEN=...) or, on a development machine, COEXIST_DEV_MODE=1"
+                "(COEXIST_ADMIN_TOKEN=$(openssl rand -hex 24)) or, on a development machine, "
+                "COEXIST_DEV_MODE=1"
             )
-        if not self.admin_token.get_secret_value():
-            raise InsecureSettings("COEXIST_ADMIN_TOKEN is empty: set a secret token")
+        tokens = [("COEXIST_ADMIN_TOKEN", self.admin_token)]
+        if self.read_token is not None:
+            tokens.append(("COEXIST_READ_TOKEN", self.read_token))
+        for name, token in tokens:
+            weakness = token_weakness(token.get_secret_value())
+            if weakness is not None:
+                raise InsecureSettings(
+                    f"{name} {weakness}: use a random one (e.g. $(openssl rand -hex 24)) or, on "
+                    "a development machine, COEXIST_DEV_MODE=1"
+                )
+
+
+def token_weakness(token: str) -> str | None:
+    """Why `token` is too easy to guess (None when it is not): shorter than
+    `MIN_TOKEN_CHARS`, containing whitespace (a stray space or newline from a copy), or made of
+    fewer than `MIN_TOKEN_DISTINCT` different characters (`aaaa...`, `abab...`)."""
+    if len(token) < MIN_TOKEN_CHARS:
+        return f"has {len(token)} characters, fewer than {MIN_TOKEN_CHARS}"
+    if any(c.isspace() for c in token):
+        return "contains whitespace"
+    if len(set(token)) < MIN_TOKEN_DISTINCT:
+        return f"uses fewer than {MIN_TOKEN_DISTINCT} different characters"
+    return None
 
 
 @lru_cache(maxsize=1)

@@ -22,7 +22,7 @@ from services.settings import Settings
 from trainer.jobs import JobSpec, JobStatus, JobTable, train_command
 from trainer.jobs.spec import MAX_SEED, MAX_STEPS
 
-TOKEN = "jobs-t0ken"
+TOKEN = "jobs-t0ken-for-the-tests"
 AUTH = {"Authorization": f"Bearer {TOKEN}"}
 TINY = {"kind": "task", "goals": "a2", "steps": 20}
 
