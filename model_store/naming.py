@@ -9,6 +9,7 @@
 |            | (a bare name means `name@production`)  | `particle/task/a3/2`      |
 | tag key    | `[A-Za-z0-9_.:/-]`, 1..64 chars        | `team`                    |
 | version    | an integer in 1..`MAX_VERSION`         | `3`                       |
+| idempotency key | `[A-Za-z0-9._:-]`, 1..128 chars   | a UUID, a sha256          |
 
 Version numbers live in Integer columns (32 bits on PostgreSQL), so the API's range is
 1..2^31-1 (`MAX_VERSION`) on every backend: a number past it is an `InvalidArgument` (422) before
@@ -47,6 +48,7 @@ _ENV = re.compile(r"[a-z][a-z0-9_-]{0,63}")
 _GOAL = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
 _TAG_KEY = re.compile(r"[A-Za-z0-9_.:/-]{1,64}")
 MAX_TAG_VALUE = 1000
+_IDEMPOTENCY_KEY = re.compile(r"[A-Za-z0-9._:-]{1,128}")
 
 
 def validate_model_name(name: str, field: str = "name") -> str:
@@ -108,6 +110,14 @@ def validate_tags(tags: Mapping[str, str], field: str = "tags") -> dict[str, str
                 field=f"{field}.{key}",
             )
     return dict(tags)
+
+
+def validate_idempotency_key(key: str, field: str = "idempotency_key") -> str:
+    if not isinstance(key, str) or not _IDEMPOTENCY_KEY.fullmatch(key):
+        raise InvalidArgument(
+            f"{field}: {brief(key)} must match [A-Za-z0-9._:-]{{1,128}}", field=field
+        )
+    return key
 
 
 def task_model_name(env: str, goal: str) -> str:

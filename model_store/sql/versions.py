@@ -21,7 +21,13 @@ from model_store.errors import (
     NotFound,
     brief,
 )
-from model_store.naming import MAX_VERSION, parse_ref, ref_candidates, validate_alias
+from model_store.naming import (
+    MAX_VERSION,
+    parse_ref,
+    ref_candidates,
+    validate_alias,
+    validate_idempotency_key,
+)
 from model_store.sql import queries as q
 from model_store.sql.convert import now, version_entity
 from model_store.sql.orm import AliasRow, ModelRow, VersionRow
@@ -38,6 +44,24 @@ def _check_version_number(version: int) -> int:
     return version
 
 
+def _registered_with(session: Session, model_id: int, key: str) -> VersionRow | None:
+    query = select(VersionRow).where(
+        VersionRow.model_id == model_id, VersionRow.idempotency_key == key
+    )
+    row: VersionRow | None = session.execute(query).scalar_one_or_none()
+    return row
+
+
+def _check_same(earlier: VersionRow, sha256: str, spec: dict, key: str) -> None:
+    """A key names one upload: the same weights and spec, or a `Conflict`."""
+    if earlier.sha256 != sha256 or earlier.spec != spec:
+        raise Conflict(
+            f"idempotency_key: {key!r} registered version {earlier.version} (sha256 "
+            f"{earlier.sha256[:12]}…) from other weights or another spec: a key names one upload",
+            field="idempotency_key",
+        )
+
+
 class VersionOps:
     max_artifact_bytes: int
 
@@ -52,9 +76,12 @@ class VersionOps:
         weights: bytes,
         lineage: Lineage,
         aliases: Sequence[str] = ("latest",),
+        idempotency_key: str | None = None,
     ) -> ModelVersion:
         if isinstance(aliases, str):
             raise InvalidArgument("aliases: expected a list of aliases", field="aliases")
+        if idempotency_key is not None:
+            validate_idempotency_key(idempotency_key)
         alias_list = [validate_alias(a, "aliases") for a in dict.fromkeys(aliases)]
         check_lineage(lineage)
         with self._session() as session:
@@ -72,6 +99,11 @@ class VersionOps:
                         raise InvalidArtifact(
                             f"model {name!r} changed during upload; retry", field="name"
                         )
+                    if idempotency_key is not None:
+                        earlier = _registered_with(session, model.id, idempotency_key)
+                        if earlier is not None:  # a retry of an upload that was registered
+                            _check_same(earlier, artifact.sha256, artifact.spec, idempotency_key)
+                            return version_entity(name, earlier)
                     self._check_parents(session, lineage)
                     model.last_version += 1
                     row = VersionRow(
@@ -84,6 +116,7 @@ class VersionOps:
                         lineage=lineage.to_json(),
                         created_at=now(),
                         weights=bytes(weights),
+                        idempotency_key=idempotency_key,
                     )
                     session.add(row)
                     session.flush()
