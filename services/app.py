@@ -105,6 +105,7 @@ def create_app(
                 ready=lambda: _readiness(app.state.engine)[0],
                 reuse_port=True,  # uvicorn workers of one server share the gRPC port
                 tokens=settings.accepted_tokens() if settings.reads_need_token else None,
+                tls=settings.tls_pair(),
             )
             grpc_server.start()
             app.state.grpc_port = grpc_server.port

@@ -23,6 +23,9 @@ by the test suite and by Ray.
 |                               |                    |               | `MAX_BATCH` rows of 208 numbers at full precision |
 | `COEXIST_HOST`                | `127.0.0.1`        | server        | address to listen on (`0.0.0.0` in a container)   |
 | `COEXIST_HTTP_PORT`           | 8000               | server        | REST port                                         |
+| `COEXIST_TLS_CERT_FILE`,      | unset              | server        | PEM certificate (chain) and private key: REST     |
+| `COEXIST_TLS_KEY_FILE`        |                    |               | serves HTTPS and gRPC TLS on their ports (both or |
+|                               |                    |               | neither; docs/security.md)                        |
 | `COEXIST_GRPC_PORT`           | 50051              | server        | gRPC port (0: any free port)                      |
 | `COEXIST_GRPC_ENABLED`        | true               | server        | serve gRPC beside REST                            |
 | `COEXIST_GRPC_WORKERS`        | 8                  | server        | gRPC thread pool size                             |
@@ -93,6 +96,8 @@ class Settings(BaseSettings):
     dev_mode: bool = False
     max_artifact_bytes: int = Field(default=DEFAULT_MAX_ARTIFACT_BYTES, gt=0)
     max_body_bytes: int = Field(default=16 << 20, ge=1024)
+    tls_cert_file: Path | None = None
+    tls_key_file: Path | None = None
     host: str = "127.0.0.1"
     http_port: int = Field(default=8000, ge=0, le=65535)
     grpc_port: int = Field(default=50051, ge=0, le=65535)
@@ -127,16 +132,37 @@ class Settings(BaseSettings):
     def reads_need_token(self) -> bool:
         return self.require_read_token or self.read_token is not None
 
+    def _check_tls(self) -> None:
+        if (self.tls_cert_file is None) != (self.tls_key_file is None):
+            raise InsecureSettings(
+                "COEXIST_TLS_CERT_FILE and COEXIST_TLS_KEY_FILE go together: set both or neither"
+            )
+        if self.tls_cert_file is not None and self.tls_key_file is not None:
+            _readable(self.tls_cert_file, "COEXIST_TLS_CERT_FILE")
+            _readable(self.tls_key_file, "COEXIST_TLS_KEY_FILE")
+
+    @property
+    def tls(self) -> bool:
+        return self.tls_cert_file is not None
+
+    def tls_pair(self) -> tuple[bytes, bytes] | None:
+        """(certificate chain, private key) as PEM bytes, or None without TLS."""
+        if self.tls_cert_file is None or self.tls_key_file is None:
+            return None
+        return self.tls_cert_file.read_bytes(), self.tls_key_file.read_bytes()
+
     def accepted_tokens(self) -> tuple[str, ...]:
         """The tokens a read accepts: the read token (if any) and the admin token."""
         read = self.read_token.get_secret_value() if self.read_token else ""
         return tuple(t for t in (read, self.admin_token.get_secret_value()) if t)
 
     def check_secure(self) -> None:
-        """Refuse an empty admin token always; outside development mode refuse the public
+        """Refuse an empty admin token always, and TLS settings that cannot work (one file of
+        the pair, or a file that cannot be read); outside development mode refuse the public
         default and any token that is easy to guess (`token_weakness`), admin or read."""
         if not self.admin_token.get_secret_value().strip():
             raise InsecureSettings("COEXIST_ADMIN_TOKEN is empty: set a secret token")
+        self._check_tls()
         if self.dev_mode:
             return
         if self.admin_token.get_secret_value() == DEFAULT_ADMIN_TOKEN:
@@ -155,6 +181,14 @@ class Settings(BaseSettings):
                     f"{name} {weakness}: use a random one (e.g. $(openssl rand -hex 24)) or, on "
                     "a development machine, COEXIST_DEV_MODE=1"
                 )
+
+
+def _readable(path: Path, name: str) -> None:
+    try:
+        with path.open("rb") as f:
+            f.read(1)
+    except OSError as err:
+        raise InsecureSettings(f"{name}: cannot read {path} ({err.strerror})") from None
 
 
 def token_weakness(token: str) -> str | None:

@@ -149,6 +149,7 @@ def build_grpc_server(
     reuse_port: bool = False,
     session_prefetch: bool = True,
     tokens: tuple[str, ...] | None = None,
+    tls: tuple[bytes, bytes] | None = None,
 ) -> GrpcServer:
     """A gRPC server (not started) bound to `host:port`; port 0 binds a free port (`.port`).
 
@@ -159,7 +160,8 @@ def build_grpc_server(
     use is an error. `session_prefetch`: an `Episode` with inferred partners scores the next
     step's evidence after sending each answer (`services.sessions.session`, "Scoring ahead").
     `tokens`: every call but health checks needs `authorization: Bearer <one of them>`
-    (`services.auth.TokenInterceptor`); None: open.
+    (`services.auth.TokenInterceptor`); None: open. `tls`: (certificate chain, private key),
+    PEM: the port speaks TLS only; None: plaintext.
     """
     if max_workers < 1:
         raise ValueError(f"max_workers: expected >= 1, got {max_workers}")
@@ -182,7 +184,12 @@ def build_grpc_server(
     reflection.enable_server_reflection(
         (SERVICE_NAME, health.SERVICE_NAME, reflection.SERVICE_NAME), server
     )
-    bound = server.add_insecure_port(f"{host}:{port}")
+    if tls is None:
+        bound = server.add_insecure_port(f"{host}:{port}")
+    else:
+        chain, key = tls
+        credentials = grpc.ssl_server_credentials([(key, chain)])
+        bound = server.add_secure_port(f"{host}:{port}", credentials)
     return GrpcServer(server, bound, health_servicer)
 
 

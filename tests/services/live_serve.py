@@ -13,6 +13,7 @@ a private file, for module-scoped servers.
 from __future__ import annotations
 
 import shutil
+import ssl
 import subprocess
 import time
 from collections.abc import Iterator, Mapping
@@ -36,14 +37,19 @@ def zoo_copy(template: Path, directory: Path) -> str:
     return f"sqlite:///{target}"
 
 
-def wait_until(server: Server, path: str, headers: Mapping[str, str], timeout: float) -> None:
-    """Poll `path` until it answers 200 (fail with the server's log tail if it exits)."""
+def wait_until(
+    server: Server, path: str, headers: Mapping[str, str], timeout: float, ca: Path | None = None
+) -> None:
+    """Poll `path` until it answers 200 (fail with the server's log tail if it exits); over
+    HTTPS, trusting the authority `ca`, when given."""
+    base = server.http_url.replace("http://", "https://") if ca else server.http_url
+    verify = ssl.create_default_context(cafile=str(ca)) if ca else True
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         if server.process.poll() is not None:
             raise AssertionError(f"server exited:\n{server.log_path.read_text()[-3000:]}")
         try:
-            response = httpx.get(f"{server.http_url}{path}", headers=headers, timeout=1.0)
+            response = httpx.get(f"{base}{path}", headers=headers, timeout=1.0, verify=verify)
             if response.status_code == 200:
                 return
         except httpx.TransportError:
@@ -59,13 +65,15 @@ def serving(
     *,
     name: str = "serve",
     ready: bool = True,
+    ca: Path | None = None,
     **env: str,
 ) -> Iterator[Server]:
     """`coexist serve --no-bootstrap` with `COEXIST_*` overrides `env`; waits for `/readyz`
-    (with the admin token) or, with `ready=False` (an empty store), for `/healthz`."""
+    (with the admin token) or, with `ready=False` (an empty store), for `/healthz`; over HTTPS
+    trusting the authority `ca` when the server speaks TLS."""
     server = start_server(name, server_env(store_url, log_dir, **env), log_dir)
     try:
-        wait_until(server, "/readyz" if ready else "/healthz", AUTH, timeout=90.0)
+        wait_until(server, "/readyz" if ready else "/healthz", AUTH, timeout=90.0, ca=ca)
         yield server
     finally:
         try:
