@@ -100,7 +100,10 @@ def _open(app: FastAPI) -> tuple[JobTable, JobRunner]:
 
 @asynccontextmanager
 async def _lifespan(app: FastAPI) -> AsyncIterator[None]:
-    """Resume unfinished jobs at start-up; stop the runner (not the jobs) at shutdown."""
+    """Resume unfinished jobs at start-up; stop the runner (not the jobs) at shutdown. A table
+    and runner given to the app before it started (`app.state.jobs`, as tests do) are the
+    giver's: they are used, and left running."""
+    given = getattr(app.state, "jobs", None)
     if getattr(app.state, "store", None) is not None and hasattr(app.state.store, "url"):
         table, runner = _open(app)
         if table.has_unfinished():
@@ -109,7 +112,7 @@ async def _lifespan(app: FastAPI) -> AsyncIterator[None]:
         yield
     finally:
         jobs = getattr(app.state, "jobs", None)
-        if jobs is not None:
+        if jobs is not None and jobs is not given:
             jobs[1].stop()
             jobs[0].close()
             app.state.jobs = None
