@@ -117,7 +117,7 @@ def status_of(err: BaseException) -> tuple[grpc.StatusCode, str, str | None]:
     if isinstance(err, ModelNotFound | StoreNotFound | SessionNotFound):
         field, message = _field_and_message(err)
         return grpc.StatusCode.NOT_FOUND, message, field
-    for session_error, code in _SESSION_CODES:  # the Episode stream raises none of these today
+    for session_error, code in _SESSION_CODES:  # Episode: a client's streams past its bound
         if isinstance(err, session_error):
             field, message = _field_and_message(err)
             return code, message, field

@@ -154,7 +154,8 @@ def build_grpc_server(
     """A gRPC server (not started) bound to `host:port`; port 0 binds a free port (`.port`).
 
     `ready` decides health SERVING; by default the engine's store must be reachable.
-    Each open Episode stream holds one of the `max_workers` threads until it ends.
+    Each open Episode stream holds one of the `max_workers` threads until it ends; one client
+    (address) may hold at most half of them (`episode_slots`).
     `reuse_port` lets several processes bind the same port (SO_REUSEPORT: the kernel spreads
     connections over them), as uvicorn workers of one server do; otherwise a port already in
     use is an error. `session_prefetch`: an `Episode` with inferred partners scores the next
@@ -173,7 +174,10 @@ def build_grpc_server(
         options=[("grpc.so_reuseport", 1 if reuse_port else 0)],
         interceptors=interceptors,
     )
-    handlers = _policy_handlers(PolicyServicer(engine, session_prefetch=session_prefetch))
+    servicer = PolicyServicer(
+        engine, session_prefetch=session_prefetch, episodes_per_client=max(1, max_workers // 2)
+    )
+    handlers = _policy_handlers(servicer)
     server.add_generic_rpc_handlers((grpc.method_handlers_generic_handler(SERVICE_NAME, handlers),))
     server.add_registered_method_handlers(SERVICE_NAME, handlers)
 
