@@ -106,6 +106,7 @@ def create_app(
                 reuse_port=True,  # uvicorn workers of one server share the gRPC port
                 tokens=settings.accepted_tokens() if settings.reads_need_token else None,
                 tls=settings.tls_pair(),
+                episodes_per_client=settings.max_episodes_per_client,
             )
             grpc_server.start()
             app.state.grpc_port = grpc_server.port

@@ -29,6 +29,9 @@ by the test suite and by Ray.
 | `COEXIST_GRPC_PORT`           | 50051              | server        | gRPC port (0: any free port)                      |
 | `COEXIST_GRPC_ENABLED`        | true               | server        | serve gRPC beside REST                            |
 | `COEXIST_GRPC_WORKERS`        | 8                  | server        | gRPC thread pool size                             |
+| `COEXIST_MAX_EPISODES_PER_CLIENT` | half the workers | server      | open gRPC `Episode` streams of one client address |
+|                               |                    |               | (each holds a worker thread); behind a proxy      |
+|                               |                    |               | every client has its address: raise it there      |
 | `COEXIST_REFRESH_INTERVAL_S`  | 2.0                | server        | how often aliases are re-checked (hot reload)     |
 | `COEXIST_CACHE_SIZE`          | 256                | server        | networks kept loaded (LRU)                        |
 | `COEXIST_MAX_BATCH`           | 4096               | server        | rows allowed in one act:batch                     |
@@ -103,6 +106,7 @@ class Settings(BaseSettings):
     grpc_port: int = Field(default=50051, ge=0, le=65535)
     grpc_enabled: bool = True
     grpc_workers: int = Field(default=8, ge=1, le=256)
+    max_episodes_per_client: int | None = Field(default=None, ge=1)
     refresh_interval_s: float = Field(default=2.0, gt=0, le=3600)
     cache_size: int = Field(default=256, ge=1)
     max_batch: int = Field(default=4096, ge=1)

@@ -3,9 +3,11 @@
 On the sync gRPC server each open `Episode` stream holds one of the `max_workers` threads until
 the client closes it, so one client opening streams and leaving them open could take every
 thread, and with them the server. `EpisodeSlots` bounds the streams of each client (its address,
-from the call's peer) to `per_client`, half the workers by default (`build_grpc_server`); one
-more is `SessionLimitReached`, which the stream answers with RESOURCE_EXHAUSTED
-(`services.grpc_api.errors`). The REST sessions' own per-client bound is the session store's.
+from the call's peer) to `per_client` (`COEXIST_MAX_EPISODES_PER_CLIENT`, by default half the
+workers: `build_grpc_server`); one more is `SessionLimitReached`, which the stream answers with
+RESOURCE_EXHAUSTED (`services.grpc_api.errors`). Behind a proxy every client has the proxy's
+address, so the bound is the proxy's (docker/compose.yaml raises it to the worker count). The
+REST sessions' own per-client bound is the session store's.
 """
 
 from __future__ import annotations

@@ -150,12 +150,13 @@ def build_grpc_server(
     session_prefetch: bool = True,
     tokens: tuple[str, ...] | None = None,
     tls: tuple[bytes, bytes] | None = None,
+    episodes_per_client: int | None = None,
 ) -> GrpcServer:
     """A gRPC server (not started) bound to `host:port`; port 0 binds a free port (`.port`).
 
     `ready` decides health SERVING; by default the engine's store must be reachable.
     Each open Episode stream holds one of the `max_workers` threads until it ends; one client
-    (address) may hold at most half of them (`episode_slots`).
+    (address) may hold at most `episodes_per_client` of them (None: half; `episode_slots`).
     `reuse_port` lets several processes bind the same port (SO_REUSEPORT: the kernel spreads
     connections over them), as uvicorn workers of one server do; otherwise a port already in
     use is an error. `session_prefetch`: an `Episode` with inferred partners scores the next
@@ -174,8 +175,9 @@ def build_grpc_server(
         options=[("grpc.so_reuseport", 1 if reuse_port else 0)],
         interceptors=interceptors,
     )
+    per_client = episodes_per_client or max(1, max_workers // 2)
     servicer = PolicyServicer(
-        engine, session_prefetch=session_prefetch, episodes_per_client=max(1, max_workers // 2)
+        engine, session_prefetch=session_prefetch, episodes_per_client=per_client
     )
     handlers = _policy_handlers(servicer)
     server.add_generic_rpc_handlers((grpc.method_handlers_generic_handler(SERVICE_NAME, handlers),))
