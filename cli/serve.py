@@ -2,7 +2,9 @@
 
 On a first run against an empty store it first trains the particle zoo (35 task + 35 impact
 networks, with progress bars; about ten minutes on 2 cores) and registers it, so the README's
-first command ends with a server that answers. `--no-bootstrap` skips that.
+first command ends with a server that answers. `--no-bootstrap` skips that. With
+`COEXIST_TLS_CERT_FILE` and `COEXIST_TLS_KEY_FILE` set, REST serves HTTPS and gRPC TLS
+(docs/security.md).
 """
 
 from __future__ import annotations
@@ -62,9 +64,10 @@ def serve(
         raise typer.Exit(2) from None
     if bootstrap:
         _bootstrap(settings.resolved_store_url(), settings.data_dir, bootstrap_steps)
+    scheme, grpc_kind = ("https", "gRPC with TLS") if settings.tls else ("http", "gRPC")
     typer.echo(
-        f"serving REST on http://{host}:{http_port} (docs at /docs)"
-        + (f" and gRPC on {host}:{grpc_port}" if grpc_port else "")
+        f"serving REST on {scheme}://{host}:{http_port} (docs at /docs)"
+        + (f" and {grpc_kind} on {host}:{grpc_port}" if grpc_port else "")
     )
     uvicorn.run(
         "services.app:create_app",
@@ -78,6 +81,8 @@ def serve(
         log_level=settings.log_level,
         access_log=False,  # services.logging writes access lines, with request ids
         timeout_graceful_shutdown=settings.shutdown_grace_s,  # in-flight requests finish
+        ssl_certfile=settings.tls_cert_file,  # HTTPS when COEXIST_TLS_* are set
+        ssl_keyfile=settings.tls_key_file,
     )
 
 

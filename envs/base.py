@@ -82,6 +82,7 @@ def check_goal(domain: Domain, goal: str, field: str = "goal") -> int:
         return domain.goals.index(goal)
     except ValueError:
         shown = ", ".join(domain.goals[:8]) + (", ..." if len(domain.goals) > 8 else "")
+        quoted = repr(goal) if len(goal) <= 64 else f"{goal[:64]!r}… ({len(goal)} characters)"
         raise ValueError(
-            f"{field}: unknown goal {goal!r} for env {domain.name!r} (expected one of {shown})"
+            f"{field}: unknown goal {quoted} for env {domain.name!r} (expected one of {shown})"
         ) from None

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from model_store.entities import Lineage
-from model_store.errors import ArtifactTooLarge, InvalidArtifact
+from model_store.errors import ArtifactTooLarge, InvalidArtifact, brief
 from model_store.naming import parse_ref
 
 
@@ -86,5 +86,7 @@ def check_lineage(lineage: Lineage) -> Lineage:
         field = f"lineage.parents[{i}]"
         ref = parse_ref(parent, field)
         if ref.version is None:
-            raise InvalidArtifact(f"{field}: expected 'name/version', got {parent!r}", field=field)
+            raise InvalidArtifact(
+                f"{field}: expected 'name/version', got {brief(parent)}", field=field
+            )
     return lineage

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any, Generic, Literal, TypeVar
 
-from model_store.errors import InvalidArtifact
+from model_store.errors import InvalidArtifact, brief
 
 ModelKind = Literal["task", "impact", "joint"]
 MODEL_KINDS: tuple[str, ...] = ("task", "impact", "joint")
@@ -81,7 +81,7 @@ class Lineage:
                 raise bad(f"lineage.{key}", f"expected a JSON {kind.__name__}")
         seed = data.get("seed")
         if seed is not None and (not isinstance(seed, int) or isinstance(seed, bool)):
-            raise bad("lineage.seed", f"expected an integer or null, got {seed!r}")
+            raise bad("lineage.seed", f"expected an integer or null, got {brief(seed)}")
         for key in ("code_version", "registered_by"):
             if key in data and not isinstance(data[key], str):
                 raise bad(f"lineage.{key}", "expected a string")

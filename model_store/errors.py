@@ -16,9 +16,40 @@ blame.
 | ChecksumMismatch   | stored bytes no longer match their sha256              | 502  |
 | SchemaTooNew       | the database was migrated by a newer coexist           | 503  |
 | StoreUnavailable   | the database cannot be reached or has disappeared      | 503  |
+
+Messages quote what the caller sent through `brief`, never whole: an error about a 10 MB name
+must not be a 10 MB answer (nor overflow a gRPC trailer).
 """
 
 from __future__ import annotations
+
+import reprlib
+
+ECHO_CHARS = 64  # how much of a value an error message quotes
+MESSAGE_CHARS = 1000  # the most of a message (or field name) the transports send
+
+_short = reprlib.Repr()
+_short.maxstring = _short.maxother = _short.maxlong = ECHO_CHARS
+_short.maxlist = _short.maxtuple = _short.maxdict = _short.maxset = 6
+_short.maxlevel = 2
+
+
+def brief(value: object, limit: int = ECHO_CHARS) -> str:
+    """`repr(value)` of at most about `limit` characters: a longer string is cut after its first
+    `limit` characters and says how long it was; containers show their first few items."""
+    if isinstance(value, str | bytes):
+        if len(value) <= limit:
+            return repr(value)
+        unit = "characters" if isinstance(value, str) else "bytes"
+        return f"{value[:limit]!r}… ({len(value)} {unit})"
+    if isinstance(value, int) and value.bit_length() > 4 * limit:  # repr refuses > 4300 digits
+        return f"an integer of {value.bit_length()} bits"
+    return _short.repr(value)
+
+
+def clip(text: str, limit: int = MESSAGE_CHARS) -> str:
+    """`text` cut to `limit` characters: the transports' last guard on what they echo."""
+    return text if len(text) <= limit else f"{text[:limit]}… (cut at {limit} characters)"
 
 
 class ModelStoreError(Exception):

@@ -8,6 +8,14 @@
 | ref        | `name@alias`, `name/version` or `name` | `particle/task/a3@latest` |
 |            | (a bare name means `name@production`)  | `particle/task/a3/2`      |
 | tag key    | `[A-Za-z0-9_.:/-]`, 1..64 chars        | `team`                    |
+| version    | an integer in 1..`MAX_VERSION`         | `3`                       |
+| idempotency key | `[A-Za-z0-9._:-]`, 1..128 chars   | a UUID, a sha256          |
+
+Version numbers live in Integer columns (32 bits on PostgreSQL), so the API's range is
+1..2^31-1 (`MAX_VERSION`) on every backend: a number past it is an `InvalidArgument` (422) before
+any SQL runs, a number within it that no version has is `NotFound` (404). `parse_ref` refuses a
+ref whose version reading is past the range (`name/99999999999` is not read as a model name
+instead: such a name would be a model nobody can address by version).
 
 Refs whose last segment is a number have two readings: `particle/task/4` is version 4 of
 `particle/task`, or the model `particle/task/4` (a row goal of the particle world) at
@@ -26,11 +34,13 @@ import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
-from model_store.errors import InvalidArgument
+from model_store.errors import InvalidArgument, brief
 
 DEFAULT_ALIAS = "production"
 LATEST_ALIAS = "latest"
 MAX_NAME_LENGTH = 200
+MAX_VERSION = 2**31 - 1  # model_versions.version and friends are Integer columns
+MAX_SIZE = 2**31 - 1  # a model's obs_dim and n_actions (Integer columns too)
 
 _SEGMENT = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+-]*")
 _ALIAS = re.compile(r"[a-z][a-z0-9_-]{0,63}")
@@ -38,6 +48,7 @@ _ENV = re.compile(r"[a-z][a-z0-9_-]{0,63}")
 _GOAL = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
 _TAG_KEY = re.compile(r"[A-Za-z0-9_.:/-]{1,64}")
 MAX_TAG_VALUE = 1000
+_IDEMPOTENCY_KEY = re.compile(r"[A-Za-z0-9._:-]{1,128}")
 
 
 def validate_model_name(name: str, field: str = "name") -> str:
@@ -49,7 +60,7 @@ def validate_model_name(name: str, field: str = "name") -> str:
     for segment in name.split("/"):
         if not _SEGMENT.fullmatch(segment):
             raise InvalidArgument(
-                f"{field}: segment {segment!r} of {name!r} must match [A-Za-z0-9][A-Za-z0-9_.+-]*",
+                f"{field}: segment {brief(segment)} of {brief(name)} must match [A-Za-z0-9][A-Za-z0-9_.+-]*",
                 field=field,
             )
     return name
@@ -64,7 +75,7 @@ def path_prefixes(name: str) -> list[str]:
 def validate_alias(alias: str, field: str = "alias") -> str:
     if not isinstance(alias, str) or not _ALIAS.fullmatch(alias):
         raise InvalidArgument(
-            f"{field}: alias {alias!r} must match [a-z][a-z0-9_-]* (at most 64 characters)",
+            f"{field}: alias {brief(alias)} must match [a-z][a-z0-9_-]* (at most 64 characters)",
             field=field,
         )
     return alias
@@ -72,14 +83,14 @@ def validate_alias(alias: str, field: str = "alias") -> str:
 
 def validate_env(env: str, field: str = "env") -> str:
     if not isinstance(env, str) or not _ENV.fullmatch(env):
-        raise InvalidArgument(f"{field}: env {env!r} must match [a-z][a-z0-9_-]*", field=field)
+        raise InvalidArgument(f"{field}: env {brief(env)} must match [a-z][a-z0-9_-]*", field=field)
     return env
 
 
 def validate_goal(goal: str, field: str = "goal") -> str:
     if not isinstance(goal, str) or not _GOAL.fullmatch(goal):
         raise InvalidArgument(
-            f"{field}: goal {goal!r} must match [A-Za-z0-9][A-Za-z0-9_.-]*", field=field
+            f"{field}: goal {brief(goal)} must match [A-Za-z0-9][A-Za-z0-9_.-]*", field=field
         )
     return goal
 
@@ -90,7 +101,7 @@ def validate_tags(tags: Mapping[str, str], field: str = "tags") -> dict[str, str
     for key, value in tags.items():
         if not isinstance(key, str) or not _TAG_KEY.fullmatch(key):
             raise InvalidArgument(
-                f"{field}: tag key {key!r} must match [A-Za-z0-9_.:/-]{{1,64}}",
+                f"{field}: tag key {brief(key)} must match [A-Za-z0-9_.:/-]{{1,64}}",
                 field=f"{field}.{key}",
             )
         if not isinstance(value, str) or len(value) > MAX_TAG_VALUE:
@@ -99,6 +110,14 @@ def validate_tags(tags: Mapping[str, str], field: str = "tags") -> dict[str, str
                 field=f"{field}.{key}",
             )
     return dict(tags)
+
+
+def validate_idempotency_key(key: str, field: str = "idempotency_key") -> str:
+    if not isinstance(key, str) or not _IDEMPOTENCY_KEY.fullmatch(key):
+        raise InvalidArgument(
+            f"{field}: {brief(key)} must match [A-Za-z0-9._:-]{{1,128}}", field=field
+        )
+    return key
 
 
 def task_model_name(env: str, goal: str) -> str:
@@ -146,10 +165,13 @@ def parse_ref(ref: str, field: str = "ref") -> Ref:
         name, _, alias = ref.rpartition("@")
         return Ref(validate_model_name(name, field), alias=validate_alias(alias, field))
     head, _, last = ref.rpartition("/")
-    if head and last.isdigit():
+    if head and last.isascii() and last.isdigit():
+        if len(last) > 12 or not 1 <= int(last) <= MAX_VERSION:  # no int() of a huge string
+            raise InvalidArgument(
+                f"{field}: a version is an integer in 1..{MAX_VERSION}, got {brief(last)}",
+                field=field,
+            )
         version = int(last)
-        if version < 1:
-            raise InvalidArgument(f"{field}: versions start at 1, got {last}", field=field)
         return Ref(validate_model_name(head, field), version=version)
     return Ref(validate_model_name(ref, field), alias=DEFAULT_ALIAS)
 

@@ -9,7 +9,10 @@ Semantics fixed here, for every backend:
 - Versions are numbered 1, 2, 3 ... per model, gaplessly and never reused (a deleted version's
   number is not handed out again).
 - `register_version` validates spec and weights, stores them with their sha256, and points the
-  given aliases (default: `latest`) at the new version in the same transaction.
+  given aliases (default: `latest`) at the new version in the same transaction. With an
+  `idempotency_key` it is safe to retry: a key the model already has answers its version (same
+  spec and weights; aliases untouched) instead of registering another, and a key reused for
+  other content is a `Conflict`.
 - `resolve(ref)`: `name@alias`, `name/3`, or a bare `name`, which means `name@production`.
   No model name is a path prefix of another (`create_model` refuses it with `Conflict`), so
   `particle/task/4` is unambiguous: version 4 of `particle/task` if that model exists, else the
@@ -93,6 +96,7 @@ class ModelStore(ABC):
         weights: bytes,
         lineage: Lineage,
         aliases: Sequence[str] = ("latest",),
+        idempotency_key: str | None = None,
     ) -> ModelVersion: ...
 
     @abstractmethod

@@ -15,7 +15,8 @@ creating one is refused (docs/architecture.md, "Sessions").
 Routes: `/v1/act`, `/v1/act:batch`, `/v1/envs`, `/v1/sessions` (services.rest), the registry under
 `/v1/registry` (services.registry), `/v1/jobs`, `/healthz` (liveness), `/readyz` (models loaded,
 store reachable), `/metrics` (Prometheus), the OpenAPI docs at `/docs` and, after all of them,
-the web console at `/console/` (services.console; `/` redirects there). Every response carries
+the web console at `/console/` (services.console; `/` redirects there); with a read token
+required, all of them but `/healthz` and the console's page behind it (`services.auth`). Every response carries
 `X-Request-ID` (the request's own, else a new one) and every log line written while serving it
 has the id (`services.logging`).
 """
@@ -34,16 +35,21 @@ from prometheus_client import CONTENT_TYPE_LATEST, CollectorRegistry, generate_l
 
 from model_store.defaults import open_store
 from model_store.store import ModelStore
+from services.auth import TOKEN_OK_SCOPE_KEY, TokenGate
 from services.console import install as install_console
+from services.console import is_public as console_is_public
 from services.engine import InferenceEngine
 from services.jobs_api import router as jobs_router
 from services.logging import RequestIdMiddleware
 from services.metrics import EngineCollector, HttpMetrics, SessionCollector
 from services.registry import router as registry_router
 from services.registry.errors import install_error_handlers as install_registry_errors
+from services.registry.errors import unexpected_response
+from services.registry.versions_routes import FORM_OVERHEAD_BYTES
 from services.rest import install_error_handlers as install_act_errors
 from services.rest import router as act_router
 from services.rest import sessions_router
+from services.rest.body_limit import BodyLimit
 from services.sessions import SessionStore
 from services.settings import Settings, get_settings
 from services.warmup import warm_up
@@ -86,6 +92,7 @@ def create_app(
         app.state.sessions = SessionStore(
             app.state.engine,
             max_sessions=settings.max_sessions,
+            max_per_client=settings.max_sessions_per_client,
             ttl_s=settings.session_ttl_s,
             prefetch=settings.session_prefetch,
         )
@@ -100,6 +107,9 @@ def create_app(
                 session_prefetch=settings.session_prefetch,
                 ready=lambda: _readiness(app.state.engine)[0],
                 reuse_port=True,  # uvicorn workers of one server share the gRPC port
+                tokens=settings.accepted_tokens() if settings.reads_need_token else None,
+                tls=settings.tls_pair(),
+                episodes_per_client=settings.max_episodes_per_client,
             )
             grpc_server.start()
             app.state.grpc_port = grpc_server.port
@@ -144,8 +154,20 @@ def create_app(
     registry.register(EngineCollector(lambda: app.state.engine))
     registry.register(SessionCollector(lambda: getattr(app.state, "sessions", None)))
     http_metrics = HttpMetrics(registry)
+    # Outermost last: request ids, then metrics, then the body limit (pure ASGI, cheap checks).
+    app.add_middleware(
+        BodyLimit,
+        max_bytes=settings.max_body_bytes,
+        upload_max_bytes=settings.max_artifact_bytes + FORM_OVERHEAD_BYTES,
+    )
+    if settings.reads_need_token:  # no gate at all (no per-request work) when reads are open
+        app.add_middleware(
+            TokenGate, accepted=settings.accepted_tokens(), is_public=console_is_public
+        )
     app.add_middleware(_AsgiWrapper, wrap=http_metrics.middleware)
-    app.add_middleware(RequestIdMiddleware)  # outermost: the id is set before anything logs
+    # outermost: the id is set before anything logs, and an error no handler took is answered
+    # here (with the id; Starlette's last-resort handler would close the connection)
+    app.add_middleware(RequestIdMiddleware, on_error=unexpected_response)
 
     @app.get("/healthz", tags=["health"])
     async def healthz() -> dict[str, str]:
@@ -154,8 +176,11 @@ def create_app(
 
     @app.get("/readyz", tags=["health"])
     async def readyz(request: Request) -> JSONResponse:
-        """Readiness: the store is reachable and production models can be served."""
+        """Readiness: the store is reachable and production models can be served. Without the
+        token a server that wants one answers the status alone (`services.auth`)."""
         ready, body = _readiness(request.app.state.engine)
+        if not request.scope.get(TOKEN_OK_SCOPE_KEY, True):
+            body = {"status": body["status"]}
         return JSONResponse(body, status_code=200 if ready else 503)
 
     @app.get("/metrics", tags=["health"])

@@ -7,13 +7,13 @@
 | `WriteAuth`   | nothing        | 401 without a bearer token, 403 with a wrong one         |
 | `ReadAuth`    | nothing        | the same, only when reads need a token (see settings.py) |
 
-Tokens are compared in constant time (`hmac.compare_digest`) so response timing does not leak
-how much of a guess was right.
+Tokens are compared in constant time (`services.auth.token_matches`) so response timing does
+not leak how much of a guess was right. When reads need a token, `services.auth.TokenGate` also
+guards every route before it is reached (inference, sessions, metrics, docs).
 """
 
 from __future__ import annotations
 
-import hmac
 from typing import Annotated
 
 from fastapi import Depends, Request
@@ -21,6 +21,7 @@ from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 
 from model_store.errors import StoreUnavailable
 from model_store.store import ModelStore
+from services.auth import token_matches
 from services.registry.errors import ApiError
 from services.settings import Settings
 
@@ -44,13 +45,6 @@ StoreDep = Annotated[ModelStore, Depends(get_store)]
 Credentials = Annotated[HTTPAuthorizationCredentials | None, Depends(_bearer)]
 
 
-def _token_matches(given: str, *accepted: str | None) -> bool:
-    given_bytes = given.encode()
-    # Compare against every candidate (no early exit) so timing does not tell which one matched.
-    results = [hmac.compare_digest(given_bytes, a.encode()) for a in accepted if a]
-    return any(results)
-
-
 def _check(credentials: HTTPAuthorizationCredentials | None, *accepted: str | None) -> None:
     if credentials is None or not credentials.credentials:
         raise ApiError(
@@ -59,7 +53,7 @@ def _check(credentials: HTTPAuthorizationCredentials | None, *accepted: str | No
             "this endpoint needs 'Authorization: Bearer <token>'",
             headers={"WWW-Authenticate": "Bearer"},
         )
-    if not _token_matches(credentials.credentials, *accepted):
+    if not token_matches(credentials.credentials, *accepted):
         raise ApiError(403, "forbidden", "the bearer token is not valid for this endpoint")
 
 

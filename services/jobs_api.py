@@ -2,7 +2,8 @@
 
 | method | path                 | auth  | answers                                                       |
 |--------|----------------------|-------|---------------------------------------------------------------|
-| POST   | `/v1/jobs`           | write | 202 and the job (`queued`); 422 naming a bad field            |
+| POST   | `/v1/jobs`           | write | 202 and the job (`queued`); 422 naming a bad field (seed      |
+|        |                      |       | 0..2^31-1, steps 1..10^6, no unknown fields)                  |
 | GET    | `/v1/jobs`           | read  | `{jobs: [...]}`, newest first (`limit`, default 100)          |
 | GET    | `/v1/jobs/{id}`      | read  | the job: kind, args, status, times, exit code                 |
 | GET    | `/v1/jobs/{id}/logs` | read  | `{id, status, log}`: the last `tail` characters; with         |
@@ -15,6 +16,12 @@ Jobs live in the model store's database (`training_jobs`), their run directories
 `<data_dir>/jobs/<id>`. The runner thread starts with the app when unfinished jobs are waiting
 (a restarted server resumes them, `--resume` skips finished batches) and otherwise on the first
 submit; it stops with the app, leaving a running job for the next start. Jobs need a SQL store.
+
+One trainer per job: the trainer dies with the server process that started it, even on
+`kill -9` (its parent-death signal), holds its run directory's lock while it lives, and a
+restarted server stops any trainer of an earlier attempt still holding the directory before the
+next attempt starts (`trainer.jobs.leash`); a runner that cannot renew its job's lease within
+`COEXIST_JOB_LEASE_S` stops its trainer before another server takes the job over.
 
 Cancelling a running job stops its `coexist train` subprocess (SIGTERM, SIGKILL after the
 runner's grace period), from whichever server process answers the DELETE (`trainer.jobs.table`).
@@ -32,27 +39,41 @@ from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Depends, FastAPI, Query, Request
 from fastapi.responses import JSONResponse
-from pydantic import BaseModel, Field
+from pydantic import Field
 
 import services.registry  # noqa: F401  (first: importing services.deps first is a cycle)
 from model_store.errors import StoreUnavailable
 
 # isort: split
 from services.deps import ReadAuth, WriteAuth
+from services.rest.bounded import RequestBody
+from services.rest.json_body import FastJsonRoute
 from trainer.jobs import JobRunner, JobSpec, JobStatus, JobTable
 from trainer.jobs.runner import append_log, read_log, read_log_from
+from trainer.jobs.spec import MAX_SEED, MAX_STEPS, MAX_TEXT
 from trainer.jobs.table import CANCELLED_WHILE_QUEUED
 
 LOG_CHUNK_BYTES = 1 << 20  # the most one `offset` read of a log returns
 
 
-class JobRequest(BaseModel):
+class JobRequest(RequestBody):
+    """A job to run (`trainer.jobs.spec`); unknown fields are refused, as on every route."""
+
     kind: Literal["task", "impact", "joint", "zoo"]
-    env: str = "particle"
-    goals: str = Field(default="all", description="'all' or comma-separated goal ids")
-    combos: str = Field(default="", description="JL combinations: 'a2+b3,c+c4'")
-    seed: int = Field(default=0, ge=0)
-    steps: int | None = Field(default=None, ge=1, description="env steps per batch")
+    env: str = Field(default="particle", max_length=64)
+    goals: str = Field(
+        default="all", max_length=MAX_TEXT, description="'all' or comma-separated goal ids"
+    )
+    combos: str = Field(
+        default="", max_length=MAX_TEXT, description="JL combinations: 'a2+b3,c+c4'"
+    )
+    seed: int = Field(default=0, ge=0, le=MAX_SEED)
+    steps: int | None = Field(
+        default=None,
+        ge=1,
+        le=MAX_STEPS,
+        description="batched environment steps per batch of goals (default: the config's)",
+    )
 
 
 def _store_url(app: FastAPI) -> str:
@@ -70,15 +91,19 @@ def _open(app: FastAPI) -> tuple[JobTable, JobRunner]:
     jobs: tuple[JobTable, JobRunner] | None = getattr(app.state, "jobs", None)
     if jobs is None:
         url = _store_url(app)
-        table = JobTable(url)
-        jobs = table, JobRunner(table, store_url=url)
+        lease_s = app.state.settings.job_lease_s
+        table = JobTable(url, stale_after_s=lease_s)
+        jobs = table, JobRunner(table, store_url=url, heartbeat_s=lease_s / 6)
         app.state.jobs = jobs
     return jobs
 
 
 @asynccontextmanager
 async def _lifespan(app: FastAPI) -> AsyncIterator[None]:
-    """Resume unfinished jobs at start-up; stop the runner (not the jobs) at shutdown."""
+    """Resume unfinished jobs at start-up; stop the runner (not the jobs) at shutdown. A table
+    and runner given to the app before it started (`app.state.jobs`, as tests do) are the
+    giver's: they are used, and left running."""
+    given = getattr(app.state, "jobs", None)
     if getattr(app.state, "store", None) is not None and hasattr(app.state.store, "url"):
         table, runner = _open(app)
         if table.has_unfinished():
@@ -87,13 +112,13 @@ async def _lifespan(app: FastAPI) -> AsyncIterator[None]:
         yield
     finally:
         jobs = getattr(app.state, "jobs", None)
-        if jobs is not None:
+        if jobs is not None and jobs is not given:
             jobs[1].stop()
             jobs[0].close()
             app.state.jobs = None
 
 
-router = APIRouter(prefix="/v1/jobs", tags=["jobs"], lifespan=_lifespan)
+router = APIRouter(prefix="/v1/jobs", tags=["jobs"], lifespan=_lifespan, route_class=FastJsonRoute)
 
 
 def _table(request: Request) -> JobTable:
@@ -146,7 +171,8 @@ def get_logs(
     _auth: ReadAuth,
     tail: Annotated[int, Query(ge=1, le=1_000_000)] = 64_000,
     offset: Annotated[
-        int | None, Query(ge=0, description="byte offset to read from (to follow a log)")
+        int | None,
+        Query(ge=0, le=2**63 - 1, description="byte offset to read from (to follow a log)"),
     ] = None,
 ) -> dict[str, Any]:
     """The log file when this machine has it, else the tail the row kept when the job ended."""

@@ -32,6 +32,7 @@ import logging
 import re
 import time
 import uuid
+from collections.abc import Callable
 from contextvars import ContextVar
 from datetime import UTC, datetime
 from typing import Any, Literal
@@ -137,10 +138,16 @@ def _request_id_from(scope: dict[str, Any]) -> str:
 
 
 class RequestIdMiddleware:
-    """ASGI middleware: request id in, out and on every log line; one access line per request."""
+    """ASGI middleware: request id in, out and on every log line; one access line per request.
 
-    def __init__(self, app: Any) -> None:
+    `on_error(exc)`, when given, answers an exception that escaped the app before its response
+    started (an ASGI response, e.g. the 500 error body): here, inside the server's own error
+    layer, the answer still carries the request id and the connection stays open.
+    """
+
+    def __init__(self, app: Any, on_error: Callable[[Exception], Any] | None = None) -> None:
         self.app = app
+        self.on_error = on_error
 
     async def __call__(self, scope: dict[str, Any], receive: Any, send: Any) -> None:
         if scope["type"] != "http":
@@ -149,12 +156,12 @@ class RequestIdMiddleware:
         request_id = _request_id_from(scope)
         token = request_id_var.set(request_id)
         start = time.perf_counter()
-        status = 500  # unless a response starts
+        status, started = 500, False  # unless a response starts
 
         async def send_with_id(message: dict[str, Any]) -> None:
-            nonlocal status
+            nonlocal status, started
             if message["type"] == "http.response.start":
-                status = message["status"]
+                status, started = message["status"], True
                 headers = [h for h in message.get("headers", []) if h[0] != b"x-request-id"]
                 headers.append((b"x-request-id", request_id.encode()))
                 message = {**message, "headers": headers}
@@ -162,6 +169,10 @@ class RequestIdMiddleware:
 
         try:
             await self.app(scope, receive, send_with_id)
+        except Exception as exc:
+            if self.on_error is None or started:
+                raise
+            await self.on_error(exc)(scope, receive, send_with_id)
         finally:
             _log_access(scope, status, time.perf_counter() - start)
             request_id_var.reset(token)

@@ -9,22 +9,38 @@ by the test suite and by Ray.
 | `COEXIST_STORE_URL`           | SQLite in data dir | server, CLI   | model store URL (`sqlite:///…`, `postgresql://…`) |
 | `COEXIST_DATA_DIR`            | `.coexist`         | server, CLI   | where the SQLite file (and bootstrap run) lives   |
 | `COEXIST_ADMIN_TOKEN`         | `dev-token`        | server, CLI   | bearer token for registry and job writes (the     |
-|                               |                    |               | `coexist jobs` CLI sends it; refused at its       |
-|                               |                    |               | default unless `DEV_MODE`)                        |
-| `COEXIST_READ_TOKEN`          | unset              | server        | bearer token for reads                            |
-| `COEXIST_REQUIRE_READ_TOKEN`  | false              | server        | reads need a token                                |
-| `COEXIST_DEV_MODE`            | false              | server        | allow the default admin token                     |
+|                               |                    |               | `coexist jobs` CLI sends it); unless `DEV_MODE`,  |
+|                               |                    |               | refused at its default and when weak (under 16    |
+|                               |                    |               | characters, whitespace, under 8 distinct ones;    |
+|                               |                    |               | the read token too)                               |
+| `COEXIST_READ_TOKEN`          | unset              | server        | bearer token for reads (inference included)       |
+| `COEXIST_REQUIRE_READ_TOKEN`  | false              | server        | every route but `/healthz` (and gRPC health)      |
+|                               |                    |               | needs the read or admin token (`services.auth`)   |
+| `COEXIST_DEV_MODE`            | false              | server        | allow the default admin token (and weak tokens)   |
 | `COEXIST_MAX_ARTIFACT_BYTES`  | 64 MiB             | server        | upload size limit                                 |
+| `COEXIST_MAX_BODY_BYTES`      | 16 MiB             | server        | JSON request bodies: larger ones are refused      |
+|                               |                    |               | (413) before they are read; fits a batch of       |
+|                               |                    |               | `MAX_BATCH` rows of 208 numbers at full precision |
 | `COEXIST_HOST`                | `127.0.0.1`        | server        | address to listen on (`0.0.0.0` in a container)   |
 | `COEXIST_HTTP_PORT`           | 8000               | server        | REST port                                         |
+| `COEXIST_TLS_CERT_FILE`,      | unset              | server        | PEM certificate (chain) and private key: REST     |
+| `COEXIST_TLS_KEY_FILE`        |                    |               | serves HTTPS and gRPC TLS on their ports (both or |
+|                               |                    |               | neither; docs/security.md)                        |
 | `COEXIST_GRPC_PORT`           | 50051              | server        | gRPC port (0: any free port)                      |
 | `COEXIST_GRPC_ENABLED`        | true               | server        | serve gRPC beside REST                            |
 | `COEXIST_GRPC_WORKERS`        | 8                  | server        | gRPC thread pool size                             |
+| `COEXIST_MAX_EPISODES_PER_CLIENT` | half the workers | server      | open gRPC `Episode` streams of one client address |
+|                               |                    |               | (each holds a worker thread); behind a proxy      |
+|                               |                    |               | every client has its address: raise it there      |
 | `COEXIST_REFRESH_INTERVAL_S`  | 2.0                | server        | how often aliases are re-checked (hot reload)     |
 | `COEXIST_CACHE_SIZE`          | 256                | server        | networks kept loaded (LRU)                        |
 | `COEXIST_MAX_BATCH`           | 4096               | server        | rows allowed in one act:batch                     |
 | `COEXIST_SESSION_TTL_S`       | 300                | server        | a REST session idle this long is forgotten        |
 | `COEXIST_MAX_SESSIONS`        | 1000               | server        | live REST sessions per server process             |
+| `COEXIST_MAX_SESSIONS_PER_CLIENT` | 100            | server        | live REST sessions one client (by address) may    |
+|                               |                    |               | hold; behind a proxy set uvicorn's                |
+|                               |                    |               | `FORWARDED_ALLOW_IPS` to it, else every client    |
+|                               |                    |               | shares the proxy's address                        |
 | `COEXIST_SESSION_PREFETCH`    | true               | server        | after a session step's answer is sent, score the  |
 |                               |                    |               | next step's evidence ahead (REST and `Episode`;   |
 |                               |                    |               | `services.sessions.session`, "Scoring ahead")     |
@@ -35,15 +51,20 @@ by the test suite and by Ray.
 |                               |                    |               | it); `text`: for a terminal (`services.logging`)  |
 | `COEXIST_LOG_LEVEL`           | `info`             | server        | `debug` (also probe access lines), `info`,        |
 |                               |                    |               | `warning`, `error`                                |
+| `COEXIST_JOB_LEASE_S`         | 30                 | server        | a running training job's lease: renewed every     |
+|                               |                    |               | sixth of it; a job whose lease ran out is resumed |
+|                               |                    |               | by another (or the restarted) server, and a       |
+|                               |                    |               | runner that could not renew it stops its trainer  |
 | `COEXIST_SHUTDOWN_GRACE_S`    | 10                 | server        | on SIGTERM: how long in-flight HTTP requests and  |
 |                               |                    |               | gRPC calls may take to finish                     |
 | `COEXIST_TEST_PG_URL`         | `postgresql://postgres@127.0.0.1:5432/test` | tests | the PostgreSQL server of the tests   |
 | `COEXIST_REQUIRE_POSTGRES`    | unset              | tests         | PostgreSQL tests fail instead of skipping         |
 | `RAY_ADDRESS`                 | unset              | `--backend ray` | the Ray cluster when `--ray-address` is not given |
 
-Reads are open unless a read token is set or `require_read_token` is true; then a request must
-carry the read token or the admin token (with `require_read_token` and no read token, only the
-admin token). Settings are built by `get_settings()` on first call, never at import time; tests
+Reads are open unless a read token is set or `require_read_token` is true; then every request
+(REST and gRPC: inference, sessions, the registry, jobs, metrics, docs) must carry the read token
+or the admin token (with `require_read_token` and no read token, only the admin token); only
+liveness stays open, and `/readyz` without a token answers its status alone (`services.auth`). Settings are built by `get_settings()` on first call, never at import time; tests
 pass their own `Settings(...)` to `create_app`.
 """
 
@@ -59,6 +80,8 @@ from pydantic_settings import BaseSettings, SettingsConfigDict
 from model_store.sql.sql_store import DEFAULT_MAX_ARTIFACT_BYTES
 
 DEFAULT_ADMIN_TOKEN = "dev-token"
+MIN_TOKEN_CHARS = 16  # outside development mode (`token_weakness`)
+MIN_TOKEN_DISTINCT = 8
 
 
 class InsecureSettings(RuntimeError):
@@ -75,21 +98,27 @@ class Settings(BaseSettings):
     require_read_token: bool = False
     dev_mode: bool = False
     max_artifact_bytes: int = Field(default=DEFAULT_MAX_ARTIFACT_BYTES, gt=0)
+    max_body_bytes: int = Field(default=16 << 20, ge=1024)
+    tls_cert_file: Path | None = None
+    tls_key_file: Path | None = None
     host: str = "127.0.0.1"
     http_port: int = Field(default=8000, ge=0, le=65535)
     grpc_port: int = Field(default=50051, ge=0, le=65535)
     grpc_enabled: bool = True
     grpc_workers: int = Field(default=8, ge=1, le=256)
+    max_episodes_per_client: int | None = Field(default=None, ge=1)
     refresh_interval_s: float = Field(default=2.0, gt=0, le=3600)
     cache_size: int = Field(default=256, ge=1)
     max_batch: int = Field(default=4096, ge=1)
     session_ttl_s: float = Field(default=300.0, gt=0, le=86400)
     max_sessions: int = Field(default=1000, ge=1)
+    max_sessions_per_client: int = Field(default=100, ge=1)
     session_prefetch: bool = True
     workers: int = Field(default=1, ge=1)
     log_format: Literal["json", "text"] = "text"
     log_level: Literal["debug", "info", "warning", "error"] = "info"
     shutdown_grace_s: int = Field(default=10, ge=0, le=3600)
+    job_lease_s: float = Field(default=30.0, ge=1.0, le=3600)
 
     @field_validator("log_format", "log_level", mode="before")
     @classmethod
@@ -107,15 +136,76 @@ class Settings(BaseSettings):
     def reads_need_token(self) -> bool:
         return self.require_read_token or self.read_token is not None
 
+    def _check_tls(self) -> None:
+        if (self.tls_cert_file is None) != (self.tls_key_file is None):
+            raise InsecureSettings(
+                "COEXIST_TLS_CERT_FILE and COEXIST_TLS_KEY_FILE go together: set both or neither"
+            )
+        if self.tls_cert_file is not None and self.tls_key_file is not None:
+            _readable(self.tls_cert_file, "COEXIST_TLS_CERT_FILE")
+            _readable(self.tls_key_file, "COEXIST_TLS_KEY_FILE")
+
+    @property
+    def tls(self) -> bool:
+        return self.tls_cert_file is not None
+
+    def tls_pair(self) -> tuple[bytes, bytes] | None:
+        """(certificate chain, private key) as PEM bytes, or None without TLS."""
+        if self.tls_cert_file is None or self.tls_key_file is None:
+            return None
+        return self.tls_cert_file.read_bytes(), self.tls_key_file.read_bytes()
+
+    def accepted_tokens(self) -> tuple[str, ...]:
+        """The tokens a read accepts: the read token (if any) and the admin token."""
+        read = self.read_token.get_secret_value() if self.read_token else ""
+        return tuple(t for t in (read, self.admin_token.get_secret_value()) if t)
+
     def check_secure(self) -> None:
-        """Refuse the public default admin token outside development mode."""
-        if self.admin_token.get_secret_value() == DEFAULT_ADMIN_TOKEN and not self.dev_mode:
+        """Refuse an empty admin token always, and TLS settings that cannot work (one file of
+        the pair, or a file that cannot be read); outside development mode refuse the public
+        default and any token that is easy to guess (`token_weakness`), admin or read."""
+        if not self.admin_token.get_secret_value().strip():
+            raise InsecureSettings("COEXIST_ADMIN_TOKEN is empty: set a secret token")
+        self._check_tls()
+        if self.dev_mode:
+            return
+        if self.admin_token.get_secret_value() == DEFAULT_ADMIN_TOKEN:
             raise InsecureSettings(
                 "COEXIST_ADMIN_TOKEN is the public default 'dev-token': set a secret token "
-                "(COEXIST_ADMIN_TOKEN=...) or, on a development machine, COEXIST_DEV_MODE=1"
+                "(COEXIST_ADMIN_TOKEN=$(openssl rand -hex 24)) or, on a development machine, "
+                "COEXIST_DEV_MODE=1"
             )
-        if not self.admin_token.get_secret_value():
-            raise InsecureSettings("COEXIST_ADMIN_TOKEN is empty: set a secret token")
+        tokens = [("COEXIST_ADMIN_TOKEN", self.admin_token)]
+        if self.read_token is not None:
+            tokens.append(("COEXIST_READ_TOKEN", self.read_token))
+        for name, token in tokens:
+            weakness = token_weakness(token.get_secret_value())
+            if weakness is not None:
+                raise InsecureSettings(
+                    f"{name} {weakness}: use a random one (e.g. $(openssl rand -hex 24)) or, on "
+                    "a development machine, COEXIST_DEV_MODE=1"
+                )
+
+
+def _readable(path: Path, name: str) -> None:
+    try:
+        with path.open("rb") as f:
+            f.read(1)
+    except OSError as err:
+        raise InsecureSettings(f"{name}: cannot read {path} ({err.strerror})") from None
+
+
+def token_weakness(token: str) -> str | None:
+    """Why `token` is too easy to guess (None when it is not): shorter than
+    `MIN_TOKEN_CHARS`, containing whitespace (a stray space or newline from a copy), or made of
+    fewer than `MIN_TOKEN_DISTINCT` different characters (`aaaa...`, `abab...`)."""
+    if len(token) < MIN_TOKEN_CHARS:
+        return f"has {len(token)} characters, fewer than {MIN_TOKEN_CHARS}"
+    if any(c.isspace() for c in token):
+        return "contains whitespace"
+    if len(set(token)) < MIN_TOKEN_DISTINCT:
+        return f"uses fewer than {MIN_TOKEN_DISTINCT} different characters"
+    return None
 
 
 @lru_cache(maxsize=1)

@@ -6,7 +6,8 @@
 | registered_models | model name          | last_version: counter for gapless numbering     |
 | model_goals       | (model, position)   | the goal(s), filterable                         |
 | model_tags        | (model, key)        | free key/value tags, filterable                 |
-| model_versions    | (model, version)    | spec + lineage JSON, sha256, weights (deferred) |
+| model_versions    | (model, version)    | spec + lineage JSON, sha256, weights (deferred),|
+|                   |                     | the upload's idempotency key (unique per model) |
 | model_aliases     | (model, alias)      | -> a version row of the same model              |
 | events            | change              | id = change_seq at commit; no foreign keys      |
 | training_jobs     | job of the job API  | owned by `trainer.jobs` (migration 0002)        |
@@ -27,6 +28,7 @@ from sqlalchemy import (
     BigInteger,
     DateTime,
     ForeignKey,
+    Index,
     Integer,
     LargeBinary,
     String,
@@ -94,7 +96,12 @@ class TagRow(Base):
 
 class VersionRow(Base):
     __tablename__ = "model_versions"
-    __table_args__ = (UniqueConstraint("model_id", "version", name="uq_model_versions_number"),)
+    __table_args__ = (
+        UniqueConstraint("model_id", "version", name="uq_model_versions_number"),
+        Index(
+            "uq_model_versions_idempotency_key", "model_id", "idempotency_key", unique=True
+        ),  # migration 0003
+    )
 
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
     model_id: Mapped[int] = mapped_column(
@@ -108,6 +115,7 @@ class VersionRow(Base):
     lineage: Mapped[dict[str, Any]] = mapped_column(JSON)
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True))
     weights: Mapped[bytes] = mapped_column(LargeBinary, deferred=True)
+    idempotency_key: Mapped[str | None] = mapped_column(String(128), nullable=True)
 
 
 class AliasRow(Base):

@@ -20,8 +20,9 @@ from sqlalchemy.exc import DBAPIError, IntegrityError
 from sqlalchemy.orm import Session, selectinload, sessionmaker
 
 from model_store.entities import MODEL_KINDS, Event, Page, RegisteredModel
-from model_store.errors import AlreadyExists, Conflict, InvalidArgument, StoreUnavailable
+from model_store.errors import AlreadyExists, Conflict, InvalidArgument, StoreUnavailable, brief
 from model_store.naming import (
+    MAX_SIZE,
     path_prefixes,
     validate_env,
     validate_goal,
@@ -44,6 +45,7 @@ from model_store.store import ModelStore
 
 DEFAULT_MAX_ARTIFACT_BYTES = 64 * 1024 * 1024
 MAX_PAGE_SIZE = 1000
+MAX_EVENT_ID = 2**63 - 1  # events.id is a BigInteger
 
 
 class SqlModelStore(VersionOps, ModelStore):
@@ -115,14 +117,14 @@ class SqlModelStore(VersionOps, ModelStore):
         validate_model_name(name)
         validate_env(env)
         if kind not in MODEL_KINDS:
-            raise InvalidArgument(f"kind: {kind!r} is not one of {MODEL_KINDS}", field="kind")
+            raise InvalidArgument(f"kind: {brief(kind)} is not one of {MODEL_KINDS}", field="kind")
         if isinstance(goals, str) or not goals:
             raise InvalidArgument("goals: expected a non-empty list of goals", field="goals")
         goal_list = [validate_goal(g, f"goals[{i}]") for i, g in enumerate(goals)]
         for key, value in (("obs_dim", obs_dim), ("n_actions", n_actions)):
-            if not isinstance(value, int) or isinstance(value, bool) or value < 1:
+            if not isinstance(value, int) or isinstance(value, bool) or not 1 <= value <= MAX_SIZE:
                 raise InvalidArgument(
-                    f"{key}: expected a positive integer, got {value!r}", field=key
+                    f"{key}: expected an integer in 1..{MAX_SIZE}, got {brief(value)}", field=key
                 )
         if not isinstance(description, str):
             raise InvalidArgument("description: expected a string", field="description")
@@ -173,14 +175,16 @@ class SqlModelStore(VersionOps, ModelStore):
     ) -> Page[RegisteredModel]:
         if not isinstance(page_size, int) or not 1 <= page_size <= MAX_PAGE_SIZE:
             raise InvalidArgument(
-                f"page_size: expected 1..{MAX_PAGE_SIZE}, got {page_size!r}", field="page_size"
+                f"page_size: expected 1..{MAX_PAGE_SIZE}, got {brief(page_size)}", field="page_size"
             )
         stmt = select(ModelRow).order_by(ModelRow.name).limit(page_size + 1)
         if env is not None:
             stmt = stmt.where(ModelRow.env == env)
         if kind is not None:
             if kind not in MODEL_KINDS:
-                raise InvalidArgument(f"kind: {kind!r} is not one of {MODEL_KINDS}", field="kind")
+                raise InvalidArgument(
+                    f"kind: {brief(kind)} is not one of {MODEL_KINDS}", field="kind"
+                )
             stmt = stmt.where(ModelRow.kind == kind)
         if goal is not None:
             stmt = stmt.where(exists().where(GoalRow.model_id == ModelRow.id, GoalRow.goal == goal))
@@ -242,13 +246,14 @@ class SqlModelStore(VersionOps, ModelStore):
             return f"{meta.change_seq}-{meta.store_id[:12]}"
 
     def events(self, since_id: int = 0, limit: int = 100) -> list[Event]:
-        if not isinstance(since_id, int) or since_id < 0:
+        if not isinstance(since_id, int) or not 0 <= since_id <= MAX_EVENT_ID:
             raise InvalidArgument(
-                f"since_id: expected an integer >= 0, got {since_id!r}", field="since_id"
+                f"since_id: expected an integer in 0..{MAX_EVENT_ID}, got {brief(since_id)}",
+                field="since_id",
             )
         if not isinstance(limit, int) or not 1 <= limit <= MAX_PAGE_SIZE:
             raise InvalidArgument(
-                f"limit: expected 1..{MAX_PAGE_SIZE}, got {limit!r}", field="limit"
+                f"limit: expected 1..{MAX_PAGE_SIZE}, got {brief(limit)}", field="limit"
             )
         stmt = select(EventRow).where(EventRow.id > since_id).order_by(EventRow.id).limit(limit)
         with self._session() as session:

@@ -19,22 +19,47 @@ from model_store.errors import (
     InvalidArgument,
     InvalidArtifact,
     NotFound,
+    brief,
 )
-from model_store.naming import parse_ref, ref_candidates, validate_alias
+from model_store.naming import (
+    MAX_VERSION,
+    parse_ref,
+    ref_candidates,
+    validate_alias,
+    validate_idempotency_key,
+)
 from model_store.sql import queries as q
 from model_store.sql.convert import now, version_entity
 from model_store.sql.orm import AliasRow, ModelRow, VersionRow
 
 REGISTER_ATTEMPTS = 3  # retries of a version allocation that lost a race (belt and braces)
-MAX_VERSION = 2**63 - 1  # the database's BIGINT / SQLite INTEGER range
 
 
 def _check_version_number(version: int) -> int:
     if not isinstance(version, int) or isinstance(version, bool) or not 1 <= version <= MAX_VERSION:
         raise InvalidArgument(
-            f"version: expected an integer in 1..{MAX_VERSION}, got {version!r}", field="version"
+            f"version: expected an integer in 1..{MAX_VERSION}, got {brief(version)}",
+            field="version",
         )
     return version
+
+
+def _registered_with(session: Session, model_id: int, key: str) -> VersionRow | None:
+    query = select(VersionRow).where(
+        VersionRow.model_id == model_id, VersionRow.idempotency_key == key
+    )
+    row: VersionRow | None = session.execute(query).scalar_one_or_none()
+    return row
+
+
+def _check_same(earlier: VersionRow, sha256: str, spec: dict, key: str) -> None:
+    """A key names one upload: the same weights and spec, or a `Conflict`."""
+    if earlier.sha256 != sha256 or earlier.spec != spec:
+        raise Conflict(
+            f"idempotency_key: {key!r} registered version {earlier.version} (sha256 "
+            f"{earlier.sha256[:12]}…) from other weights or another spec: a key names one upload",
+            field="idempotency_key",
+        )
 
 
 class VersionOps:
@@ -51,9 +76,12 @@ class VersionOps:
         weights: bytes,
         lineage: Lineage,
         aliases: Sequence[str] = ("latest",),
+        idempotency_key: str | None = None,
     ) -> ModelVersion:
         if isinstance(aliases, str):
             raise InvalidArgument("aliases: expected a list of aliases", field="aliases")
+        if idempotency_key is not None:
+            validate_idempotency_key(idempotency_key)
         alias_list = [validate_alias(a, "aliases") for a in dict.fromkeys(aliases)]
         check_lineage(lineage)
         with self._session() as session:
@@ -71,6 +99,11 @@ class VersionOps:
                         raise InvalidArtifact(
                             f"model {name!r} changed during upload; retry", field="name"
                         )
+                    if idempotency_key is not None:
+                        earlier = _registered_with(session, model.id, idempotency_key)
+                        if earlier is not None:  # a retry of an upload that was registered
+                            _check_same(earlier, artifact.sha256, artifact.spec, idempotency_key)
+                            return version_entity(name, earlier)
                     self._check_parents(session, lineage)
                     model.last_version += 1
                     row = VersionRow(
@@ -83,6 +116,7 @@ class VersionOps:
                         lineage=lineage.to_json(),
                         created_at=now(),
                         weights=bytes(weights),
+                        idempotency_key=idempotency_key,
                     )
                     session.add(row)
                     session.flush()
@@ -107,7 +141,7 @@ class VersionOps:
             ).first()
             if found is None:
                 field = f"lineage.parents[{i}]"
-                raise InvalidArtifact(f"{field}: no such version {parent!r}", field=field)
+                raise InvalidArtifact(f"{field}: no such version {brief(parent)}", field=field)
 
     def get_version(self, name: str, version: int) -> ModelVersion:
         _check_version_number(version)

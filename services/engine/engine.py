@@ -148,10 +148,11 @@ class InferenceEngine:
     ) -> list[ActResult] | ActColumns:
         """The single-row fast path's rows, else the general path's columns (each converts to
         the other only when asked for it: `act` wants rows, `act_columns` columns)."""
+        public = checked is None  # a transport's request, not a session's (which checks its own)
         if checked is None:
             checked = check_request(request, self.max_batch)
         domain, method = checked.runtime.domain, request.method
-        members, group = self._resolve_members(request, checked)
+        members, group = self._resolve_members(request, checked, check_pins=public)
         batch, n_actions = checked.obs_BD.shape[0], domain.n_actions
         if batch == 1 and method != "jl":
             results = act_row(checked, request, members, group, self._rng)
@@ -197,11 +198,13 @@ class InferenceEngine:
         )
 
     def _resolve_members(
-        self, request: ActRequest, checked: CheckedRequest
+        self, request: ActRequest, checked: CheckedRequest, *, check_pins: bool = False
     ) -> tuple[tuple[Member, ...], StackedGroup]:
         """The networks the request needs (`_plan_members`) and their stacked group, resolved in
         order (so the first missing one is the one reported). A cached plan is the same tuple
-        each time, so the cache resolves it as one fixed set (`ModelCache.resolve_group`)."""
+        each time, so the cache resolves it as one fixed set (`ModelCache.resolve_group`).
+        `check_pins`: a pinned version of a model the request does not use is an error (a pin
+        that silently does nothing hides a typo)."""
         key = (
             checked.runtime.domain.name,
             request.method,
@@ -215,6 +218,8 @@ class InferenceEngine:
                 self._member_plans.clear()
             self._member_plans[key] = plan
         members, needs = plan
+        if check_pins and request.versions:
+            _check_pins_used(request.versions, needs)
         _, group = self.cache.resolve_group(
             needs, request.alias, request.versions, members, checked.runtime.domain
         )
@@ -309,6 +314,17 @@ class InferenceEngine:
 
 
 MemberPlan = tuple[tuple[Member, ...], tuple[tuple[str, str, str], ...]]
+
+
+def _check_pins_used(pinned: Mapping[str, int], needs: Sequence[tuple[str, str, str]]) -> None:
+    used = [name for name, _, _ in needs]
+    for name in pinned:
+        if name not in used:
+            raise InvalidRequest(
+                f"versions[{name}]",
+                f"this request uses no model {name!r} (it uses {', '.join(used)}): a pin must "
+                "name one of them",
+            )
 
 
 def _plan_members(request: ActRequest, checked: CheckedRequest) -> MemberPlan:

@@ -25,7 +25,7 @@ import numpy as np
 from envs.base import Domain
 from envs.particle import world as particle_world
 from envs.registry import get_domain
-from model_store.errors import InvalidArgument
+from model_store.errors import InvalidArgument, brief
 from model_store.naming import impact_model_name, task_model_name
 from services.engine.errors import InvalidRequest
 from services.engine.messages import METHODS, EnvInfo
@@ -97,7 +97,7 @@ def _build_runtime(name: str) -> EnvRuntime:
 def env_runtime(name: object) -> EnvRuntime:
     """The runtime of env `name`, or `InvalidRequest` on field `env`."""
     if not isinstance(name, str):
-        raise InvalidRequest("env", f"unknown environment {name!r} (expected a string)")
+        raise InvalidRequest("env", f"unknown environment {brief(name)} (expected a string)")
     try:
         return _build_runtime(name)
     except ValueError as exc:
@@ -117,7 +117,7 @@ def observations_from_states(
     if adapter is None:
         raise InvalidRequest(
             field,
-            f"env {env!r} takes observations only, not global states (its state is not one row "
+            f"env {brief(env)} takes observations only, not global states (its state is not one row "
             "per agent): send observation / observations (layout: GET /v1/envs)",
         )
     try:
@@ -140,7 +140,7 @@ def observations_from_states(
         row = int(np.argmin(finite_B))
         raise InvalidRequest(f"{field}[{row}]", "holds NaN or inf")
     if isinstance(ego_index, bool) or not isinstance(ego_index, int | np.integer):
-        raise InvalidRequest("ego_index", f"expected an integer, got {ego_index!r}")
+        raise InvalidRequest("ego_index", f"expected an integer, got {brief(ego_index)}")
     if not 0 <= ego_index < n_agents:
-        raise InvalidRequest("ego_index", f"expected 0..{n_agents - 1}, got {ego_index}")
+        raise InvalidRequest("ego_index", f"expected 0..{n_agents - 1}, got {brief(ego_index)}")
     return adapter.observations(states_BNS)[:, int(ego_index), :]

@@ -15,6 +15,8 @@ it `observation`) with `renamed()`.
 
 from __future__ import annotations
 
+from model_store.errors import brief
+
 
 class EngineError(Exception):
     """Base class of the engine's errors (see the module docstring)."""
@@ -49,7 +51,7 @@ class ModelNotFound(EngineError, LookupError):
     def __init__(
         self, name: str, ref: str, *, field: str | None = None, message: str | None = None
     ) -> None:
-        super().__init__(field, message or f"no model {ref!r} in the store")
+        super().__init__(field, message or f"no model {brief(ref)} in the store")
         self.name = name
         self.ref = ref
 

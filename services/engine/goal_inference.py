@@ -54,6 +54,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from envs.base import Domain
+from model_store.errors import brief
 from policy.belief_compiled import compiled_log_softmax
 from policy.row_forward import COMPILED as ROW_FORWARD
 from policy.row_forward import all_finite, row_forward
@@ -245,11 +246,11 @@ def _check_partners(partners: object, n_agents: int) -> tuple[int, ...]:
     for i, index in enumerate(partners):
         field = f"partners[{i}].index"
         if not _is_int(index):
-            raise InvalidRequest(field, f"expected an integer, got {index!r}")
+            raise InvalidRequest(field, f"expected an integer, got {brief(index)}")
         if not 1 <= index <= n_agents - 1:
             expected = f"1..{n_agents - 1}" if n_agents > 1 else "no partner index (only the ego)"
             raise InvalidRequest(
-                field, f"{index} out of range: the observation holds {n_agents} agent(s), "
+                field, f"{brief(index)} out of range: the observation holds {n_agents} agent(s), "
                 f"expected {expected}"
             )  # fmt: skip
         if index in seen:
@@ -268,7 +269,8 @@ def _check_actions(actions: object, n_partners: int, n_actions: int) -> np.ndarr
     for i, action in enumerate(actions):
         if not _is_int(action) or not 0 <= action < n_actions:
             raise InvalidRequest(
-                f"observed[{i}].action", f"expected an action in 0..{n_actions - 1}, got {action!r}"
+                f"observed[{i}].action",
+                f"expected an action in 0..{n_actions - 1}, got {brief(action)}",
             )
     return np.asarray(actions, dtype=np.int64)
 
@@ -293,7 +295,9 @@ def goal_log_likelihoods(
     if temperature is not None and (
         not _is_real(temperature) or not 0 < temperature < float("inf")
     ):
-        raise InvalidRequest("temperature", f"expected a finite number > 0, got {temperature!r}")
+        raise InvalidRequest(
+            "temperature", f"expected a finite number > 0, got {brief(temperature)}"
+        )
     check_alias(alias)
     pinned = {} if versions is None else versions
     check_versions(pinned)

@@ -13,7 +13,9 @@
 | `method`                  | one of aail, nail, sl, jl; jl needs >= 1 partner, each with a `goal`|
 | `temperature`             | None or a finite number > 0                                         |
 | `seed`                    | None or an integer >= 0                                             |
-| `alias`, `versions[name]` | a valid alias; pinned versions are integers >= 1                    |
+| `alias`, `versions[name]` | a valid alias; pinned names are model names, their versions        |
+|                           | integers in 1..MAX_VERSION; `engine.act` then refuses a pin of a    |
+|                           | model the request does not use                                      |
 """
 
 from __future__ import annotations
@@ -25,14 +27,13 @@ from typing import cast
 
 import numpy as np
 
-from model_store.errors import InvalidArgument
-from model_store.naming import validate_alias
+from model_store.errors import InvalidArgument, brief
+from model_store.naming import MAX_VERSION, validate_alias, validate_model_name
 from services.engine.environments import EnvRuntime, env_runtime
 from services.engine.errors import InvalidRequest
 from services.engine.messages import METHODS, ActRequest, PartnerSpec
 
 PROB_SUM_TOL = 1e-6
-MAX_VERSION = 2**63 - 1  # the store keeps version numbers in a signed 64-bit column
 
 
 @dataclass(frozen=True)
@@ -114,10 +115,12 @@ def _check_goal_probs(
     goals, values = [], []
     for goal, p in probs.items():
         if not _known_goal(goal, runtime):
-            raise InvalidRequest(field, f"unknown goal {goal!r} for env {runtime.domain.name!r}")
+            raise InvalidRequest(
+                field, f"unknown goal {brief(goal)} for env {runtime.domain.name!r}"
+            )
         if not _is_real(p) or not math.isfinite(p) or p < 0:
             raise InvalidRequest(
-                field, f"probability of {goal!r} must be finite and >= 0, got {p!r}"
+                field, f"probability of {goal!r} must be finite and >= 0, got {brief(p)}"
             )
         goals.append(goal)
         values.append(float(p))
@@ -160,7 +163,7 @@ def check_partner_index(index: int, n_agents: int, field: str) -> None:
     if not 1 <= index <= n_agents - 1:
         holds = f"the observation holds {n_agents} agent(s)"
         expected = f"1..{n_agents - 1}" if n_agents > 1 else "no partner index (only the ego)"
-        raise InvalidRequest(field, f"{index} out of range: {holds}, expected {expected}")
+        raise InvalidRequest(field, f"{brief(index)} out of range: {holds}, expected {expected}")
 
 
 def check_partners(
@@ -175,7 +178,7 @@ def check_partners(
             raise InvalidRequest(f"partners[{i}]", "expected a PartnerSpec")
         index = partner.index
         if not _is_int(index):
-            raise InvalidRequest(f"partners[{i}].index", f"expected an integer, got {index!r}")
+            raise InvalidRequest(f"partners[{i}].index", f"expected an integer, got {brief(index)}")
         check_partner_index(index, n_agents, f"partners[{i}].index")
         if index in seen:
             raise InvalidRequest(f"partners[{i}].index", f"partner index {index} given twice")
@@ -186,7 +189,8 @@ def check_partners(
         if goal is not None:
             if not _known_goal(goal, runtime):
                 raise InvalidRequest(
-                    f"partners[{i}].goal", f"unknown goal {goal!r} for env {runtime.domain.name!r}"
+                    f"partners[{i}].goal",
+                    f"unknown goal {brief(goal)} for env {runtime.domain.name!r}",
                 )
             checked.append(CheckedPartner(int(index), (goal,), None))
         else:
@@ -203,11 +207,11 @@ def check_request(request: ActRequest, max_batch: int) -> CheckedRequest:
     runtime = env_runtime(request.env)
     if not _known_goal(request.ego_goal, runtime):
         raise InvalidRequest(
-            "ego_goal", f"unknown goal {request.ego_goal!r} for env {runtime.domain.name!r}"
+            "ego_goal", f"unknown goal {brief(request.ego_goal)} for env {runtime.domain.name!r}"
         )
     if not isinstance(request.method, str) or request.method not in METHODS:
         raise InvalidRequest(
-            "method", f"unknown method {request.method!r}, expected one of {METHODS}"
+            "method", f"unknown method {brief(request.method)}, expected one of {METHODS}"
         )
     obs_BD, n_agents = check_observations(request.observations, runtime, max_batch)
     partners = _remembered_partners(request.partners, runtime, n_agents)
@@ -224,20 +228,22 @@ def check_request(request: ActRequest, max_batch: int) -> CheckedRequest:
     if temperature is not None and (
         not _is_real(temperature) or not math.isfinite(temperature) or temperature <= 0
     ):
-        raise InvalidRequest("temperature", f"expected a finite number > 0, got {temperature!r}")
+        raise InvalidRequest(
+            "temperature", f"expected a finite number > 0, got {brief(temperature)}"
+        )
     regret_bound = request.regret_bound
     if regret_bound is not None:
         if request.method != "aail_bounded":
             raise InvalidRequest(
-                "regret_bound", f"applies to method aail_bounded only, not {request.method!r}"
+                "regret_bound", f"applies to method aail_bounded only, not {brief(request.method)}"
             )
         if not _is_real(regret_bound) or not math.isfinite(regret_bound) or regret_bound < 0:
             raise InvalidRequest(
-                "regret_bound", f"expected a finite number >= 0, got {regret_bound!r}"
+                "regret_bound", f"expected a finite number >= 0, got {brief(regret_bound)}"
             )
     seed = request.seed
     if seed is not None and (not _is_int(seed) or seed < 0):
-        raise InvalidRequest("seed", f"expected an integer >= 0, got {seed!r}")
+        raise InvalidRequest("seed", f"expected an integer >= 0, got {brief(seed)}")
     check_alias(request.alias)
     check_versions(request.versions)
     return CheckedRequest(runtime, obs_BD, n_agents, partners)
@@ -286,9 +292,13 @@ def check_versions(versions: object) -> None:
         raise InvalidRequest("versions", "expected a mapping of model name to version")
     for name, version in versions.items():
         if not isinstance(name, str):
-            raise InvalidRequest("versions", f"model names must be strings, got {name!r}")
+            raise InvalidRequest("versions", f"model names must be strings, got {brief(name)}")
+        try:
+            validate_model_name(name, "versions")
+        except InvalidArgument as exc:
+            raise InvalidRequest("versions", str(exc).removeprefix("versions: ")) from None
         if not _is_int(version) or not 1 <= version <= MAX_VERSION:
             raise InvalidRequest(
                 f"versions[{name}]",
-                f"expected an integer >= 1 and <= {MAX_VERSION}, got {version!r}",
+                f"expected an integer >= 1 and <= {MAX_VERSION}, got {brief(version)}",
             )

@@ -16,8 +16,11 @@
 | anything else (a bug)                           | INTERNAL         | "internal error ..."   |
 
 The field also travels alone in the trailing metadata under `coexist-field` (the SDK reads it),
-so a client need not parse the message. Unexpected errors are logged with their traceback and
-answered with INTERNAL; the server keeps serving.
+so a client need not parse the message. Messages quote request values through
+`model_store.errors.brief`, and `abort` clips the message and the field besides: a long value
+stays an INVALID_ARGUMENT naming its field rather than overflowing the trailers (which grpcio
+answers with RESOURCE_EXHAUSTED). Unexpected errors are logged with their traceback and answered
+with INTERNAL; the server keeps serving.
 
 `translate_errors` wraps unary handlers, `translate_stream_errors` generator handlers. Malformed
 protobuf is caught by the servers' deserializers (`parse_or_malformed`), which hand the handler a
@@ -35,7 +38,7 @@ from typing import Any, NoReturn, TypeVar
 import grpc
 from google.protobuf.message import DecodeError
 
-from model_store.errors import ModelStoreError
+from model_store.errors import ModelStoreError, clip
 from model_store.errors import NotFound as StoreNotFound
 from services.engine import EngineError, InvalidRequest, ModelNotFound, ModelUnavailable
 from services.sessions.errors import (
@@ -48,6 +51,7 @@ from services.sessions.errors import (
 log = logging.getLogger(__name__)
 
 FIELD_METADATA_KEY = "coexist-field"
+FIELD_CHARS = 200  # as over HTTP (`services.registry.errors`)
 
 Request = TypeVar("Request")
 Response = TypeVar("Response")
@@ -113,7 +117,7 @@ def status_of(err: BaseException) -> tuple[grpc.StatusCode, str, str | None]:
     if isinstance(err, ModelNotFound | StoreNotFound | SessionNotFound):
         field, message = _field_and_message(err)
         return grpc.StatusCode.NOT_FOUND, message, field
-    for session_error, code in _SESSION_CODES:  # the Episode stream raises none of these today
+    for session_error, code in _SESSION_CODES:  # Episode: a client's streams past its bound
         if isinstance(err, session_error):
             field, message = _field_and_message(err)
             return code, message, field
@@ -131,9 +135,9 @@ def abort(context: grpc.ServicerContext, err: BaseException, prefix: str = "") -
     code, message, field = status_of(err)
     if code == grpc.StatusCode.INTERNAL:
         log.error("gRPC call failed: %s", err, exc_info=err)
-    if field:
-        context.set_trailing_metadata(((FIELD_METADATA_KEY, field),))
-    context.abort(code, prefix + message)
+    if field:  # clipped, as the message: both travel in the trailers, whose size is bounded
+        context.set_trailing_metadata(((FIELD_METADATA_KEY, clip(field, FIELD_CHARS)),))
+    context.abort(code, clip(prefix + message))
     raise AssertionError("grpc context.abort() returned")  # it always raises
 
 

@@ -36,6 +36,7 @@ import grpc
 from grpc_health.v1 import health, health_pb2, health_pb2_grpc
 from grpc_reflection.v1alpha import reflection
 
+from services.auth import TokenInterceptor
 from services.engine import InferenceEngine
 from services.grpc_api.errors import parse_or_malformed
 from services.grpc_api.gen.coexist.v1 import policy_pb2 as pb
@@ -147,24 +148,38 @@ def build_grpc_server(
     health_recheck_s: float = 1.0,
     reuse_port: bool = False,
     session_prefetch: bool = True,
+    tokens: tuple[str, ...] | None = None,
+    tls: tuple[bytes, bytes] | None = None,
+    episodes_per_client: int | None = None,
 ) -> GrpcServer:
     """A gRPC server (not started) bound to `host:port`; port 0 binds a free port (`.port`).
 
     `ready` decides health SERVING; by default the engine's store must be reachable.
-    Each open Episode stream holds one of the `max_workers` threads until it ends.
+    Each open Episode stream holds one of the `max_workers` threads until it ends; one client
+    (address) may hold at most `episodes_per_client` of them (None: half; `episode_slots`).
     `reuse_port` lets several processes bind the same port (SO_REUSEPORT: the kernel spreads
     connections over them), as uvicorn workers of one server do; otherwise a port already in
     use is an error. `session_prefetch`: an `Episode` with inferred partners scores the next
     step's evidence after sending each answer (`services.sessions.session`, "Scoring ahead").
+    `tokens`: every call but health checks needs `authorization: Bearer <one of them>`
+    (`services.auth.TokenInterceptor`); None: open. `tls`: (certificate chain, private key),
+    PEM: the port speaks TLS only; None: plaintext.
     """
     if max_workers < 1:
         raise ValueError(f"max_workers: expected >= 1, got {max_workers}")
+    interceptors: list[grpc.ServerInterceptor] = [RequestIdInterceptor()]  # ids, access lines
+    if tokens is not None:
+        interceptors.append(TokenInterceptor(tokens))  # inside: refusals are logged with ids
     server = grpc.server(
         futures.ThreadPoolExecutor(max_workers=max_workers, thread_name_prefix="coexist-grpc"),
         options=[("grpc.so_reuseport", 1 if reuse_port else 0)],
-        interceptors=(RequestIdInterceptor(),),  # request ids + access lines, as over HTTP
+        interceptors=interceptors,
     )
-    handlers = _policy_handlers(PolicyServicer(engine, session_prefetch=session_prefetch))
+    per_client = episodes_per_client or max(1, max_workers // 2)
+    servicer = PolicyServicer(
+        engine, session_prefetch=session_prefetch, episodes_per_client=per_client
+    )
+    handlers = _policy_handlers(servicer)
     server.add_generic_rpc_handlers((grpc.method_handlers_generic_handler(SERVICE_NAME, handlers),))
     server.add_registered_method_handlers(SERVICE_NAME, handlers)
 
@@ -175,7 +190,12 @@ def build_grpc_server(
     reflection.enable_server_reflection(
         (SERVICE_NAME, health.SERVICE_NAME, reflection.SERVICE_NAME), server
     )
-    bound = server.add_insecure_port(f"{host}:{port}")
+    if tls is None:
+        bound = server.add_insecure_port(f"{host}:{port}")
+    else:
+        chain, key = tls
+        credentials = grpc.ssl_server_credentials([(key, chain)])
+        bound = server.add_secure_port(f"{host}:{port}", credentials)
     return GrpcServer(server, bound, health_servicer)
 
 

@@ -14,7 +14,8 @@ maps errors (`errors`); the engine does the work, exactly as for the REST routes
 |            |                                       | each answer `prepare_next` (ahead)       |
 
 On the sync server each open `Episode` stream holds one worker thread until the client closes it,
-so `max_workers` bounds the number of concurrent episodes plus in-flight unary calls.
+so `max_workers` bounds the number of concurrent episodes plus in-flight unary calls; one client
+may hold at most `episodes_per_client` streams (`episode_slots`), so it cannot take them all.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ import numpy as np
 
 from services.engine import ActRequest, ActResult, EngineError, InferenceEngine, InvalidRequest
 from services.grpc_api import convert
+from services.grpc_api.episode_slots import EpisodeSlots
 from services.grpc_api.errors import (
     StepError,
     check_parsed,
@@ -41,9 +43,16 @@ from services.sessions import Session
 class PolicyServicer(pb_grpc.PolicyServiceServicer):
     """Implements `coexist.v1.PolicyService` over one shared `InferenceEngine`."""
 
-    def __init__(self, engine: InferenceEngine, *, session_prefetch: bool = True) -> None:
+    def __init__(
+        self,
+        engine: InferenceEngine,
+        *,
+        session_prefetch: bool = True,
+        episodes_per_client: int = 4,
+    ) -> None:
         self.engine = engine
         self.session_prefetch = session_prefetch  # `Session.prepare_next` after each answer
+        self.episode_slots = EpisodeSlots(episodes_per_client)  # open streams per client
 
     def _run(
         self, message: convert.Row, build: Callable[[], ActRequest]
@@ -92,6 +101,10 @@ class PolicyServicer(pb_grpc.PolicyServiceServicer):
     def Episode(
         self, requests: Iterator[pb.EpisodeStep], context: grpc.ServicerContext
     ) -> Iterator[pb.ActResponse]:
+        with self.episode_slots.held(context.peer()):  # RESOURCE_EXHAUSTED beyond the bound
+            yield from self._episode(requests)
+
+    def _episode(self, requests: Iterator[pb.EpisodeStep]) -> Iterator[pb.ActResponse]:
         settings: pb.EpisodeSettings | None = None
         session: Session | None = None  # while a partner is inferred
         previous: tuple[str, np.ndarray] | None = None  # env, observation: for a later session

@@ -1,9 +1,10 @@
 """One error shape for every HTTP error, and the one table mapping domain errors to statuses.
 
 Every 4xx/5xx body is `{"error": {"code": str, "message": str, "field": str | null}}`; request
-validation errors also carry `details` (FastAPI's list). No error leaves as a bare 500 page: the
-model store turns database failures into `StoreUnavailable` (503), and anything unforeseen is
-still answered in this shape.
+validation errors also carry `details` (FastAPI's list, the first `MAX_DETAILS`). Messages and
+fields are clipped (`error_response`), so no answer echoes a request without bound. No error
+leaves as a bare 500 page: the model store turns database failures into `StoreUnavailable`
+(503), and anything unforeseen is still answered in this shape.
 
 | domain error (model_store.errors) | status |
 |-----------------------------------|--------|
@@ -36,9 +37,13 @@ from model_store.errors import (
     NotFound,
     SchemaTooNew,
     StoreUnavailable,
+    clip,
 )
 
 log = logging.getLogger(__name__)
+
+FIELD_CHARS = 200  # field names hold request keys (`versions[...]`): clipped like messages
+MAX_DETAILS = 20  # validation details answered (the message names the first)
 
 # Most specific first: the first class the error is an instance of decides.
 DOMAIN_STATUS: tuple[tuple[type[ModelStoreError], int], ...] = (
@@ -89,10 +94,21 @@ def error_response(
     field: str | None = None,
     *,
     headers: dict[str, str] | None = None,
-    **extra: Any,
+    details: list[dict[str, str]] | None = None,
 ) -> JSONResponse:
-    body = {"error": {"code": code, "message": message, "field": field, **extra}}
-    return JSONResponse(body, status_code=status, headers=headers)
+    """The error body; the message, the field and at most `MAX_DETAILS` details, each clipped:
+    whatever a request held, the answer stays small."""
+    error: dict[str, Any] = {
+        "code": code,
+        "message": clip(message),
+        "field": None if field is None else clip(field, FIELD_CHARS),
+    }
+    if details is not None:
+        error["details"] = [
+            {"field": clip(d["field"], FIELD_CHARS), "message": clip(d["message"])}
+            for d in details[:MAX_DETAILS]
+        ]
+    return JSONResponse({"error": error}, status_code=status, headers=headers)
 
 
 def status_of(exc: ModelStoreError) -> int:
@@ -114,7 +130,7 @@ async def _api_error(_request: Request, exc: Exception) -> JSONResponse:
 
 async def _validation_error(_request: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, RequestValidationError)
-    errors = list(exc.errors())
+    errors = list(exc.errors())[:MAX_DETAILS]
     first = errors[0] if errors else {"loc": (), "msg": "invalid request"}
     loc = [str(p) for p in first.get("loc", ())]
     field = ".".join(loc[1:] if len(loc) > 1 else loc) or None
@@ -134,6 +150,11 @@ async def _http_error(_request: Request, exc: Exception) -> JSONResponse:
 
 
 async def _unexpected(_request: Request, exc: Exception) -> JSONResponse:
+    return unexpected_response(exc)
+
+
+def unexpected_response(exc: Exception) -> JSONResponse:
+    """The 500 answer to an error nothing else handled (logged with its traceback)."""
     log.exception("unhandled error", exc_info=exc)
     return error_response(500, "internal", f"internal error ({type(exc).__name__}); see the logs")
 

@@ -10,6 +10,7 @@ from typing import Annotated
 
 from fastapi import APIRouter, Header, Query, Response, status
 
+from model_store.sql.sql_store import MAX_EVENT_ID
 from services.deps import ReadAuth, StoreDep, WriteAuth
 from services.registry.errors import ERROR_RESPONSES
 from services.registry.schemas import (
@@ -23,8 +24,9 @@ from services.registry.schemas import (
     ModelUpdate,
     VersionOut,
 )
+from services.rest.json_body import FastJsonRoute
 
-router = APIRouter(responses=ERROR_RESPONSES)
+router = APIRouter(responses=ERROR_RESPONSES, route_class=FastJsonRoute)
 
 
 @router.get("/changes", response_model=ChangesOut, tags=["changes"])
@@ -48,7 +50,9 @@ def get_changes(
 def list_events(
     store: StoreDep,
     _: ReadAuth,
-    since: Annotated[int, Query(ge=0, description="only events with a larger id")] = 0,
+    since: Annotated[
+        int, Query(ge=0, le=MAX_EVENT_ID, description="only events with a larger id")
+    ] = 0,
     limit: Annotated[int, Query(ge=1, le=1000)] = 100,
 ) -> EventsOut:
     """Changes in commit order, oldest first."""

@@ -8,6 +8,7 @@ from typing import Any, Literal
 from pydantic import BaseModel, Field
 
 from model_store.entities import Event, ModelVersion, RegisteredModel
+from model_store.naming import MAX_SIZE, MAX_VERSION
 
 
 class ModelCreate(BaseModel):
@@ -15,8 +16,8 @@ class ModelCreate(BaseModel):
     env: str = Field(examples=["particle"])
     kind: Literal["task", "impact", "joint"]
     goals: list[str] = Field(min_length=1, examples=[["a3"]])
-    obs_dim: int = Field(gt=0, examples=[8])
-    n_actions: int = Field(gt=0, examples=[5])
+    obs_dim: int = Field(gt=0, le=MAX_SIZE, examples=[8])
+    n_actions: int = Field(gt=0, le=MAX_SIZE, examples=[5])
     description: str = ""
     tags: dict[str, str] = Field(default_factory=dict)
 
@@ -78,7 +79,7 @@ class ModelPage(BaseModel):
 
 
 class AliasSet(BaseModel):
-    version: int = Field(gt=0)
+    version: int = Field(gt=0, le=MAX_VERSION)
 
 
 class AliasOut(BaseModel):

@@ -7,7 +7,10 @@ which no model name can contain (`model_store.naming`):
 
 Upload (`POST .../-/versions`) takes `multipart/form-data` with the parts `spec` (the architecture
 JSON), `weights` (the safetensors file) and optionally `lineage` (JSON); the body is read with a
-size cap and refused with 413 as soon as it is over the limit.
+size cap and refused with 413 as soon as it is over the limit. An `Idempotency-Key` header makes
+the upload safe to retry when its answer was lost: a key the model already has answers the
+version it registered (201, the same body; aliases untouched), a key reused for other weights
+or another spec is a 409 (`ModelStore.register_version`).
 """
 
 from __future__ import annotations
@@ -21,15 +24,19 @@ from starlette.concurrency import run_in_threadpool
 from model_store.artifacts import sha256_hex
 from model_store.entities import Lineage
 from model_store.errors import ArtifactTooLarge, InvalidArtifact
+from model_store.naming import MAX_VERSION
 from services.deps import ReadAuth, SettingsDep, StoreDep, WriteAuth
 from services.registry.errors import ERROR_RESPONSES, ApiError
 from services.registry.multipart import Part, boundary_of, parse_form_data
 from services.registry.schemas import AliasOut, AliasSet, VersionOut
+from services.rest.json_body import FastJsonRoute
 
-router = APIRouter(responses=ERROR_RESPONSES)
+router = APIRouter(responses=ERROR_RESPONSES, route_class=FastJsonRoute)
 FORM_OVERHEAD_BYTES = 1 << 20  # room for the spec, lineage and part headers beside the weights
 MODEL = "/models/{name:path}/-"
-VersionNumber = Annotated[int, Path(ge=1, le=2**63 - 1, description="version number, from 1")]
+VersionNumber = Annotated[
+    int, Path(ge=1, le=MAX_VERSION, description=f"version number, 1..{MAX_VERSION}")
+]
 
 _UPLOAD_BODY: dict[str, Any] = {
     "requestBody": {
@@ -81,7 +88,10 @@ def _json_part(parts: dict[str, Part], name: str, *, required: bool) -> Any:
     response_model=VersionOut,
     status_code=status.HTTP_201_CREATED,
     openapi_extra=_UPLOAD_BODY,
-    responses={413: {"description": "weights over the size limit"}},
+    responses={
+        409: {"description": "the Idempotency-Key registered other weights or another spec"},
+        413: {"description": "weights over the size limit"},
+    },
     tags=["versions"],
 )
 async def upload_version(
@@ -92,9 +102,17 @@ async def upload_version(
     _: WriteAuth,
     response: Response,
     alias: Annotated[list[str], Query(description="aliases to set besides `latest`")] = [],  # noqa: B006
+    idempotency_key: Annotated[
+        str | None,
+        Header(
+            description="makes a retry safe: the same key answers the version it registered "
+            "(1-128 of A-Za-z0-9._:-; a UUID per upload, or the weights' sha256)",
+        ),
+    ] = None,
 ) -> VersionOut:
     """Register a new version (numbered automatically) from a spec and a safetensors file;
-    `latest` and the `alias` query parameters then point at it."""
+    `latest` and the `alias` query parameters then point at it. With `Idempotency-Key`, a retry
+    answers the version the key registered."""
     boundary = boundary_of(request.headers.get("content-type", ""))
     if boundary is None:
         raise ApiError(415, "unsupported_media_type", "expected multipart/form-data", field="body")
@@ -122,6 +140,7 @@ async def upload_version(
         weights=weights,
         lineage=lineage,
         aliases=("latest", *alias),
+        idempotency_key=idempotency_key,
     )
     response.headers["Location"] = f"/v1/registry/models/{name}/-/versions/{version.version}"
     return VersionOut.of(version)

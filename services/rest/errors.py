@@ -13,7 +13,7 @@ one `{field, message}` per problem. Fields use the engine's naming: `partners[0]
 | `ModelUnavailable`                 | 503    | model_unavailable |
 | `SessionNotFound`                  | 404    | session_not_found |
 | `StepConflict`                     | 409    | step_conflict     |
-| `SessionLimitReached`              | 429    | too_many_sessions |
+| `SessionLimitReached`              | 429    | too_many_sessions (with `Retry-After`) |
 | `SessionsUnavailable`              | 501    | sessions_unavailable (several workers) |
 | a body that is not UTF-8 (FastAPI) | 400    | (the app's HTTPException handler) |
 
@@ -25,6 +25,7 @@ one `{field, message}` per problem. Fields use the engine's naming: `partners[0]
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Sequence
 from typing import Any
 
@@ -33,7 +34,7 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 
 from services.engine.errors import EngineError, InvalidRequest, ModelNotFound, ModelUnavailable
-from services.registry.errors import ErrorResponse, error_response
+from services.registry.errors import MAX_DETAILS, ErrorResponse, error_response
 from services.sessions.errors import (
     SessionLimitReached,
     SessionNotFound,
@@ -71,7 +72,11 @@ SESSION_ERROR_RESPONSES: dict[int | str, dict[str, Any]] = {
         "network for a goal",
     },
     409: {"model": ErrorResponse, "description": "`expected_step` is not the next step"},
-    429: {"model": ErrorResponse, "description": "the server holds its maximum of sessions"},
+    429: {
+        "model": ErrorResponse,
+        "description": "the server, or this client, holds its maximum of sessions; "
+        "`Retry-After` says when the first could expire",
+    },
     501: {"model": ErrorResponse, "description": "this server cannot keep sessions (workers > 1)"},
 }
 
@@ -94,13 +99,16 @@ async def _engine_error(_request: Request, exc: Exception) -> JSONResponse:
     status = engine_status(exc)
     if status >= 500:
         log.warning("inference engine error: %s", exc)
-    return error_response(status, exc.code, str(exc), exc.field)
+    headers = None
+    if isinstance(exc, SessionLimitReached):  # whole seconds, at least 1 (RFC 9110)
+        headers = {"Retry-After": str(max(1, math.ceil(exc.retry_after_s)))}
+    return error_response(status, exc.code, str(exc), exc.field, headers=headers)
 
 
 async def _validation_error(_request: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, RequestValidationError)
     details = []
-    for error in exc.errors():
+    for error in exc.errors()[:MAX_DETAILS]:
         if error.get("type") == "json_invalid":
             position = error.get("loc", ("body", "?"))[-1]
             reason = error.get("ctx", {}).get("error", "invalid JSON")

@@ -6,6 +6,11 @@ took 0.9 ms for a 256-row `/v1/act:batch` body on this machine against 0.12 ms f
 `orjson.loads`. The route class only swaps the parser; validation, OpenAPI docs and errors stay
 FastAPI's.
 
+A body of `OFFLOAD_BYTES` or more is parsed in a worker thread, so the event loop goes on
+serving other requests meanwhile (together with the size limit of `services.rest.body_limit` and
+the fail-fast body models of `services.rest.bounded`, which keep the work of refusing a bad body
+small, this is what keeps a large body from stalling `/healthz`).
+
 Where orjson reads a body differently, the standard parser runs as before:
 - orjson refuses the `NaN` / `Infinity` literals that `json.loads` accepts (and malformed JSON):
   a NaN observation is still refused by the engine's checks naming the field, malformed JSON
@@ -26,8 +31,10 @@ from typing import Any
 import orjson
 from fastapi import Request, Response
 from fastapi.routing import APIRoute
+from starlette.concurrency import run_in_threadpool
 
 HUGE = 2.0**63  # orjson turns integer literals from here on into floats
+OFFLOAD_BYTES = 1 << 20  # bodies from this size on are parsed in a worker thread
 
 
 def has_huge_scalar(value: Any) -> bool:
@@ -50,18 +57,25 @@ def has_huge_scalar(value: Any) -> bool:
     return False
 
 
+def parse_json(body: bytes) -> Any:
+    """orjson, or the standard parser where it reads a body differently (module docstring)."""
+    try:
+        parsed = orjson.loads(body)
+    except orjson.JSONDecodeError:  # NaN / Infinity literals, malformed: as before
+        return standard_loads(body)
+    if has_huge_scalar(parsed):  # an integer orjson read as a float: as before
+        return standard_loads(body)
+    return parsed
+
+
 class FastJsonRequest(Request):
     async def json(self) -> Any:
         if not hasattr(self, "_json"):
             body = await self.body()
-            try:
-                parsed = orjson.loads(body)
-            except orjson.JSONDecodeError:  # NaN / Infinity literals, malformed: as before
-                parsed = standard_loads(body)
-            else:
-                if has_huge_scalar(parsed):  # an integer orjson read as a float: as before
-                    parsed = standard_loads(body)
-            self._json = parsed
+            if len(body) < OFFLOAD_BYTES:
+                self._json = parse_json(body)
+            else:  # off the event loop: other requests go on meanwhile
+                self._json = await run_in_threadpool(parse_json, body)
         return self._json
 
 

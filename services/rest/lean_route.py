@@ -29,8 +29,9 @@ import fastapi.routing
 from fastapi import Request, Response
 from fastapi.routing import APIRoute
 from pydantic import BaseModel
+from starlette.concurrency import run_in_threadpool
 
-from services.rest.json_body import FastJsonRequest, FastJsonRoute
+from services.rest.json_body import OFFLOAD_BYTES, FastJsonRequest, FastJsonRoute
 
 try:  # FastAPI with OpenTelemetry support: the direct path stays off while it records a request
     from fastapi.telemetry import get_telemetry_data
@@ -116,7 +117,11 @@ class LeanJsonRoute(FastJsonRoute):
                 and get_telemetry_data() is None
             ):
                 try:
-                    body = model.model_validate(await request.json())
+                    parsed = await request.json()
+                    if len(await request.body()) < OFFLOAD_BYTES:
+                        body = model.model_validate(parsed)
+                    else:  # as the parse: a large body is validated off the event loop
+                        body = await run_in_threadpool(model.model_validate, parsed)
                 except Exception:  # unreadable, malformed or invalid: FastAPI's handler says so
                     return await full(request)
                 arguments: dict[str, Any] = {name: request.path_params[name] for name in path_names}

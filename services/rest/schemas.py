@@ -16,9 +16,21 @@ with orjson directly.
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, Field
+
+from services.rest.bounded import (
+    MAX_LIST,
+    GoalProbs,
+    Matrix,
+    RequestBody,
+    Tensor3,
+    Vector,
+    VersionPins,
+    at_most,
+    bounded_list,
+)
 
 MethodName = Literal["aail_bounded", "aail", "nail", "sl", "jl"]
 METHOD_HELP = (
@@ -33,27 +45,25 @@ REGRET_BOUND_HELP = (
 )
 
 
-class PartnerIn(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-
+class PartnerIn(RequestBody):
     index: int = Field(
         description="the partner's position in the ego's observation layout, 1..N-1 (with "
         "`state` input: agent j is at j + 1 if j < ego_index, else at j)"
     )
     goal: str | None = Field(default=None, description="the partner's announced goal")
-    goal_probs: dict[str, float] | None = Field(
+    goal_probs: GoalProbs | None = Field(
         default=None,
         description="instead of `goal`: a distribution over goals (sums to 1)",
         examples=[{"b3": 0.7, "c": 0.3}],
     )
 
 
-class ActFields(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-
+class ActFields(RequestBody):
     env: str = Field(description="environment name (see GET /v1/envs)", examples=["particle"])
     ego_goal: str = Field(description="the ego agent's goal", examples=["a2"])
-    partners: list[PartnerIn] = Field(default_factory=list)
+    partners: Annotated[list[PartnerIn], bounded_list(MAX_LIST), at_most(MAX_LIST)] = Field(
+        default_factory=list
+    )
     method: MethodName = Field(default="aail_bounded", description=METHOD_HELP)
     temperature: float | None = Field(
         default=None, description="Boltzmann temperature > 0 (default: the model's training α)"
@@ -61,7 +71,7 @@ class ActFields(BaseModel):
     regret_bound: float | None = Field(default=None, description=REGRET_BOUND_HELP)
     seed: int | None = Field(default=None, description="seeds the sampled action(s)")
     alias: str = Field(default="production", description="alias every model is resolved by")
-    versions: dict[str, int] = Field(
+    versions: VersionPins = Field(
         default_factory=dict, description="pinned versions by model name (override the alias)"
     )
     ego_index: int | None = Field(
@@ -70,21 +80,21 @@ class ActFields(BaseModel):
 
 
 class ActBody(ActFields):
-    observation: list[float] | None = Field(
+    observation: Vector | None = Field(
         default=None,
         description="the ego's observation in the env's documented layout",
         examples=[[0.1, 0.4, 0, 0, 0.7, 0.6, 0, 0]],
     )
-    state: list[list[float]] | None = Field(
+    state: Matrix | None = Field(
         default=None, description="instead of `observation`: the global state, one row per agent"
     )
 
 
 class ActBatchBody(ActFields):
-    observations: list[list[float]] | None = Field(
+    observations: Matrix | None = Field(
         default=None, description="the ego's observations, one per row"
     )
-    states: list[list[list[float]]] | None = Field(
+    states: Tensor3 | None = Field(
         default=None, description="instead of `observations`: global states"
     )
     format: Literal["rows", "columns"] = Field(

@@ -13,8 +13,19 @@ bad field.
 
 from __future__ import annotations
 
+from typing import Annotated
+
 from pydantic import BaseModel, ConfigDict, Field
 
+from services.rest.bounded import (
+    MAX_LIST,
+    Matrix,
+    RequestBody,
+    Vector,
+    VersionPins,
+    at_most,
+    bounded_list,
+)
 from services.rest.schemas import (
     METHOD_HELP,
     REGRET_BOUND_HELP,
@@ -37,7 +48,7 @@ class SessionPartnerIn(PartnerIn):
     )
 
 
-class BeliefIn(BaseModel):
+class BeliefIn(RequestBody):
     model_config = ConfigDict(extra="forbid", strict=True)
 
     forgetting: float = Field(
@@ -66,12 +77,12 @@ class BeliefIn(BaseModel):
     )
 
 
-class SessionBody(BaseModel):
+class SessionBody(RequestBody):
     model_config = ConfigDict(extra="forbid", strict=True)
 
     env: str = Field(description="environment name (see GET /v1/envs)", examples=["particle"])
     ego_goal: str = Field(description="the ego agent's goal", examples=["a2"])
-    partners: list[SessionPartnerIn] = Field(
+    partners: Annotated[list[SessionPartnerIn], bounded_list(MAX_LIST), at_most(MAX_LIST)] = Field(
         default_factory=list, examples=[[{"index": 1, "infer": True}]]
     )
     method: MethodName = Field(default="aail_bounded", description=METHOD_HELP)
@@ -81,13 +92,13 @@ class SessionBody(BaseModel):
     regret_bound: float | None = Field(default=None, description=REGRET_BOUND_HELP)
     seed: int | None = Field(default=None, description="step t samples with seed + t")
     alias: str = Field(default="production", description="alias every model is resolved by")
-    versions: dict[str, int] = Field(
+    versions: VersionPins = Field(
         default_factory=dict, description="pinned versions by model name (override the alias)"
     )
     belief: BeliefIn = Field(default_factory=BeliefIn)
 
 
-class ObservedIn(BaseModel):
+class ObservedIn(RequestBody):
     model_config = ConfigDict(extra="forbid", strict=True)
 
     index: int = Field(description="an inferred partner's index")
@@ -98,19 +109,19 @@ class ObservedIn(BaseModel):
     )
 
 
-class SessionStepBody(BaseModel):
+class SessionStepBody(RequestBody):
     model_config = ConfigDict(extra="forbid", strict=True)
 
-    observation: list[float] | None = Field(
+    observation: Vector | None = Field(
         default=None,
         description="the ego's observation o_t (see POST /v1/act)",
         examples=[[0.1, 0.4, 0, 0, 0.7, 0.6, 0, 0]],
     )
-    state: list[list[float]] | None = Field(
+    state: Matrix | None = Field(
         default=None, description="instead of `observation`: the global state, one row per agent"
     )
     ego_index: int | None = Field(default=None, description="with `state`: the ego's row")
-    observed: list[ObservedIn] = Field(
+    observed: Annotated[list[ObservedIn], bounded_list(MAX_LIST), at_most(MAX_LIST)] = Field(
         default_factory=list,
         examples=[[{"index": 1, "action": 3}]],
         description="the actions a_{t-1} partners took between the previous observation and "

@@ -13,7 +13,9 @@ when an app did not set one). They are in this process's memory: with `settings.
 (`coexist serve --workers N`) a step could reach a worker that does not hold its session, so
 creating one is refused (501) there; see docs/architecture.md "Sessions". Errors: those of
 `/v1/act` (422 naming the field, 404 model not found, 503) plus 404 `session_not_found`, 409
-`step_conflict`, 429 `too_many_sessions` and 501 `sessions_unavailable`.
+`step_conflict`, 429 `too_many_sessions` (the server's `max_sessions`, or the creating client's
+`max_sessions_per_client`: clients are told apart by address; a `Retry-After` says when the
+first slot could free up) and 501 `sessions_unavailable`.
 
 Speed (a step is the hot route): the routes are `LeanJsonRoute`s, so a valid body reaches its
 handler without FastAPI's dependency solving (`services.rest.lean_route`); a step's answer is
@@ -77,6 +79,7 @@ def session_store(request: Request) -> SessionStore:
         if settings is not None:
             kwargs = {
                 "max_sessions": settings.max_sessions,
+                "max_per_client": settings.max_sessions_per_client,
                 "ttl_s": settings.session_ttl_s,
                 "prefetch": settings.session_prefetch,
             }
@@ -228,7 +231,8 @@ async def create_session(body: SessionBody, request: Request) -> Response:
             "1, several replicas behind a load balancer routing each session to one), or use "
             "the gRPC Episode stream, which is a session on one connection",
         )
-    info = session_store(request).create(_settings(body))
+    client = request.client.host if request.client is not None else ""
+    info = session_store(request).create(_settings(body), client)
     location = f"/v1/sessions/{info.session_id}"
     return _json(_session_json(info), status_code=201, headers={"Location": location})
 

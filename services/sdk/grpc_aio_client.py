@@ -13,6 +13,7 @@ loop that uses it.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 import grpc
@@ -31,8 +32,9 @@ from services.sdk.bodies import (
     observed_entries,
     session_body,
 )
+from services.sdk.connect import Metadata, grpc_channel, grpc_metadata
 from services.sdk.errors import CoexistError
-from services.sdk.grpc_client import DEFAULT_TARGET, SERVICE_NAME, grpc_target, sdk_error
+from services.sdk.grpc_client import DEFAULT_TARGET, SERVICE_NAME, sdk_error
 from services.sdk.types import Action, ActionColumns, EnvInfo, Health, async_rows_of
 
 
@@ -45,14 +47,20 @@ class AsyncGrpcCoexistClient:
         *,
         timeout: float | None = 10.0,
         options: list[tuple[str, Any]] | None = None,
+        token: str | None = None,
+        tls: bool = False,
+        root_certificates: str | Path | None = None,
     ) -> None:
-        self._channel = grpc.aio.insecure_channel(grpc_target(target), options=options)
+        self._channel = grpc_channel(
+            target, tls=tls, root_certificates=root_certificates, options=options, aio=True
+        )
         self._stub = pb_grpc.PolicyServiceStub(self._channel)
         self._timeout = timeout
+        self._metadata = grpc_metadata(token)
 
     async def _call(self, method: Any, request: Any) -> Any:
         try:
-            return await method(request, timeout=self._timeout)
+            return await method(request, timeout=self._timeout, metadata=self._metadata)
         except grpc.RpcError as err:
             raise sdk_error(err) from None
 
@@ -141,7 +149,7 @@ class AsyncGrpcCoexistClient:
             env, ego_goal, partners=partners, infer=infer, method=method,
             temperature=temperature, regret_bound=regret_bound, seed=seed, alias=alias, versions=versions, belief=belief,
         )  # fmt: skip
-        return AsyncGrpcEpisode(self._stub, settings)
+        return AsyncGrpcEpisode(self._stub, settings, self._metadata)
 
     async def aclose(self) -> None:
         await self._channel.close()
@@ -156,9 +164,11 @@ class AsyncGrpcCoexistClient:
 class AsyncGrpcEpisode:
     """One open `Episode` stream on grpc.aio."""
 
-    def __init__(self, stub: pb_grpc.PolicyServiceStub, settings: dict[str, Any]) -> None:
+    def __init__(
+        self, stub: pb_grpc.PolicyServiceStub, settings: dict[str, Any], metadata: Metadata = None
+    ) -> None:
         self._settings: dict[str, Any] | None = settings
-        self._call = stub.Episode()
+        self._call = stub.Episode(metadata=metadata)
         self.step = 0
 
     async def act(

@@ -11,13 +11,16 @@ The same methods and results as the HTTP clients (`act`, `act_batch`, `act_batch
 `envs`, `health`, `episode`); one persistent channel per client. A batch travels as one
 `observation_matrix` and comes back as `ActColumns` (`act_batch` makes its `Action`s; errors
 about the matrix name `observations`, as over HTTP). Errors raise `services.sdk.errors` classes;
-the field comes from the server's `coexist-field` trailing metadata.
+the field comes from the server's `coexist-field` trailing metadata. `token=` sends a bearer token
+with every call, `tls=True` / `root_certificates=` (or a `grpcs://` target) speak TLS
+(`services.sdk.connect`).
 """
 
 from __future__ import annotations
 
 import queue
 from collections.abc import Iterator, Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 import grpc
@@ -36,17 +39,13 @@ from services.sdk.bodies import (
     observed_entries,
     session_body,
 )
+from services.sdk.connect import Metadata, grpc_channel, grpc_metadata
 from services.sdk.errors import CoexistError, error_for_grpc
 from services.sdk.types import Action, ActionColumns, EnvInfo, Health, rows_of
 
 SERVICE_NAME = "coexist.v1.PolicyService"
 FIELD_METADATA_KEY = "coexist-field"
 DEFAULT_TARGET = "127.0.0.1:50051"
-
-
-def grpc_target(target: str) -> str:
-    """`host:port` from `host:port` or `grpc://host:port`."""
-    return target.removeprefix("grpc://").rstrip("/")
 
 
 def sdk_error(err: grpc.RpcError) -> CoexistError:
@@ -67,14 +66,20 @@ class GrpcCoexistClient:
         *,
         timeout: float | None = 10.0,
         options: list[tuple[str, Any]] | None = None,
+        token: str | None = None,
+        tls: bool = False,
+        root_certificates: str | Path | None = None,
     ) -> None:
-        self._channel = grpc.insecure_channel(grpc_target(target), options=options)
+        self._channel = grpc_channel(
+            target, tls=tls, root_certificates=root_certificates, options=options
+        )
         self._stub = pb_grpc.PolicyServiceStub(self._channel)
         self._timeout = timeout
+        self._metadata = grpc_metadata(token)
 
     def _call(self, method: Any, request: Any) -> Any:
         try:
-            return method(request, timeout=self._timeout)
+            return method(request, timeout=self._timeout, metadata=self._metadata)
         except grpc.RpcError as err:
             raise sdk_error(err) from None
 
@@ -164,7 +169,7 @@ class GrpcCoexistClient:
             env, ego_goal, partners=partners, infer=infer, method=method,
             temperature=temperature, regret_bound=regret_bound, seed=seed, alias=alias, versions=versions, belief=belief,
         )  # fmt: skip
-        return GrpcEpisode(self._stub, settings)
+        return GrpcEpisode(self._stub, settings, self._metadata)
 
     def close(self) -> None:
         self._channel.close()
@@ -184,10 +189,12 @@ def _drain(messages: queue.SimpleQueue[pb.EpisodeStep | None]) -> Iterator[pb.Ep
 class GrpcEpisode:
     """One open `Episode` stream (sync): `act()` sends a step and waits for its answer."""
 
-    def __init__(self, stub: pb_grpc.PolicyServiceStub, settings: dict[str, Any]) -> None:
+    def __init__(
+        self, stub: pb_grpc.PolicyServiceStub, settings: dict[str, Any], metadata: Metadata = None
+    ) -> None:
         self._settings: dict[str, Any] | None = settings
         self._outbox: queue.SimpleQueue[pb.EpisodeStep | None] = queue.SimpleQueue()
-        self._responses = stub.Episode(_drain(self._outbox))
+        self._responses = stub.Episode(_drain(self._outbox), metadata=metadata)
         self.step = 0
 
     def act(

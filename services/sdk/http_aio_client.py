@@ -14,6 +14,7 @@ import httpx
 from numpy.typing import ArrayLike
 
 from services.sdk.bodies import Partners, act_batch_body, act_body, session_body
+from services.sdk.connect import Verify, http_headers, http_verify
 from services.sdk.errors import CoexistError
 from services.sdk.http_client import DEFAULT_URL, checked_json, envs_from_json, unavailable_error
 from services.sdk.http_sessions import AsyncSession, new_affinity
@@ -30,10 +31,13 @@ class AsyncCoexistClient:
         timeout: float = 10.0,
         headers: dict[str, str] | None = None,
         transport: httpx.AsyncBaseTransport | None = None,
+        token: str | None = None,
+        verify: Verify = True,
     ) -> None:
         self._http = httpx.AsyncClient(
-            base_url=base_url, timeout=timeout, headers=headers, transport=transport
-        )
+            base_url=base_url, timeout=timeout, headers=http_headers(token, headers),
+            transport=transport, verify=http_verify(verify),
+        )  # fmt: skip
 
     async def _request(
         self, method: str, path: str, body: Any = None, headers: dict[str, str] | None = None

@@ -18,6 +18,8 @@
 An episode session follows the gRPC `Episode` stream's rules over plain requests: the settings are
 given once, and step t samples with seed + t, so both transports give the same episode.
 Errors raise `services.sdk.errors` classes (`InvalidArgument`, `NotFound`, `Unavailable`).
+`token=` sends `Authorization: Bearer <token>` with every request; an `https://` URL speaks TLS,
+`verify=` naming the CA file of a server's own certificate authority (`services.sdk.connect`).
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ from services.sdk.bodies import (
     session_body,
     step_seed,
 )
+from services.sdk.connect import Verify, http_headers, http_verify
 from services.sdk.errors import CoexistError, Unavailable, error_for_http
 from services.sdk.http_sessions import Session, new_affinity
 from services.sdk.types import Action, ActionColumns, EnvInfo, Health, SessionInfo, rows_of
@@ -74,10 +77,13 @@ class CoexistClient:
         timeout: float = 10.0,
         headers: dict[str, str] | None = None,
         transport: httpx.BaseTransport | None = None,
+        token: str | None = None,
+        verify: Verify = True,
     ) -> None:
         self._http = httpx.Client(
-            base_url=base_url, timeout=timeout, headers=headers, transport=transport
-        )
+            base_url=base_url, timeout=timeout, headers=http_headers(token, headers),
+            transport=transport, verify=http_verify(verify),
+        )  # fmt: skip
 
     def _request(
         self, method: str, path: str, body: Any = None, headers: dict[str, str] | None = None

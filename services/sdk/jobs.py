@@ -32,6 +32,7 @@ from typing import Any
 
 import httpx
 
+from services.sdk.connect import Verify, http_headers, http_verify
 from services.sdk.http_client import DEFAULT_URL, checked_json, unavailable_error
 
 # A job in one of these has ended: no runner touches it again.
@@ -101,11 +102,12 @@ class JobsClient:
         token: str | None = None,
         timeout: float = 10.0,
         transport: httpx.BaseTransport | None = None,
+        verify: Verify = True,
     ) -> None:
-        headers = {"Authorization": f"Bearer {token}"} if token else None
         self._http = httpx.Client(
-            base_url=base_url, timeout=timeout, headers=headers, transport=transport
-        )
+            base_url=base_url, timeout=timeout, headers=http_headers(token, None),
+            transport=transport, verify=http_verify(verify),
+        )  # fmt: skip
 
     def _request(
         self, method: str, path: str, *, body: Any = None, params: dict[str, Any] | None = None

@@ -5,8 +5,8 @@ Every bad input becomes `InvalidRequest(field, message)` in the REST body's nami
 |------------------------------|------------------------------------------------------------------|
 | `env`, `ego_goal`, `method`, | as for `/v1/act` (`services.engine.validation`), checked on a    |
 | `temperature`,               | stand-in observation of the smallest scene that holds every      |
-| `regret_bound`, `seed`,      | partner                                                          |
-| `alias`, `versions`          |                                                                  |
+| `regret_bound`, `seed`,      | partner; a pinned name must be a task or impact network of the   |
+| `alias`, `versions`          | env (or, with jl, the joint network)                             |
 | `partners[i].index`          | 1..max_agents-1 of the env, no index twice                       |
 | `partners[i].goal(_probs)`   | at most one of the two; a known goal / a distribution summing to |
 |                              | 1; with `infer` it is the belief's prior                         |
@@ -23,11 +23,14 @@ Every bad input becomes `InvalidRequest(field, message)` in the REST body's nami
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
 
+from model_store.errors import InvalidArgument, brief
+from model_store.naming import joint_model_name
 from policy.belief import BeliefConfig, PreparedUpdate, initial_log_belief, prior_log_probs
 from services.engine import ActRequest, InvalidRequest, PartnerSpec
 from services.engine.environments import EnvRuntime, env_runtime
@@ -80,14 +83,14 @@ def _check_partner_indices(partners: object, runtime: EnvRuntime) -> tuple[Sessi
             raise InvalidRequest(
                 f"partners[{i}].index",
                 f"expected an integer in {expected} (env {runtime.domain.name!r} has at most "
-                f"{runtime.domain.max_agents} agents), got {index!r}",
+                f"{runtime.domain.max_agents} agents), got {brief(index)}",
             )
         if index in seen:
             raise InvalidRequest(f"partners[{i}].index", f"partner index {index} given twice")
         seen.add(int(index))
         if not isinstance(partner.infer, bool):
             raise InvalidRequest(
-                f"partners[{i}].infer", f"expected true or false, got {partner.infer!r}"
+                f"partners[{i}].infer", f"expected true or false, got {brief(partner.infer)}"
             )
     return tuple(partners)
 
@@ -113,14 +116,34 @@ def _dry_act_request(settings: SessionSettings, runtime: EnvRuntime) -> ActReque
     )  # fmt: skip
 
 
+def _check_pins_usable(
+    settings: SessionSettings, runtime: EnvRuntime, partners: Sequence[SessionPartner]
+) -> None:
+    """A pin must name a network the session could use: any task or impact network of the env
+    (beliefs weigh every goal), or with jl its joint network."""
+    usable = {*runtime.task_names.values(), *runtime.impact_names.values()}
+    if settings.method == "jl":
+        ordered = sorted(partners, key=lambda p: p.index)
+        with contextlib.suppress(InvalidArgument, TypeError):  # the act check named it already
+            goals = [p.goal for p in ordered if isinstance(p.goal, str)]
+            usable.add(joint_model_name(runtime.domain.name, settings.ego_goal, goals))
+    for name in settings.versions:
+        if name not in usable:
+            raise InvalidRequest(
+                f"versions[{name}]",
+                f"this session can use no model {name!r}: a pin must name a task or impact "
+                f"network of env {runtime.domain.name!r} (or, with jl, its joint network)",
+            )
+
+
 def _check_blend(settings: SessionSettings) -> None:
     mass = settings.blend_mass
     if not isinstance(mass, int | float) or isinstance(mass, bool) or not 0 < mass <= 1:
-        raise InvalidRequest("belief.blend_mass", f"expected a number in (0, 1], got {mass!r}")
+        raise InvalidRequest("belief.blend_mass", f"expected a number in (0, 1], got {brief(mass)}")
     max_goals = settings.blend_max_goals
     if max_goals is not None and (not _is_int(max_goals) or max_goals < 1):
         raise InvalidRequest(
-            "belief.blend_max_goals", f"expected null or an integer >= 1, got {max_goals!r}"
+            "belief.blend_max_goals", f"expected null or an integer >= 1, got {brief(max_goals)}"
         )
 
 
@@ -138,6 +161,7 @@ def check_settings(settings: SessionSettings) -> CheckedSettings:
             "combination); use aail or nail with inferred goals",
         )
     check_request(_dry_act_request(settings, runtime), max_batch=1)
+    _check_pins_usable(settings, runtime, partners)
     goals = tuple(runtime.domain.goals)
     config = settings.belief
     if not isinstance(config, BeliefConfig):
@@ -194,7 +218,7 @@ def check_observed(
             shown = ", ".join(map(str, inferred_indices)) or "none"
             raise InvalidRequest(
                 f"observed[{j}].index",
-                f"{entry.index!r} is not an inferred partner (inferred partners: {shown}); "
+                f"{brief(entry.index)} is not an inferred partner (inferred partners: {shown}); "
                 "create the session with infer on that partner",
             )
         if entry.index in seen:
@@ -204,6 +228,6 @@ def check_observed(
         if action is not None and (not _is_int(action) or not 0 <= action < n_actions):
             raise InvalidRequest(
                 f"observed[{j}].action",
-                f"expected an action in 0..{n_actions - 1} (or none: recover it), got {action!r}",
+                f"expected an action in 0..{n_actions - 1} (or none: recover it), got {brief(action)}",
             )
     return tuple(observed)

@@ -4,7 +4,8 @@ existing error mapping carries them; each transport maps them to its status in i
 | error                 | meaning                                              | REST | gRPC               |
 |-----------------------|------------------------------------------------------|------|--------------------|
 | `SessionNotFound`     | no such session: expired, deleted, or made elsewhere | 404  | NOT_FOUND          |
-| `SessionLimitReached` | `max_sessions` live sessions (after purging expired) | 429  | RESOURCE_EXHAUSTED |
+| `SessionLimitReached` | `max_sessions` live sessions, or `max_per_client` of | 429 + `Retry-After` | RESOURCE_EXHAUSTED |
+|                       | the creating client (after purging expired)          |      |                    |
 | `StepConflict`        | `expected_step` is not the session's next step       | 409  | ABORTED            |
 | `SessionsUnavailable` | this server cannot keep sessions (several workers)   | 501  | UNIMPLEMENTED      |
 
@@ -14,6 +15,7 @@ Bad input to a step (observation length, an `observed` entry, ...) is `InvalidRe
 
 from __future__ import annotations
 
+from model_store.errors import brief
 from services.engine.errors import EngineError
 
 
@@ -27,20 +29,24 @@ class SessionNotFound(SessionError, LookupError):
     code = "session_not_found"
 
     def __init__(self, session_id: str, reason: str) -> None:
-        super().__init__("session_id", f"session {session_id!r} not found: {reason}")
+        super().__init__("session_id", f"session {brief(session_id)} not found: {reason}")
         self.session_id = session_id
 
 
 class SessionLimitReached(SessionError):
+    """The server's `max_sessions`, or the client's `max_per_client`, are live; `retry_after_s`:
+    when the first of them (the client's, for its own limit) expires if left idle."""
+
     code = "too_many_sessions"
 
-    def __init__(self, limit: int) -> None:
+    def __init__(self, limit: int, retry_after_s: float = 0.0, *, per_client: bool = False) -> None:
+        holder = "this client holds its" if per_client else "the server holds its"
         super().__init__(
             None,
-            f"the server holds its maximum of {limit} live sessions; delete finished sessions "
+            f"{holder} maximum of {limit} live sessions; delete finished sessions "
             "(DELETE /v1/sessions/{id}) or retry after idle ones expire",
         )
-        self.limit = limit
+        self.limit, self.retry_after_s, self.per_client = limit, retry_after_s, per_client
 
 
 class StepConflict(SessionError):
@@ -49,7 +55,7 @@ class StepConflict(SessionError):
     def __init__(self, session_id: str, expected: int, actual: int) -> None:
         super().__init__(
             "expected_step",
-            f"session {session_id!r} is at step {actual}, not {expected} (another request "
+            f"session {brief(session_id)} is at step {actual}, not {expected} (another request "
             "stepped it, or a retry of an answered step)",
         )
         self.expected = expected

@@ -49,6 +49,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike
 
+from model_store.errors import brief
 from policy.belief import BeliefView, belief_views
 from services.engine import (
     ActRequest,
@@ -144,7 +145,7 @@ class Session:
             if expected_step is not None:
                 if isinstance(expected_step, bool) or not isinstance(expected_step, int):
                     raise InvalidRequest(
-                        "expected_step", f"expected an integer, got {expected_step!r}"
+                        "expected_step", f"expected an integer, got {brief(expected_step)}"
                     )
                 if expected_step != t:
                     raise StepConflict(self.session_id, expected_step, t)

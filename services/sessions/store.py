@@ -1,7 +1,8 @@
 """`SessionStore`: the REST sessions of one server process, in memory, bounded and expiring.
 
-    store = SessionStore(engine, max_sessions=1000, ttl_s=300.0)
-    info = store.create(SessionSettings("particle", "a2", (SessionPartner(1, infer=True),)))
+    store = SessionStore(engine, max_sessions=1000, max_per_client=100, ttl_s=300.0)
+    info = store.create(SessionSettings("particle", "a2", (SessionPartner(1, infer=True),)),
+                        client="10.0.0.7")
     answer = store.step(info.session_id, obs, observed=[Observed(1, 3)], expected_step=1)
     store.get(info.session_id); store.delete(info.session_id)
 
@@ -10,8 +11,10 @@
 | ids         | `secrets.token_urlsafe(16)`: 128 random bits, unguessable                     |
 | expiry      | a session idle for `ttl_s` (no step since) is gone: the next request gets     |
 |             | `SessionNotFound` saying so. `get` reads without extending the idle time      |
-| bound       | `create` purges expired sessions first, then refuses beyond `max_sessions`    |
-|             | (`SessionLimitReached`)                                                       |
+| bound       | `create` purges expired sessions first, then refuses beyond `max_sessions`,   |
+|             | or beyond `max_per_client` for the creating client (`SessionLimitReached`,    |
+|             | with the seconds until the first slot that could free up: the oldest idle     |
+|             | session's expiry, which REST sends as `Retry-After`)                          |
 | concurrency | a store lock guards the table only; each session's own lock serialises its    |
 |             | steps, so steps of different sessions run in parallel                         |
 | lost ids    | the last `max_sessions` expired or deleted ids are remembered, so a late      |
@@ -26,7 +29,7 @@ from __future__ import annotations
 import secrets
 import threading
 import time
-from collections import OrderedDict
+from collections import Counter, OrderedDict
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -40,6 +43,7 @@ from services.sessions.session import Session
 class _Entry:
     session: Session
     last_used: float  # clock() at the end of the last step (or at creation)
+    client: str  # who created it (REST: the client's address)
 
 
 class SessionStore:
@@ -50,6 +54,7 @@ class SessionStore:
         engine: InferenceEngine,
         *,
         max_sessions: int = 1000,
+        max_per_client: int | None = None,
         ttl_s: float = 300.0,
         clock: Callable[[], float] = time.monotonic,
         prefetch: bool = True,
@@ -58,13 +63,17 @@ class SessionStore:
             raise ValueError(f"max_sessions: expected >= 1, got {max_sessions}")
         if not ttl_s > 0:
             raise ValueError(f"ttl_s: expected > 0, got {ttl_s}")
+        if max_per_client is not None and max_per_client < 1:
+            raise ValueError(f"max_per_client: expected >= 1, got {max_per_client}")
         self.engine = engine
         self.max_sessions = max_sessions
+        self.max_per_client = max_per_client or max_sessions
         self.ttl_s = ttl_s
         self.prefetch = prefetch  # sessions score the next step's evidence ahead
         self._clock = clock
         self._lock = threading.Lock()
         self._sessions: dict[str, _Entry] = {}
+        self._per_client: Counter[str] = Counter()
         self._gone: OrderedDict[str, str] = OrderedDict()  # id -> why it is gone
 
     def __len__(self) -> int:
@@ -72,16 +81,22 @@ class SessionStore:
             return len(self._sessions)
 
     # --- operations ------------------------------------------------------------------------
-    def create(self, settings: SessionSettings) -> SessionInfo:
-        """A new session (settings checked first: `InvalidRequest` naming the field)."""
+    def create(self, settings: SessionSettings, client: str = "") -> SessionInfo:
+        """A new session of `client` (settings checked first: `InvalidRequest` naming the
+        field); `SessionLimitReached` beyond either bound (module docstring)."""
         session = Session(self.engine, settings, secrets.token_urlsafe(16), prefetch=self.prefetch)
         with self._lock:
             now = self._clock()
-            if len(self._sessions) >= self.max_sessions:
+            full = len(self._sessions) >= self.max_sessions
+            if full or self._per_client[client] >= self.max_per_client:
                 self._purge_expired(now)
             if len(self._sessions) >= self.max_sessions:
-                raise SessionLimitReached(self.max_sessions)
-            self._sessions[session.session_id] = _Entry(session, now)
+                raise SessionLimitReached(self.max_sessions, self._first_free(now, None))
+            if self._per_client[client] >= self.max_per_client:
+                retry = self._first_free(now, client)
+                raise SessionLimitReached(self.max_per_client, retry, per_client=True)
+            self._sessions[session.session_id] = _Entry(session, now, client)
+            self._per_client[client] += 1
         return self._info(session, self.ttl_s)
 
     def step(
@@ -116,8 +131,7 @@ class SessionStore:
     def delete(self, session_id: str) -> None:
         with self._lock:
             self._entry_locked(session_id, self._clock())
-            del self._sessions[session_id]
-            self._forget(session_id, "it was deleted")
+            self._remove(session_id, "it was deleted")
 
     def purge_expired(self) -> int:
         """Drop every expired session now; how many there were."""
@@ -132,8 +146,7 @@ class SessionStore:
     def _entry_locked(self, session_id: str, now: float) -> _Entry:
         entry = self._sessions.get(session_id) if isinstance(session_id, str) else None
         if entry is not None and self._expires_in(entry, now) <= 0:
-            del self._sessions[session_id]
-            self._forget(session_id, self._expired_why())
+            self._remove(session_id, self._expired_why())
             entry = None
         if entry is None:
             why = self._gone.get(session_id) if isinstance(session_id, str) else None
@@ -154,9 +167,21 @@ class SessionStore:
     def _purge_expired(self, now: float) -> int:
         expired = [sid for sid, e in self._sessions.items() if self._expires_in(e, now) <= 0]
         for sid in expired:
-            del self._sessions[sid]
-            self._forget(sid, self._expired_why())
+            self._remove(sid, self._expired_why())
         return len(expired)
+
+    def _first_free(self, now: float, client: str | None) -> float:
+        """Seconds until the first of `client`'s sessions (None: of all) could expire."""
+        left = [self._expires_in(e, now) for e in self._sessions.values()
+                if client is None or e.client == client]  # fmt: skip
+        return max(0.0, min(left, default=0.0))
+
+    def _remove(self, session_id: str, why: str) -> None:
+        entry = self._sessions.pop(session_id)
+        self._per_client[entry.client] -= 1
+        if not self._per_client[entry.client]:
+            del self._per_client[entry.client]
+        self._forget(session_id, why)
 
     def _forget(self, session_id: str, why: str) -> None:
         self._gone[session_id] = why

@@ -17,7 +17,7 @@ OBS = [0.1, 0.4, 0.0, 0.0, 0.7, 0.6, 0.0, 0.0]
 
 
 def _settings(**extra: object) -> Settings:
-    return Settings(admin_token=SecretStr("t0ken"), grpc_port=0, **extra)  # type: ignore[arg-type]
+    return Settings(admin_token=SecretStr("t0ken-for-the-tests-0123"), grpc_port=0, **extra)  # type: ignore[arg-type]
 
 
 def test_server_answers_rest_and_grpc_and_reports_metrics(tiny_zoo_store: SqlModelStore) -> None:

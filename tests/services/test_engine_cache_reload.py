@@ -13,6 +13,7 @@ from model_store.errors import ChecksumMismatch, StoreUnavailable
 from services.engine import (
     ActRequest,
     InferenceEngine,
+    InvalidRequest,
     ModelNotFound,
     ModelUnavailable,
     PartnerSpec,
@@ -38,7 +39,7 @@ def test_alias_and_pinned_versions(tiny_zoo) -> None:
     assert _versions(production) == {TASK_A2: 1, "particle/impact/b3": 1}
     latest = _act(engine, alias="latest")
     assert _versions(latest)[TASK_A2] == 2
-    pinned = _act(engine, versions={TASK_A2: 2, "particle/task/zz": 9})  # unused names ignored
+    pinned = _act(engine, versions={TASK_A2: 2})
     assert _versions(pinned)[TASK_A2] == 2
     assert pinned.probs == latest.probs != production.probs
     v2 = tiny_zoo.store.get_version(TASK_A2, 2)
@@ -49,6 +50,10 @@ def test_alias_and_pinned_versions(tiny_zoo) -> None:
     with pytest.raises(ModelNotFound) as err:
         _act(engine, alias="staging")
     assert err.value.field == "ego_goal" and "staging" in str(err.value)
+    for unused in ("particle/task/zz", "particle/impact/c1"):  # unknown, or not this request's
+        with pytest.raises(InvalidRequest) as refused:
+            _act(engine, versions={TASK_A2: 2, unused: 1})
+        assert refused.value.field == f"versions[{unused}]"
 
 
 def test_missing_networks_name_the_field(tiny_zoo) -> None:

@@ -16,7 +16,7 @@ from model_store.testing import qnet_spec, qnet_weights
 from services.app import create_app
 from services.settings import Settings
 
-TOKEN = "s3cret-admin"
+TOKEN = "s3cret-admin-token-0123"
 AUTH = {"Authorization": f"Bearer {TOKEN}"}
 BASE = "/v1/registry"
 NAME = "particle/task/a3"

@@ -17,7 +17,7 @@ from model_store.testing import qnet_spec, qnet_weights
 from services.app import create_app
 from services.settings import InsecureSettings, Settings
 
-TOKEN = "s3cret-admin"
+TOKEN = "s3cret-admin-token-0123"
 AUTH = {"Authorization": f"Bearer {TOKEN}"}
 BASE = "/v1/registry"
 NAME = "particle/task/a3"
@@ -77,13 +77,15 @@ def test_writes_need_the_admin_token(client: TestClient) -> None:
 
 
 def test_read_token_when_required(tmp_path: Path) -> None:
-    client, store = _client(tmp_path, read_token="reader")
+    client, store = _client(tmp_path, read_token="reader-token-0123456")
     _error(client.get(f"{BASE}/models"), 401)
     _error(client.get(f"{BASE}/changes", headers={"Authorization": "Bearer wrong"}), 403)
-    assert client.get(f"{BASE}/models", headers={"Authorization": "Bearer reader"}).is_success
+    assert client.get(
+        f"{BASE}/models", headers={"Authorization": "Bearer reader-token-0123456"}
+    ).is_success
     assert client.get(f"{BASE}/models", headers=AUTH).is_success  # the admin token reads too
     reader_write = client.post(
-        f"{BASE}/models", json=MODEL, headers={"Authorization": "Bearer reader"}
+        f"{BASE}/models", json=MODEL, headers={"Authorization": "Bearer reader-token-0123456"}
     )
     _error(reader_write, 403)
     store.close()
@@ -216,13 +218,13 @@ def test_default_token_refused_outside_dev_mode(tmp_path: Path) -> None:
 def test_settings_come_from_the_environment(monkeypatch, tmp_path: Path) -> None:
     from services.settings import get_settings
 
-    monkeypatch.setenv("COEXIST_ADMIN_TOKEN", "from-env")
+    monkeypatch.setenv("COEXIST_ADMIN_TOKEN", "from-env-token-0123456")
     monkeypatch.setenv("COEXIST_DATA_DIR", str(tmp_path / "d"))
     monkeypatch.setenv("COEXIST_REQUIRE_READ_TOKEN", "true")
     get_settings.cache_clear()
     try:
         settings = get_settings()
-        assert settings.admin_token.get_secret_value() == "from-env"
+        assert settings.admin_token.get_secret_value() == "from-env-token-0123456"
         assert settings.reads_need_token and not settings.dev_mode
         assert settings.resolved_store_url() == f"sqlite:///{tmp_path / 'd' / 'models.db'}"
         assert get_settings() is settings

@@ -264,7 +264,7 @@ def test_unknown_sessions_are_404(client: TestClient) -> None:
 
 
 def _server_settings(**extra: Any) -> Settings:
-    return Settings(admin_token=SecretStr("t0ken"), grpc_enabled=False, **extra)
+    return Settings(admin_token=SecretStr("t0ken-for-the-tests-0123"), grpc_enabled=False, **extra)
 
 
 def test_the_server_app_keeps_sessions_with_its_settings(tmp_path_factory: Any) -> None:

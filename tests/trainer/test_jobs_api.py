@@ -10,17 +10,19 @@ from typing import Any
 
 import pytest
 from fastapi.testclient import TestClient
-from pydantic import SecretStr
+from pydantic import SecretStr, ValidationError
 from sqlalchemy import update
 
 from model_store.errors import InvalidArgument
 from model_store.sql import SqlModelStore
 from model_store.sql.orm import TrainingJobRow
 from services.app import create_app
+from services.jobs_api import JobRequest
 from services.settings import Settings
 from trainer.jobs import JobSpec, JobStatus, JobTable, train_command
+from trainer.jobs.spec import MAX_SEED, MAX_STEPS
 
-TOKEN = "jobs-t0ken"
+TOKEN = "jobs-t0ken-for-the-tests"
 AUTH = {"Authorization": f"Bearer {TOKEN}"}
 TINY = {"kind": "task", "goals": "a2", "steps": 20}
 
@@ -46,10 +48,16 @@ def _wait(client: TestClient, job_id: str, timeout_s: float = 90.0) -> dict[str,
 
 @pytest.fixture
 def offline_client(tmp_path: Path) -> Iterator[TestClient]:
-    """No lifespan: the runner never starts, so nothing trains."""
+    """No lifespan: the runner starts only if a job is accepted (the tests here submit none),
+    and is stopped with what it runs on the way out if one was."""
     settings = _settings(tmp_path)
     with SqlModelStore(settings.resolved_store_url()) as store:
-        yield TestClient(create_app(settings, store=store))
+        app = create_app(settings, store=store)
+        yield TestClient(app)
+        jobs = getattr(app.state, "jobs", None)
+        if jobs is not None:
+            jobs[1].stop()
+            jobs[0].close()
 
 
 @pytest.mark.slow
@@ -91,6 +99,12 @@ def test_writes_need_the_admin_token(offline_client: TestClient) -> None:
         ({"kind": "joint"}, "combos"),
         ({"kind": "joint", "combos": "a2"}, "combos"),
         ({"kind": "zoo", "env": "cooking", "goals": "CarrotBanana", "combos": "a2+b3"}, "combos"),
+        ({"kind": "task", "goals": "a2", "steps": 10**30}, "steps"),
+        ({"kind": "task", "goals": "a2", "steps": 2**63 - 1}, "steps"),
+        ({"kind": "task", "goals": "a2", "seed": 10**30}, "seed"),
+        ({"kind": "task", "goals": "a2", "seed": -1}, "seed"),
+        ({"kind": "task", "goals": "a2", "extra": 1}, "extra"),
+        ({"kind": "task", "goals": "a2," * 100_000}, "goals"),
     ],
 )
 def test_bad_input_is_422_naming_the_field(
@@ -99,6 +113,20 @@ def test_bad_input_is_422_naming_the_field(
     answer = offline_client.post("/v1/jobs", json=body, headers=AUTH)
     assert answer.status_code == 422, answer.json()
     assert answer.json()["error"]["field"] == field
+    assert offline_client.get("/v1/jobs").json() == {"jobs": []}  # nothing was queued
+
+
+def test_the_documented_ranges_hold_at_their_ends() -> None:
+    """The largest seed and step count pass the route's model and the spec's checks; one more
+    fails both (checked without submitting: a queued job would start training)."""
+    ends = {"kind": "task", "goals": "a2", "seed": MAX_SEED, "steps": MAX_STEPS}
+    JobSpec(**JobRequest.model_validate(ends).model_dump()).validate()
+    for field in ("seed", "steps"):
+        past = {**ends, field: ends[field] + 1}  # type: ignore[operator]
+        with pytest.raises(ValidationError, match=field):
+            JobRequest.model_validate(past)
+        with pytest.raises(InvalidArgument, match=field):
+            JobSpec(**past).validate()  # type: ignore[arg-type]
 
 
 def test_unknown_job_is_404(offline_client: TestClient) -> None:

@@ -10,6 +10,13 @@ time per process: training takes every core there is. The loop wakes every `poll
 on `wake()`), refreshes the running job's heartbeat every `heartbeat_s`, and re-runs `recover`
 every `stale_after_s / 2` so a job abandoned by another, dead, process is picked up too.
 
+One trainer per job, whatever dies (`trainer.jobs.leash`): the trainer is started on a leash, so
+it dies with this server process (even on `kill -9`) and holds the run directory's lock while it
+lives; before an attempt starts, a trainer of an earlier attempt still holding the directory is
+stopped (and the job's log says so). The heartbeat is a lease (`trainer.jobs.table`): when it
+cannot be renewed, because the job was taken over or because the database stayed out of reach
+for `stale_after_s - heartbeat_s`, the runner stops its trainer rather than let two train.
+
 While a job runs, every poll also reads its row: `cancelling` (set by `JobTable.cancel`, from any
 server process) makes the runner stop the subprocess (`terminate`: SIGTERM to its process group,
 SIGKILL after `cancel_grace_s`), say so in the log and record the job `cancelled` with the exit
@@ -31,6 +38,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import BinaryIO
 
+from trainer.jobs.leash import leashed, stop_leftover
 from trainer.jobs.spec import JobSpec, train_command
 from trainer.jobs.table import Job, JobStatus, JobTable
 
@@ -62,6 +70,8 @@ def read_log_from(run_dir: str | Path, offset: int, max_bytes: int) -> tuple[str
     if not file.exists():
         return None
     with file.open("rb") as f:
+        if offset >= os.fstat(f.fileno()).st_size:  # past the end (seek would refuse a huge one)
+            return "", offset
         f.seek(offset)
         data = f.read(max_bytes)
     cut = len(data) - _incomplete_tail(data)
@@ -125,7 +135,7 @@ class JobRunner:
         while not self._stopping.is_set():
             try:
                 if time.monotonic() - last_recover >= self.table.stale_after_s / 2:
-                    self.table.recover()
+                    self.table.recover(on_cancelled=self._stop_leftover)
                     last_recover = time.monotonic()
                 job = self.table.claim_next()
                 if job is not None:
@@ -144,27 +154,75 @@ class JobRunner:
         with (run_dir / LOG_NAME).open("ab") as out:
             out.write(f"--- attempt {job.attempts}: {' '.join(cmd)}\n".encode())
             out.flush()
+            try:
+                stopped = stop_leftover(run_dir, self.cancel_grace_s)
+            except TimeoutError as err:  # it would not let go: try again later (max_attempts)
+                out.write(f"--- not started: {err}\n".encode())
+                self.table.release(job.id, job.attempts)
+                return
+            if stopped is not None:
+                out.write(f"--- {stopped}\n".encode())
+                out.flush()
             proc = subprocess.Popen(
-                cmd, stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                cwd=_PROJECT_ROOT, start_new_session=True,
+                leashed(cmd, run_dir), stdout=out, stderr=subprocess.STDOUT,
+                stdin=subprocess.DEVNULL, cwd=_PROJECT_ROOT, start_new_session=True,
             )  # fmt: skip
-            last_beat = time.monotonic()
-            while proc.poll() is None:
-                self._wake.wait(self.poll_s)
-                self._wake.clear()
-                if self._check_status(job.id) is JobStatus.cancelling:
-                    self._cancel(job, proc, out)
-                    return
-                if self._stopping.is_set():
-                    terminate(proc, self.cancel_grace_s)
-                    self.table.release(job.id)  # the next process resumes it
-                    log.info("job %s: left for the next process", job.id)
-                    return
-                if time.monotonic() - last_beat >= self.heartbeat_s:
-                    self.table.heartbeat(job.id)
-                    last_beat = time.monotonic()
-        self.table.finish(job.id, proc.returncode, read_log(run_dir, 8_000))
+            if not self._watch(job, proc, out):
+                return
+        self.table.finish(job.id, proc.returncode, read_log(run_dir, 8_000), job.attempts)
         log.info("job %s: exit code %d", job.id, proc.returncode)
+
+    def _watch(self, job: Job, proc: subprocess.Popen[bytes], out: BinaryIO) -> bool:
+        """Poll until the trainer exits (True) or is stopped here: cancelled, this runner
+        stopping, or its lease lost (False; the row is then recorded, released or not ours)."""
+        last_beat = renewed = time.monotonic()
+        while proc.poll() is None:
+            self._wake.wait(self.poll_s)
+            self._wake.clear()
+            if self._check_status(job.id) is JobStatus.cancelling:
+                self._cancel(job, proc, out)
+                return False
+            if self._stopping.is_set():
+                terminate(proc, self.cancel_grace_s)
+                self.table.release(job.id, job.attempts)  # the next process resumes it
+                log.info("job %s: left for the next process", job.id)
+                return False
+            if time.monotonic() - last_beat < self.heartbeat_s:
+                continue
+            last_beat = time.monotonic()
+            held = self._renew(job)
+            if held:
+                renewed = last_beat
+            elif held is None and last_beat - renewed < self.table.stale_after_s - self.heartbeat_s:
+                continue  # the database is away: the lease still runs
+            elif held is None or self._check_status(job.id) is not JobStatus.cancelling:
+                why = "it was taken over" if held is False else "the database stayed away"
+                out.write(f"--- lease lost ({why}): stopping process group {proc.pid}\n".encode())
+                out.flush()
+                how = terminate(proc, self.cancel_grace_s)
+                log.warning("job %s: attempt %d lost its lease (%s): %s", job.id, job.attempts,
+                            why, how)  # fmt: skip
+                return False
+        return True
+
+    def _renew(self, job: Job) -> bool | None:
+        """Renew the job's lease: whether it is still this attempt's, None if the database
+        could not be asked."""
+        try:
+            return self.table.heartbeat(job.id, job.attempts)
+        except Exception:
+            log.exception("job %s: could not renew its lease", job.id)
+            return None
+
+    def _stop_leftover(self, run_dir: str) -> None:
+        """A job recovered as cancelled: stop a trainer still working in its directory."""
+        try:
+            stopped = stop_leftover(run_dir, self.cancel_grace_s)
+        except (TimeoutError, OSError):
+            log.exception("could not stop the trainer left in %s", run_dir)
+            return
+        if stopped is not None:
+            append_log(run_dir, f"--- {stopped}")
 
     def _check_status(self, job_id: str) -> JobStatus:
         try:
@@ -184,7 +242,8 @@ class JobRunner:
             f"--- cancelled: {how} after {elapsed:.1f} s, exit code {proc.returncode}\n".encode()
         )
         out.flush()
-        self.table.finish_cancelled(job.id, proc.returncode, read_log(job.run_dir, 8_000))
+        tail = read_log(job.run_dir, 8_000)
+        self.table.finish_cancelled(job.id, proc.returncode, tail, job.attempts)
         log.info("job %s: cancelled (%s, exit code %d)", job.id, how, proc.returncode)
 
 

@@ -7,8 +7,11 @@
 | `joint`  | env, combos     | particle world only; combos 'a2+b3,c+c4', 2..5 goals each     |
 | `zoo`    | env, goals, combos (optional) | tasks, impacts, then JL combinations            |
 
-Every kind also takes `seed` (>= 0) and `steps` (None: the config's default). Errors are
-`InvalidArgument` naming the field, which the API answers with 422.
+Every kind also takes `seed` (0..`MAX_SEED`) and `steps` (1..`MAX_STEPS` batched environment
+steps per batch of goals; None: the config's default, 12 000 for task networks). The bounds keep
+every seed a valid seed of each RNG the trainer feeds (32-bit ones included) and a job's length
+finite; `goals` and `combos` are at most `MAX_TEXT` characters. Errors are `InvalidArgument`
+naming the field, which the API answers with 422.
 """
 
 from __future__ import annotations
@@ -18,9 +21,12 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from model_store.errors import InvalidArgument
+from model_store.errors import InvalidArgument, brief
 
 JOB_KINDS = ("task", "impact", "joint", "zoo")
+MAX_SEED = 2**31 - 1
+MAX_STEPS = 1_000_000  # ~83 times the default of a task network
+MAX_TEXT = 4096  # characters of `goals` or `combos`
 
 
 @dataclass(frozen=True)
@@ -39,16 +45,26 @@ class JobSpec:
 
         if self.kind not in JOB_KINDS:
             raise InvalidArgument(
-                f"kind: expected one of {JOB_KINDS}, got {self.kind!r}", field="kind"
+                f"kind: expected one of {JOB_KINDS}, got {brief(self.kind)}", field="kind"
             )
         try:
             domain = get_domain(self.env)
         except ValueError as err:
             raise InvalidArgument(f"env: {err}", field="env") from None
-        if self.seed < 0:
-            raise InvalidArgument(f"seed: expected >= 0, got {self.seed}", field="seed")
-        if self.steps is not None and self.steps < 1:
-            raise InvalidArgument(f"steps: expected >= 1, got {self.steps}", field="steps")
+        if not isinstance(self.seed, int) or not 0 <= self.seed <= MAX_SEED:
+            raise InvalidArgument(
+                f"seed: expected an integer in 0..{MAX_SEED}, got {brief(self.seed)}", field="seed"
+            )
+        if self.steps is not None and (
+            not isinstance(self.steps, int) or not 1 <= self.steps <= MAX_STEPS
+        ):
+            raise InvalidArgument(
+                f"steps: expected an integer in 1..{MAX_STEPS}, got {brief(self.steps)}",
+                field="steps",
+            )
+        for field in ("goals", "combos"):
+            if len(getattr(self, field)) > MAX_TEXT:
+                raise InvalidArgument(f"{field}: at most {MAX_TEXT} characters", field=field)
         if self.goals != "all":
             chosen = [g.strip() for g in self.goals.split(",") if g.strip()]
             if not chosen:

@@ -15,6 +15,12 @@ database never run the same job. A `running` row whose heartbeat is older than `
 belongs to a dead process: `recover` puts it back in the queue (its run directory records the
 finished batches, so the retry trains only what is left).
 
+The heartbeat is a lease fenced by the attempt number: `heartbeat`, `finish`,
+`finish_cancelled` and `release` given the runner's `attempt` change the row only while it is
+still that attempt. A runner whose job was recovered and claimed again (it could not renew in
+time) learns so from `heartbeat` returning False and stops its trainer
+(`trainer.jobs.runner`); it can never record the outcome of an attempt that is not its own.
+
 Cancelling goes through the row too, so it works whichever server process answers the request:
 `cancel` turns `queued` into `cancelled` at once and `running` into `cancelling`; the runner that
 owns the subprocess sees it at its next poll, stops the process and calls `finish_cancelled`. A
@@ -25,6 +31,7 @@ restarted server does not resume a job somebody cancelled.
 from __future__ import annotations
 
 import uuid
+from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta
 from enum import StrEnum
@@ -33,7 +40,7 @@ from typing import Any
 from sqlalchemy import Engine, or_, select, update
 from sqlalchemy.orm import Session, sessionmaker
 
-from model_store.errors import Conflict, NotFound
+from model_store.errors import Conflict, NotFound, brief
 from model_store.sql.engine import BEGIN_MODE_OPTION, create_store_engine
 from model_store.sql.migrate import ensure_schema
 from model_store.sql.orm import TrainingJobRow
@@ -116,7 +123,7 @@ class JobTable:
         with self._read() as s, s.begin():
             row = s.get(TrainingJobRow, job_id)
             if row is None:
-                raise NotFound(f"job {job_id!r} not found")
+                raise NotFound(f"job {brief(job_id)} not found")
             return _job(row)
 
     def has_unfinished(self) -> bool:
@@ -138,30 +145,34 @@ class JobTable:
             return None
         with self._write() as s, s.begin():
             now = _now()
-            claimed = _set(s, job_id, JobStatus.queued, status=JobStatus.running.value,
+            claimed = _set(s, job_id, JobStatus.queued, None, status=JobStatus.running.value,
                            started_at=now, heartbeat_at=now,
                            attempts=TrainingJobRow.attempts + 1)  # fmt: skip
         return self.get(job_id) if claimed else None
 
-    def heartbeat(self, job_id: str) -> None:
+    def heartbeat(self, job_id: str, attempt: int | None = None) -> bool:
+        """Renew the lease of a running job; False when it is no longer running (as `attempt`,
+        when given): cancelled meanwhile, or recovered and claimed again."""
         with self._write() as s, s.begin():
-            _set(s, job_id, JobStatus.running, heartbeat_at=_now())
+            return _set(s, job_id, JobStatus.running, attempt, heartbeat_at=_now())
 
     def status(self, job_id: str) -> JobStatus:
         """The row's status alone (what the runner polls while a job runs)."""
         with self._read() as s, s.begin():
             status = s.scalar(select(TrainingJobRow.status).where(TrainingJobRow.id == job_id))
         if status is None:
-            raise NotFound(f"job {job_id!r} not found", field="id")
+            raise NotFound(f"job {brief(job_id)} not found", field="id")
         return JobStatus(status)
 
-    def finish(self, job_id: str, exit_code: int, log_tail: str) -> None:
+    def finish(
+        self, job_id: str, exit_code: int, log_tail: str, attempt: int | None = None
+    ) -> None:
         """The subprocess exited by itself. A cancel that came too late to stop it loses: the
         row records what the process did."""
         status = JobStatus.succeeded if exit_code == 0 else JobStatus.failed
         with self._write() as s, s.begin():
             for expected in (JobStatus.running, JobStatus.cancelling):
-                if _set(s, job_id, expected, status=status.value, exit_code=exit_code,
+                if _set(s, job_id, expected, attempt, status=status.value, exit_code=exit_code,
                         finished_at=_now(), log_tail=log_tail[-LOG_TAIL_CHARS:]):  # fmt: skip
                     return
 
@@ -173,7 +184,7 @@ class JobTable:
         with self._write() as s, s.begin():
             row = s.get(TrainingJobRow, job_id)
             if row is None:
-                raise NotFound(f"job {job_id!r} not found", field="id")
+                raise NotFound(f"job {brief(job_id)} not found", field="id")
             if row.status == JobStatus.queued.value:
                 row.status, row.finished_at = JobStatus.cancelled.value, _now()
                 row.log_tail = CANCELLED_WHILE_QUEUED + "\n"
@@ -187,21 +198,24 @@ class JobTable:
                 )
             return _job(row)
 
-    def finish_cancelled(self, job_id: str, exit_code: int | None, log_tail: str) -> None:
+    def finish_cancelled(
+        self, job_id: str, exit_code: int | None, log_tail: str, attempt: int | None = None
+    ) -> None:
         """The runner stopped a `cancelling` job's subprocess (exit code: -signal on POSIX)."""
         with self._write() as s, s.begin():
-            _set(s, job_id, JobStatus.cancelling, status=JobStatus.cancelled.value,
+            _set(s, job_id, JobStatus.cancelling, attempt, status=JobStatus.cancelled.value,
                  exit_code=exit_code, finished_at=_now(),
                  log_tail=log_tail[-LOG_TAIL_CHARS:])  # fmt: skip
 
-    def release(self, job_id: str) -> None:
+    def release(self, job_id: str, attempt: int | None = None) -> None:
         """This process stops while the job runs: leave it for the next one (stale at once)."""
         with self._write() as s, s.begin():
-            _set(s, job_id, JobStatus.running, heartbeat_at=None)
+            _set(s, job_id, JobStatus.running, attempt, heartbeat_at=None)
 
-    def recover(self) -> list[str]:
+    def recover(self, on_cancelled: Callable[[str], object] | None = None) -> list[str]:
         """Requeue `running` jobs of dead processes (or give up after `max_attempts`); finish
-        their `cancelling` jobs as `cancelled`. Returns the requeued ids."""
+        their `cancelling` jobs as `cancelled`, then call `on_cancelled(run_dir)` for each (the
+        runner stops a trainer still working there). Returns the requeued ids."""
         stale = _now() - timedelta(seconds=self.stale_after_s)
         owned = (JobStatus.running.value, JobStatus.cancelling.value)
         dead = select(TrainingJobRow).where(
@@ -211,28 +225,35 @@ class JobTable:
         with self._read() as s, s.begin():
             if s.scalar(dead.limit(1)) is None:
                 return []
-        requeued = []
+        requeued, cancelled = [], []
         with self._write() as s, s.begin():
             for row in s.scalars(dead):
                 if row.status == JobStatus.cancelling.value:
                     row.status, row.finished_at = JobStatus.cancelled.value, _now()
                     row.log_tail = (row.log_tail + _RUNNER_DIED)[-LOG_TAIL_CHARS:]
+                    cancelled.append(row.run_dir)
                 elif row.attempts >= self.max_attempts:
                     row.status, row.finished_at = JobStatus.interrupted.value, _now()
                 else:
                     row.status = JobStatus.queued.value
                     requeued.append(row.id)
+        if on_cancelled is not None:
+            for run_dir in cancelled:
+                on_cancelled(run_dir)
         return requeued
 
 
-def _set(session: Session, job_id: str, expected: JobStatus, **values: Any) -> bool:
-    """UPDATE the row only while it is still in status `expected`; True when it was."""
-    query = (
-        update(TrainingJobRow)
-        .where(TrainingJobRow.id == job_id, TrainingJobRow.status == expected.value)
-        .values(**values)
+def _set(
+    session: Session, job_id: str, expected: JobStatus, attempt: int | None, **values: Any
+) -> bool:
+    """UPDATE the row only while it is still in status `expected` (and at `attempt`, unless
+    None); True when it was."""
+    query = update(TrainingJobRow).where(
+        TrainingJobRow.id == job_id, TrainingJobRow.status == expected.value
     )
-    return bool(session.execute(query).rowcount)  # type: ignore[attr-defined]
+    if attempt is not None:
+        query = query.where(TrainingJobRow.attempts == attempt)
+    return bool(session.execute(query.values(**values)).rowcount)  # type: ignore[attr-defined]
 
 
 def _job(row: TrainingJobRow) -> Job:

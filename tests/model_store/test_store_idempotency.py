@@ -1,0 +1,66 @@
+"""Idempotent registration, on SQLite and PostgreSQL: a retry with the same key answers the
+version the key registered (no second version, no event, aliases untouched); the key with other
+weights or another spec is a `Conflict`; keys are per model; a bad key is `InvalidArgument`."""
+
+# ruff: noqa: F811  (the fixtures imported from store_fixtures are re-bound as test arguments)
+
+from __future__ import annotations
+
+import pytest
+from store_fixtures import pg_url, store, store_url  # noqa: F401
+
+from model_store.errors import Conflict, InvalidArgument
+from model_store.sql import SqlModelStore
+from model_store.testing import qnet_spec, qnet_weights, test_lineage
+
+NAME, OTHER = "particle/task/a2", "particle/task/b3"
+SPEC = qnet_spec(obs_dim=8, n_actions=5, hidden=(4,))
+KEY = "0f6c2e9a-upload-1"
+
+
+@pytest.fixture
+def models(store: SqlModelStore) -> SqlModelStore:
+    for name in (NAME, OTHER):
+        goal = name.rsplit("/", 1)[1]
+        store.create_model(name, env="particle", kind="task", goals=(goal,), obs_dim=8,
+                           n_actions=5)  # fmt: skip
+    return store
+
+
+def _register(
+    store: SqlModelStore, name: str = NAME, *, seed: int = 0, idempotency_key: str | None = None
+) -> int:
+    version = store.register_version(
+        name, spec=SPEC, weights=qnet_weights(SPEC, seed=seed), lineage=test_lineage(),
+        idempotency_key=idempotency_key,
+    )  # fmt: skip
+    return version.version
+
+
+def test_a_retry_answers_the_version_its_key_registered(models: SqlModelStore) -> None:
+    first = _register(models, idempotency_key=KEY)
+    events = models.events()
+    models.set_alias(NAME, "latest", first)
+    _register(models, seed=5)  # version 2 moves `latest`
+    again = _register(models, idempotency_key=KEY)
+    assert again == first == 1
+    assert [v.version for v in models.list_versions(NAME)] == [2, 1]
+    assert models.resolve(f"{NAME}@latest").version == 2  # the retry moved no alias
+    assert len(models.events()) == len(events) + 2  # version 2 and its alias move, nothing else
+
+
+def test_a_key_names_one_upload(models: SqlModelStore) -> None:
+    _register(models, idempotency_key=KEY)
+    with pytest.raises(Conflict) as caught:
+        _register(models, seed=1, idempotency_key=KEY)
+    assert caught.value.field == "idempotency_key" and "version 1" in caught.value.message
+    assert _register(models, OTHER, idempotency_key=KEY) == 1  # keys are per model
+    assert _register(models, seed=1) == 2  # no key: a new version, as before
+
+
+@pytest.mark.parametrize("key", ["", "has space", "k" * 129, "ünïcode"])
+def test_a_bad_key_is_invalid(models: SqlModelStore, key: str) -> None:
+    with pytest.raises(InvalidArgument) as caught:
+        _register(models, idempotency_key=key)
+    assert caught.value.field == "idempotency_key"
+    assert models.list_versions(NAME) == []
