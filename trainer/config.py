@@ -21,6 +21,9 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 from typing import Any, Literal
 
+GATE_RETRIES = 3
+"""Fresh-seed attempts the zoo makes at a task gate a network failed (`trainer.zoo.run_tasks`)."""
+
 
 @dataclass(frozen=True)
 class SoftQConfig:

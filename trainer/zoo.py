@@ -28,7 +28,7 @@ from model_store.errors import NotFound
 from model_store.naming import task_model_name
 from model_store.store import ModelStore
 from policy.qnet import QNetSpec, StackedQNet, tensors_from_safetensors
-from trainer.config import ImpactConfig, JointConfig, TaskConfig
+from trainer.config import GATE_RETRIES, ImpactConfig, JointConfig, TaskConfig
 from trainer.cooking_config import CookingImpactConfig, CookingTaskConfig
 from trainer.learners import TrainedBatch, chunked, train_impacts, train_joint, train_tasks
 from trainer.loop import ProgressFn
@@ -117,10 +117,13 @@ def run_tasks(
     progress: ProgressFactory,
     env: str = "particle",
     serve_alias: str = "production",
-    gate_retries: int = 1,
+    gate_retries: int = GATE_RETRIES,
 ) -> list[TrainedBatch]:
     """Task networks in batches; goals whose network failed its gate are trained again with a
-    fresh seed, up to `gate_retries` times (each retry registers a new version)."""
+    fresh seed, up to `gate_retries` times (each retry registers a new version). A goal without a
+    `production` task network cannot be served as an ego, and in the particle world its impact
+    network would learn beside a failed partner, so the zoo retries up to three times: in the
+    second fresh zoo of 35 goals one goal (`d3`) failed its first two attempts."""
     check_config_env(config, env)
     batches = []
     for i, chunk in enumerate(chunked(goals, goals_per_batch)):

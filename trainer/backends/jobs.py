@@ -32,7 +32,7 @@ from typing import Any, cast
 from model_store.defaults import open_store
 from model_store.store import ModelStore
 from policy.qnet import StackedQNet
-from trainer.config import ImpactConfig, JointConfig, SoftQConfig, TaskConfig
+from trainer.config import GATE_RETRIES, ImpactConfig, JointConfig, SoftQConfig, TaskConfig
 from trainer.learners import Kind, TrainedBatch, chunked, train_impacts, train_joint, train_tasks
 from trainer.loop import TrainingCurves
 from trainer.zoo import (
@@ -78,7 +78,12 @@ def _members(goals: Sequence[str]) -> tuple[tuple[str, ...], ...]:
 
 
 def task_stage(
-    goals: Sequence[str], config: TaskConfig, *, seed: int, per_batch: int, gate_retries: int = 1
+    goals: Sequence[str],
+    config: TaskConfig,
+    *,
+    seed: int,
+    per_batch: int,
+    gate_retries: int = GATE_RETRIES,
 ) -> Stage:
     jobs = [
         BatchJob("task", _members(chunk), seed + i, i, f"task:{','.join(chunk)}")

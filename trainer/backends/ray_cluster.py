@@ -10,7 +10,7 @@
 |                    | Client. A Ray session already open in this process is reused.          |
 | resources per task | 1 CPU (`num_cpus=1`): as many tasks at once as the cluster has CPUs    |
 | gate retries       | a task stage then re-trains the goals whose network failed its gate,   |
-|                    | as `trainer.zoo.run_tasks` does (`Stage.gate_retries`, default 1)      |
+|                    | as `trainer.zoo.run_tasks` does (`Stage.gate_retries`, default 3)      |
 | retries            | `max_retries` (default 3) when the worker dies (node lost, OOM kill,   |
 |                    | `os._exit`) and on `StoreUnavailable`; other errors fail the run at    |
 |                    | once and cancel the jobs still running                                 |
