@@ -142,11 +142,11 @@ def evaluate(
         int | None, typer.Option(min=0, help="Five-agent goal sets per replicate. Default: 8.")
     ] = None,
     set_episodes: Annotated[
-        int | None, typer.Option(min=1, help="Episodes per goal set. Default: 40.")
+        int | None, typer.Option(min=1, help="Episodes per goal set. Default: 100.")
     ] = None,
     regret_bound: Annotated[
         float | None,
-        typer.Option(min=0.0, help="AAIL-B's ε (default: the task network's training α)."),
+        typer.Option(min=0.0, help="AAIL-B's ε (default: half the task network's training α)."),
     ] = None,
     pair_episodes: Annotated[
         int | None, typer.Option(min=1, help="Episodes per pair. Default: 20 (--fast: 3).")

@@ -45,7 +45,9 @@ def run(
     ] = "aail_bounded",
     regret_bound: Annotated[
         float | None,
-        typer.Option(min=0.0, help="aail_bounded's ε (default: the task network's training α)."),
+        typer.Option(
+            min=0.0, help="aail_bounded's ε (default: half the task network's training α)."
+        ),
     ] = None,
     episodes: Annotated[int, typer.Option(min=1, help="Number of episodes.")] = 20,
     seed: Annotated[int, typer.Option(min=0, help="Seed of start states and sampling.")] = 0,

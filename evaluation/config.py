@@ -6,7 +6,7 @@
 | `non_aligned`     | `a2` | `b3`           | 200 / 6                      | Fig. 5 right |
 | `five_agents`     | `a2` | `a0 b2 c4 e1`  | 100 / 4                      | Fig. 7       |
 | `pair:{e}+{p}#r`  | goal pairs drawn per strict class (`envs.particle.scenarios`)  | 20 / 3 per pair | (ours) |
-| `set:{goals}#r`   | five-agent goal sets drawn from the whole catalogue | 40 / 3 per set | (ours) |
+| `set:{goals}#r`   | five-agent goal sets drawn from the whole catalogue | 100 / 3 per set | (ours) |
 
 Goal pairs nobody tuned on. Each of `replicates` replicates r = 0, 1, ... has its own seed
 `seed + r`, and with it draws its own pairs from each strict class (`aligned_pairs`,
@@ -108,7 +108,7 @@ class SuiteConfig:
     mixed_pairs: int = 20
     pair_episodes: int = 20
     five_agent_sets: int = 8
-    set_episodes: int = 40
+    set_episodes: int = 100
     max_steps: int = 400
     seed: int = 0
     methods: tuple[Method, ...] = PAPER_METHODS

@@ -31,10 +31,13 @@ better (on its way to the target) π_B is the task policy, sampling noise includ
 moves and explores exactly as SL does. With ε = 0 (and no ties) π_B = π_t; as ε grows π_B
 tends to π_C. When π_C puts no probability on S_ε at all (underflow), π_B = π_t.
 
-The engine's default ε is the task network's temperature α: an action keeps the blend's say when
-the task policy rates it at least 1/e as likely as its best. Both shapes below give the same
-numbers to rounding (tested): `bound_rows` for batches (numpy), `bound_row` for the engine's
-single-row path (Python floats, where numpy's per-call cost would dominate).
+The engine's default ε is `DEFAULT_EPSILON_PER_ALPHA` × the task network's temperature α: an
+action keeps the blend's say when the task policy rates it at least e^-1/2 ≈ 0.61 as likely as
+its best. Chosen by measurement (`reports/paper/blend_choice.md`): ε = α already lets the ego
+step out of its target where that costs it little, which in five-agent scenes moves the partners
+around; ε = α/4 helps less where goals align. Both shapes below give the same numbers to
+rounding (tested): `bound_rows` for batches (numpy), `bound_row` for the engine's single-row path
+(Python floats, where numpy's per-call cost would dominate).
 """
 
 from __future__ import annotations
@@ -44,7 +47,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-__all__ = ["bound_row", "bound_rows", "check_regret_bound"]
+__all__ = ["DEFAULT_EPSILON_PER_ALPHA", "bound_row", "bound_rows", "check_regret_bound"]
+
+DEFAULT_EPSILON_PER_ALPHA = 0.5
 
 
 def check_regret_bound(value: float) -> float:

@@ -110,8 +110,13 @@ class CookingTaskConfig(CookingConfig):
 class CookingImpactConfig(CookingConfig):
     """Impact networks: one per partner recipe, by self-play (paper §3.2, eqs. 6-7)."""
 
-    total_steps: int = 8_000
-    """Batched environment steps per network (the CarrotBanana gate passed after ~1 000)."""
+    total_steps: int = 24_000
+    """Batched environment steps per network. With 8 000 (and Boltzmann exploration alone) the
+    retrained zoo's CarrotBanana network let its partner cook 20 % and 0 % of its dishes (two
+    seeds) against 98 % for the zoo before: `reports/cooking/README.md`."""
+    explore_eps: float = 0.3
+    """Share of uniformly random actions while training (`trainer.config.SoftQConfig`): the
+    hand-over is a long chain of actions that Boltzmann exploration at α alone rarely tries."""
     handover_first_prob: float = 0.5
     """Half the scripted starts come from episodes in which the helper (the learner's seat)
     serves its own dish before it hands the carrot over: the states an AAIL cook reaches after
@@ -126,3 +131,8 @@ class CookingImpactConfig(CookingConfig):
     no_harm_slack: float = 0.05
     """Gate: the partner's completion rate with the impact-driven ego may be at most this much
     below its rate beside a resting ego."""
+    min_help_rate: float = 0.5
+    """Gate: where the partner completes fewer than this share of its dishes beside a resting
+    ego (it needs the ego: CarrotBanana's carrot is in the other room), the impact network must
+    let it complete at least this share. "Does no harm" alone passed a network that handed the
+    carrot over in one episode in five."""

@@ -13,8 +13,9 @@ dish and the unshaped return (+20 dish, -0.01 per waiting step) are reported bes
 Impact gate (partner recipe h): the partner cooks h with its frozen task network, the ego acts
 with the impact network (sampled at α) or rests (action 0). The impact network must do no harm:
 the partner's completion rate beside it may be at most `no_harm_slack` below the rate beside a
-resting ego. Whether it *helps* is reported (`helps`); in the coexistence kitchen the
-CarrotBanana partner cannot finish at all without the carrot, so there it shows as a jump.
+resting ego; and where the partner cannot cook without it (fewer than `min_help_rate` of its
+dishes beside a resting ego: CarrotBanana's carrot is in the other room) it must help, bringing
+the partner to at least `min_help_rate`. Whether it helps is reported (`helps`).
 """
 
 from __future__ import annotations
@@ -191,7 +192,8 @@ def cooking_impact_gates(
                 partner_return=float(helped.return_GE[g].mean()),
                 partner_return_resting_ego=float(resting.return_GE[g].mean()),
                 helps=rate > idle_rate,
-                passed=rate >= idle_rate - config.no_harm_slack,
+                passed=rate >= idle_rate - config.no_harm_slack
+                and (idle_rate >= config.min_help_rate or rate >= config.min_help_rate),
             )
         )
     return gates

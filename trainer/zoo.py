@@ -165,42 +165,80 @@ def run_impacts(
     progress: ProgressFactory,
     env: str = "particle",
     production_parents_only: bool | None = None,
+    gate_retries: int = GATE_RETRIES,
 ) -> list[TrainedBatch]:
     """Impact networks in batches, each against its partner goal's registered task network.
     `production_parents_only` (default: in the kitchen only, module docstring) skips goals whose
-    task network has no `production` version instead of using `latest`."""
+    task network has no `production` version instead of using `latest`. Goals whose network
+    failed its gate are trained again with a fresh seed, up to `gate_retries` times, as
+    `run_tasks` does."""
     check_config_env(config, env)
     strict = (
         production_parents_required(env)
         if production_parents_only is None
         else production_parents_only
     )
+    unserved = goals_without(store, env, "task", goals, "production") if strict else []
+    if unserved:
+        warn_unserved_parents(unserved, env)
+    trainable = [g for g in goals if g not in unserved]
     batches = []
     for i, chunk in enumerate(chunked(goals, goals_per_batch)):
-        key = f"impact:{','.join(chunk)}"
-        if key in run.done:
+        kept = [g for g in chunk if g in trainable]
+        key = f"impact:{','.join(kept)}"
+        if kept and key not in run.done:
+            label = f"impact {kept[0]}..{kept[-1]}"
+            batches.append(
+                _impact_batch(
+                    store,
+                    kept,
+                    config,
+                    seed + 1000 + i,
+                    label,
+                    key,
+                    run=run,
+                    progress=progress,
+                    env=env,
+                )
+            )
+    for attempt in range(1, gate_retries + 1):
+        key = f"impact-retry-{attempt}"
+        failed = goals_without(store, env, "impact", trainable, "production")
+        if key in run.done or not failed:
             continue
-        unserved = goals_without(store, env, "task", chunk, "production") if strict else []
-        if unserved:
-            warn_unserved_parents(unserved, env)
-            chunk = [g for g in chunk if g not in unserved]
-            key = f"impact:{','.join(chunk)}"
-            if not chunk or key in run.done:
-                continue
-        partner_nets, task_versions = load_task_nets(store, env, chunk)
-        batch = train_impacts(
-            chunk,
-            partner_nets,
-            config,
-            seed=seed + 1000 + i,
-            progress=progress(f"impact {chunk[0]}..{chunk[-1]}", config.total_steps),
+        label = f"impact retry {attempt}: {','.join(failed)}"
+        retry_seed = seed + 1000 + 7919 * attempt  # a fresh seed per attempt, still deterministic
+        batches.append(
+            _impact_batch(
+                store, failed, config, retry_seed, label, key, run=run, progress=progress, env=env
+            )
         )
-        parents: dict[tuple[str, ...], list[str]] = {
-            (g,): [f"{v.name}/{v.version}"] for g, v in zip(chunk, task_versions, strict=True)
-        }
-        run.record(key, publish_batch(store, batch, env=env, parents=parents))
-        batches.append(batch)
     return batches
+
+
+def _impact_batch(
+    store: ModelStore,
+    goals: Sequence[str],
+    config: ImpactConfig | CookingImpactConfig,
+    seed: int,
+    label: str,
+    key: str,
+    *,
+    run: RunState,
+    progress: ProgressFactory,
+    env: str,
+) -> TrainedBatch:
+    """Train, gate and register the impact networks of `goals` (one batch), parented to the
+    task networks they learned beside."""
+    partner_nets, task_versions = load_task_nets(store, env, goals)
+    batch = train_impacts(
+        goals, partner_nets, config, seed=seed, progress=progress(label, config.total_steps)
+    )
+    parents: dict[tuple[str, ...], list[str]] = {
+        (g,): [f"{v.name}/{v.version}"] for g, v in zip(goals, task_versions, strict=True)
+    }
+    run.record(key, publish_batch(store, batch, env=env, parents=parents))
+    return batch
 
 
 def run_joint(

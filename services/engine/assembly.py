@@ -20,6 +20,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from policy.regret_bound import DEFAULT_EPSILON_PER_ALPHA
 from services.engine.errors import InvalidRequest
 from services.engine.messages import DEFAULT_TEMPERATURE, ActRequest, Member, ModelUsed
 from services.engine.networks import StackedGroup
@@ -182,11 +183,10 @@ def sample_actions(probs_BA: np.ndarray, rng: np.random.Generator) -> np.ndarray
 
 
 def regret_bound_of(request: ActRequest, group: StackedGroup) -> float | None:
-    """ε of `aail_bounded` (`policy.regret_bound`): the request's, else the task network's
-    training α (an action keeps the blend's say when the task policy rates it at least 1/e as
-    likely as its best); None for the other methods."""
+    """ε of `aail_bounded` (`policy.regret_bound`): the request's, else
+    `DEFAULT_EPSILON_PER_ALPHA` × the task network's training α; None for the other methods."""
     if request.method != "aail_bounded":
         return None
     if request.regret_bound is not None:
         return float(request.regret_bound)
-    return float(group.nets[0].alpha or DEFAULT_TEMPERATURE)
+    return DEFAULT_EPSILON_PER_ALPHA * float(group.nets[0].alpha or DEFAULT_TEMPERATURE)

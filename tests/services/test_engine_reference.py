@@ -16,6 +16,7 @@ from model_store.sql import SqlModelStore
 from policy.blend import BlendMethod, blend
 from policy.maths import boltzmann
 from policy.qnet import QNetSpec, qnet_from_safetensors
+from policy.regret_bound import DEFAULT_EPSILON_PER_ALPHA
 from services.engine import ActRequest, InferenceEngine, PartnerSpec
 from services.engine.assembly import sample_actions
 
@@ -45,7 +46,7 @@ def reference(
     regret_bound: float | None = None,
 ):
     """(probs, task entropy, task weight, partner weights) of one row, computed naively;
-    aail_bounded's ε defaults to `alpha` (the engine's default is the task model's α)."""
+    aail_bounded's ε defaults to half of `alpha` (the engine's: half the task model's α)."""
     blocks = obs_D.reshape(-1, 4)
     ego, others = blocks[0], list(blocks[1:]) or [PHANTOM]
     if method == "jl":
@@ -67,7 +68,7 @@ def reference(
             )
     q_impact = np.array(q_impacts).reshape(1, len(q_impacts), 5)
     if method == "aail_bounded" and regret_bound is None:
-        regret_bound = alpha
+        regret_bound = DEFAULT_EPSILON_PER_ALPHA * alpha
     out = blend(cast(BlendMethod, method), q_task[None], q_impact, alpha, regret_bound=regret_bound)
     weights = out.partner_weights_BP[0] if method != "sl" else np.zeros(len(partners))
     return out.probs_BA[0], out.task_entropy_B[0], out.task_weight_B[0], weights
@@ -167,7 +168,7 @@ def test_temperature_from_request_lineage_or_default(tiny_zoo) -> None:
     ):
         [result] = engine.act(
             ActRequest("particle", goal, obs, _specs(partners), temperature=temperature)
-        )  # the default method, aail_bounded: ε is the task model's α whatever the temperature
+        )  # the default method, aail_bounded: ε is half the task model's α whatever the temperature
         model_alpha = 0.02 if goal == "b3" else tiny_zoo.alpha
         ref = reference(
             tiny_zoo.store,

@@ -64,7 +64,7 @@ def test_no_impact_network_beside_a_failed_task_network(
 
     # asked explicitly, the old fallback to `latest` still trains it (the particle default)
     loose = run_impacts(store, [GOAL], impact_cfg, seed=0, run=run, production_parents_only=False,
-                        **common)  # fmt: skip
+                        gate_retries=0, **common)  # fmt: skip
     assert store.resolve(f"cooking/impact/{GOAL}@latest").lineage.parents == (
         f"cooking/task/{GOAL}/1",
     )
@@ -73,7 +73,7 @@ def test_no_impact_network_beside_a_failed_task_network(
     # once a task network serves as `production`, the kitchen's zoo trains against it
     store.set_alias(f"cooking/task/{GOAL}", "production", 1)
     fresh = RunState.open(tmp_path / "run2", "fp2", resume=False)
-    [batch] = run_impacts(store, [GOAL], impact_cfg, seed=0, run=fresh, **common)
+    [batch] = run_impacts(store, [GOAL], impact_cfg, seed=0, run=fresh, gate_retries=0, **common)
     assert batch.goals == [(GOAL,)]
     store.close()
 

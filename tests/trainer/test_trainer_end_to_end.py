@@ -39,7 +39,12 @@ def test_short_pipeline_registers_every_network_with_lineage(tmp_path: Path) -> 
     )
     assert [b.goals for b in tasks] == [[("a2",), ("b3",)], [("c",)]]
     impacts = run_impacts(
-        store, ["b3", "c"], replace(ImpactConfig(), **TINY), goals_per_batch=5, **common
+        store,
+        ["b3", "c"],
+        replace(ImpactConfig(), **TINY),
+        goals_per_batch=5,
+        gate_retries=0,
+        **common,
     )
     run_joint(store, [["a2", "b3"]], replace(JointConfig(), **TINY), **common)
 

@@ -14,6 +14,7 @@ through the store as safetensors only).
 | task retry | the goals whose network failed its   | seed + 7919 x attempt      | `task-retry-1`     |
 |            | gate (none left: no job)             |                            |                    |
 | impact     | up to `goals_per_batch` goals        | seed + 1000 + batch index  | `impact:a2,b3`     |
+| impact retry | as the task retry                  | seed + 1000 + 7919 x attempt | `impact-retry-1` |
 | joint      | every combination of one size        | seed + 2000 + size         | `joint:a2+b3;c+c4` |
 
 Stages run in order (tasks and their gate retries, then impacts, then joint): an impact job
@@ -47,7 +48,7 @@ from .once import RegisteredHook, publish_once
 # Seeds of the stages: the same as trainer.zoo's loops.
 IMPACT_SEED_OFFSET = 1000
 JOINT_SEED_OFFSET = 2000
-TASK_RETRY_SEED_STEP = 7919
+RETRY_SEED_STEP = 7919
 
 
 @dataclass(frozen=True)
@@ -63,8 +64,9 @@ class BatchJob:
 
 @dataclass(frozen=True)
 class Stage:
-    """Jobs that may run at the same time, with their shared config. A task stage with
-    `gate_retries` then trains the goals that failed their gate again, one attempt at a time."""
+    """Jobs that may run at the same time, with their shared config. A task or impact stage
+    with `gate_retries` then trains the goals that failed their gate again, one attempt at a
+    time."""
 
     jobs: tuple[BatchJob, ...]
     config: SoftQConfig
@@ -92,21 +94,31 @@ def task_stage(
     return Stage(tuple(jobs), config, gate_retries, tuple(goals), seed)
 
 
-def task_retry_job(stage: Stage, attempt: int, failed: Sequence[str]) -> BatchJob:
-    """Attempt `attempt` (1, 2 ...) at the goals of `stage` whose network failed its gate."""
-    seed = stage.seed + TASK_RETRY_SEED_STEP * attempt  # a fresh seed per attempt
+def retry_job(stage: Stage, attempt: int, failed: Sequence[str]) -> BatchJob:
+    """Attempt `attempt` (1, 2 ...) at the goals of a task or impact `stage` whose network
+    failed its gate (the seed and key of `trainer.zoo.run_tasks` / `run_impacts`)."""
+    kind = stage.jobs[0].kind
+    offset = IMPACT_SEED_OFFSET if kind == "impact" else 0
+    seed = stage.seed + offset + RETRY_SEED_STEP * attempt  # a fresh seed per attempt
     index = len(stage.jobs) + attempt - 1
-    return BatchJob("task", _members(failed), seed, index, f"task-retry-{attempt}")
+    return BatchJob(kind, _members(failed), seed, index, f"{kind}-retry-{attempt}")
 
 
-def impact_stage(goals: Sequence[str], config: ImpactConfig, *, seed: int, per_batch: int) -> Stage:
+def impact_stage(
+    goals: Sequence[str],
+    config: ImpactConfig,
+    *,
+    seed: int,
+    per_batch: int,
+    gate_retries: int = GATE_RETRIES,
+) -> Stage:
     chunks = chunked(goals, per_batch)
     seeds = [seed + IMPACT_SEED_OFFSET + i for i in range(len(chunks))]
     jobs = [
         BatchJob("impact", _members(chunk), seeds[i], i, f"impact:{','.join(chunk)}")
         for i, chunk in enumerate(chunks)
     ]
-    return Stage(tuple(jobs), config)
+    return Stage(tuple(jobs), config, gate_retries, tuple(goals), seed)
 
 
 def impact_jobs_with_parents(

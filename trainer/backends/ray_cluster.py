@@ -9,8 +9,8 @@
 |                    | `auto`: the cluster running on this machine; `ray://head:10001`: Ray   |
 |                    | Client. A Ray session already open in this process is reused.          |
 | resources per task | 1 CPU (`num_cpus=1`): as many tasks at once as the cluster has CPUs    |
-| gate retries       | a task stage then re-trains the goals whose network failed its gate,   |
-|                    | as `trainer.zoo.run_tasks` does (`Stage.gate_retries`, default 3)      |
+| gate retries       | a task or impact stage then re-trains the goals that failed their gate,|
+|                    | as `trainer.zoo`'s loops do (`Stage.gate_retries`, default 3)          |
 | retries            | `max_retries` (default 3) when the worker dies (node lost, OOM kill,   |
 |                    | `os._exit`) and on `StoreUnavailable`; other errors fail the run at    |
 |                    | once and cancel the jobs still running                                 |
@@ -43,7 +43,7 @@ from .jobs import (
     BatchOutcome,
     Stage,
     impact_jobs_with_parents,
-    task_retry_job,
+    retry_job,
     train_batch,
 )
 from .once import RegisteredHook
@@ -139,13 +139,17 @@ def run_on_ray(
             todo = [job for job in jobs if job.key not in run.done]
             if todo:
                 outcomes += run_jobs(todo, stage.config)
-            for attempt in range(1, stage.gate_retries + 1):  # as trainer.zoo.run_tasks
-                if f"task-retry-{attempt}" in run.done:
+            kind = stage.jobs[0].kind if stage.jobs else "task"
+            trained = {m[0] for job in jobs for m in job.members}
+            for attempt in range(1, stage.gate_retries + 1):  # as trainer.zoo's loops
+                if f"{kind}-retry-{attempt}" in run.done:
                     continue
                 with open_store(url) as store:
-                    failed = goals_without(store, env, "task", stage.goals, serve_alias)
+                    goals = [g for g in stage.goals if kind == "task" or g in trained]
+                    alias = serve_alias if kind == "task" else "production"
+                    failed = goals_without(store, env, kind, goals, alias)
                 if failed:
-                    retry = task_retry_job(stage, attempt, failed)
+                    retry = retry_job(stage, attempt, failed)
                     outcomes += run_jobs([retry], stage.config)
     finally:
         if started_here:
