@@ -66,6 +66,12 @@ class Domain(Protocol):
         """(partner, ego) view: the pair as the partner sees it, shape (B, pair_obs_dim)."""
         ...
 
+    def goal_reached(self, obs_BD: np.ndarray, n_agents: int, goal: str) -> np.ndarray | None:
+        """Per row, whether the ego's own `goal` is reached in its observation, (B,) bool; None
+        where observations cannot tell. AAIL-B blends only where it is (`policy.regret_bound`,
+        the progress guard): elsewhere the ego acts with its task policy."""
+        ...
+
     def scene(self, env: Any) -> Scene:
         """What does not move in `env` (an env of this domain, from `envs.registry.make_env`),
         as shapes to draw (`envs.scene`): the web console paints it once per episode."""

@@ -14,6 +14,10 @@ probabilities (common random numbers, see `evaluation.rollout`), so the engine's
 
 `has_models(request)` asks with a one-row request whether every network a request needs exists
 (used to run JL only where a joint network was trained).
+
+A request with more rows than one call may carry (the engine's `max_batch`, a server's
+`COEXIST_MAX_BATCH`) goes in consecutive slices of at most `MAX_ROWS` rows: a large suite's
+partner calls gather thousands of rows.
 """
 
 from __future__ import annotations
@@ -44,18 +48,37 @@ class PolicyBackend(Protocol):
     def has_models(self, request: ActRequest) -> bool: ...
 
 
-def _first_row(request: ActRequest) -> ActRequest:
+MAX_ROWS = 4096  # the engine's and the server's default batch limit
+
+
+def _rows(request: ActRequest, start: int, stop: int) -> ActRequest:
     return ActRequest(
         env=request.env,
         ego_goal=request.ego_goal,
-        observations=np.asarray(request.observations)[:1],
+        observations=np.asarray(request.observations)[start:stop],
         partners=request.partners,
         method=request.method,
         temperature=request.temperature,
         seed=request.seed,
         alias=request.alias,
         versions=request.versions,
+        regret_bound=request.regret_bound,
     )
+
+
+def _first_row(request: ActRequest) -> ActRequest:
+    return _rows(request, 0, 1)
+
+
+def _sliced(probs: Any, request: ActRequest) -> tuple[np.ndarray, set[ModelRecord]]:
+    """`probs(slice)` over consecutive slices of at most `MAX_ROWS` rows, concatenated."""
+    n_rows = len(request.observations)
+    parts, models = [], set()
+    for start in range(0, max(n_rows, 1), MAX_ROWS):
+        part, used = probs(_rows(request, start, start + MAX_ROWS))
+        parts.append(part)
+        models |= used
+    return np.concatenate(parts), models
 
 
 class EngineBackend:
@@ -66,6 +89,8 @@ class EngineBackend:
         self.description = description
 
     def probs(self, request: ActRequest) -> tuple[np.ndarray, set[ModelRecord]]:
+        if len(request.observations) > MAX_ROWS:
+            return _sliced(self.probs, request)
         results = self.engine.act(request)
         probs_BA = np.asarray([r.probs for r in results], dtype=np.float64)
         models = {ModelRecord(m.name, m.version, m.sha256, m.role) for m in results[0].models}
@@ -96,12 +121,15 @@ class ServerBackend:
             partners=list(request.partners),
             method=request.method,
             temperature=request.temperature,
+            regret_bound=request.regret_bound,
             seed=request.seed,
             alias=request.alias,
             versions=dict(request.versions) or None,
         )
 
     def probs(self, request: ActRequest) -> tuple[np.ndarray, set[ModelRecord]]:
+        if len(request.observations) > MAX_ROWS:
+            return _sliced(self.probs, request)
         columns = self._call(request)
         probs_BA = np.asarray(columns.probs, dtype=np.float64)
         models = {ModelRecord(m.name, m.version, m.sha256, m.role) for m in columns.models}

@@ -52,6 +52,7 @@ from envs.cooking import (
     scripted_actions,
 )
 from evaluation.backend import EngineBackend, ModelRecord, PolicyBackend
+from evaluation.config import METHOD_LABELS
 from evaluation.stats import MeanSE, mcnemar_p, mean_se
 from model_store.store import ModelStore
 from services.engine import ActRequest, InferenceEngine, PartnerSpec
@@ -124,16 +125,22 @@ class CookingResults:
                     f"{r.mean:.2f} ± {r.se:.2f}",
                     "-" if np.isnan(steps) else f"{steps:.1f}",
                 ]
-            lines.append(f"| {method.upper()} | " + " | ".join(cells) + " |")
-        if {"aail", "sl"} <= set(self.methods):
-            left = self.completion("aail", 0).mean - self.completion("sl", 0).mean
-            right = self.completion("aail", 1).mean - self.completion("sl", 1).mean
-            lines += [
-                "",
-                f"AAIL - SL: left cook {left:+.2f} (McNemar p = {self.mcnemar(0):.3g}), "
-                f"right cook {right:+.2f} (McNemar p = {self.mcnemar(1):.3g}). "
-                f"Paper: {PAPER_FIG9}.",
-            ]
+            lines.append(f"| {METHOD_LABELS.get(method, method)} | " + " | ".join(cells) + " |")
+        compared = [
+            m for m in ("aail_bounded", "aail") if m in self.methods and "sl" in self.methods
+        ]
+        if compared:
+            lines.append("")
+        for m in compared:
+            left = self.completion(m, 0).mean - self.completion("sl", 0).mean
+            right = self.completion(m, 1).mean - self.completion("sl", 1).mean
+            lines.append(
+                f"{METHOD_LABELS[m]} - SL: left cook {left:+.2f} (McNemar p = "
+                f"{self.mcnemar(0, m):.3g}), right cook {right:+.2f} (McNemar p = "
+                f"{self.mcnemar(1, m):.3g})."
+            )
+        if compared:
+            lines.append(f"Paper (AAIL - SL): {PAPER_FIG9}.")
         if self.models:
             used = "; ".join(f"{m}: {', '.join(v)}" for m, v in self.models.items())
             lines += ["", f"Networks: {used}."]
@@ -171,11 +178,11 @@ def evaluate_cooking(
     *,
     episodes: int = 100,
     seed: int = 0,
-    methods: Sequence[str] = ("aail", "sl"),
+    methods: Sequence[str] = ("aail_bounded", "aail", "sl"),
     max_steps: int = 400,
     alias: str = "production",
     partner_alias: str = "partners",
-    record: str | None = "aail",
+    record: str | None = "aail_bounded",
     temperature: float | None = None,
     progress: Callable[[int, int], None] | None = None,
 ) -> CookingResults:

@@ -9,7 +9,7 @@
 | `results.md`       | the results table, the paired tests, the networks, the command     |
 | `results.json`     | settings, summary per method and cook, and every episode's numbers |
 | `fig9_cooking.png` | dish completion ratios ± standard error (paper Fig. 9)             |
-| `aail_episode.gif` | the first AAIL episode                                             |
+| `aail_episode.gif` | the first AAIL-B episode (the default blend)                       |
 
 The paper report (`reports/paper/REPORT.md`) carries the result as its section
 `COOKING_HEADING`, rendered from `results.json` by `cooking_section`: `evaluation.report`
@@ -121,7 +121,7 @@ def cooking_section(cooking_dir: Path, report_dir: Path) -> str:
     lines = [
         title,
         "",
-        f"The left cook ({RECIPES[0]}) is controlled by AAIL or SL; the right cook "
+        f"The left cook ({RECIPES[0]}) is controlled by AAIL-B, AAIL or SL; the right cook "
         f"({RECIPES[1]}) needs the carrot only the left cook can reach. Generated from "
         f"[`{rel}/{RESULTS_JSON}`]({rel}/{RESULTS_JSON}) (command: `{data.get('command', '?')}`); "
         f"training, gates and discussion in [`{rel}/README.md`]({rel}/README.md).",

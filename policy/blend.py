@@ -186,15 +186,15 @@ def blend(
     partner_mask_BP: ArrayLike | None = None,
     *,
     normalise: bool = True,
-    regret_bound: float | None = None,
+    regret_bound: float | ArrayLike | None = None,
 ) -> BlendResult:
     """Blend the task and impact Q-vectors of each row with `method` ("sl", "nail", "aail",
-    "aail_bounded", which needs `regret_bound` ε); `normalise=False`: AAIL's eq. 8 on the raw
-    Q-vectors (module docstring)."""
+    "aail_bounded", which needs `regret_bound`: one ε, or one per row, `policy.regret_bound`);
+    `normalise=False`: AAIL's eq. 8 on the raw Q-vectors (module docstring)."""
     q_task, q_impact, mask, alpha_B1 = _checked(
         method, q_task_BA, q_impact_BPA, alpha, partner_mask_BP
     )
-    epsilon = _epsilon(method, regret_bound)
+    epsilon = _epsilon(method, regret_bound, q_task.shape[0])
     base: BlendMethod = "aail" if method == "aail_bounded" else method
     if blend_fast.COMPILED:
         arrays = blend_fast.compiled_rows(
@@ -212,19 +212,29 @@ def blend(
     return result if epsilon is None else _bounded(result, q_task, alpha_B1, epsilon)
 
 
-def _epsilon(method: BlendMethod, regret_bound: float | None) -> float | None:
-    """ε for `aail_bounded` (required there), None for the other methods (refused there)."""
+def _epsilon(
+    method: BlendMethod, regret_bound: float | ArrayLike | None, n_rows: int
+) -> np.ndarray | None:
+    """ε per row, (B,), for `aail_bounded` (required there), None for the other methods
+    (refused there)."""
     if method != "aail_bounded":
         if regret_bound is not None:
             raise ValueError(f"regret_bound: applies to method aail_bounded only, not {method!r}")
         return None
     if regret_bound is None:
         raise ValueError("regret_bound: required for method aail_bounded")
-    return check_regret_bound(regret_bound)
+    if np.ndim(regret_bound) == 0:
+        return np.full(n_rows, check_regret_bound(regret_bound))  # type: ignore[arg-type]
+    values = np.asarray(regret_bound)
+    if values.shape != (n_rows,):
+        raise ValueError(
+            f"regret_bound: expected one number or {n_rows} (one per row), got shape {values.shape}"
+        )
+    return np.array([check_regret_bound(v) for v in values.tolist()])
 
 
 def _bounded(
-    result: BlendResult, q_task: np.ndarray, alpha_B1: np.ndarray, epsilon: float
+    result: BlendResult, q_task: np.ndarray, alpha_B1: np.ndarray, epsilon: np.ndarray
 ) -> BlendResult:
     """AAIL's result with its policy bounded (eq. R1, `policy.regret_bound`)."""
     probs_task = boltzmann(q_task, alpha_B1[:, 0])
@@ -249,13 +259,13 @@ def blend_vectorised(
     partner_mask_BP: ArrayLike | None = None,
     *,
     normalise: bool = True,
-    regret_bound: float | None = None,
+    regret_bound: float | ArrayLike | None = None,
 ) -> BlendResult:
     """`blend` on the vectorised numpy path whatever the size (the reference for the fast path)."""
     q_task, q_impact, mask, alpha_B1 = _checked(
         method, q_task_BA, q_impact_BPA, alpha, partner_mask_BP
     )
-    epsilon = _epsilon(method, regret_bound)
+    epsilon = _epsilon(method, regret_bound, q_task.shape[0])
     base: BlendMethod = "aail" if method == "aail_bounded" else method
     result = _vectorised(base, q_task, q_impact, mask, alpha_B1, normalise)
     return result if epsilon is None else _bounded(result, q_task, alpha_B1, epsilon)

@@ -31,6 +31,16 @@ better (on its way to the target) π_B is the task policy, sampling noise includ
 moves and explores exactly as SL does. With ε = 0 (and no ties) π_B = π_t; as ε grows π_B
 tends to π_C. When π_C puts no probability on S_ε at all (underflow), π_B = π_t.
 
+The progress guard (R2). ε is not a constant: where the environment can tell from the
+observation that the ego's own goal is not reached yet (`envs.base.Domain.goal_reached`; the
+particle world: the ego is outside its target area), ε = 0 and π_B is the task policy itself.
+Why: a per-step bound does not stop the ego from drifting to where the task network's own
+preferences differ by less than ε and parking there, just outside its target, for the rest of
+the episode; measured, such task networks exist (`reports/paper/blend_choice.md`). With the
+guard, helping never delays the ego's own task: it blends only once its task is done, as the
+paper's kitchen cook hands the carrot over after cooking its own dish. Where observations cannot
+tell (the kitchen), ε applies everywhere.
+
 The engine's default ε is `DEFAULT_EPSILON_PER_ALPHA` × the task network's temperature α: an
 action keeps the blend's say when the task policy rates it at least e^-1/2 ≈ 0.61 as likely as
 its best. Chosen by measurement (`reports/paper/blend_choice.md`): ε = α already lets the ego
@@ -63,10 +73,15 @@ def check_regret_bound(value: float) -> float:
 
 
 def bound_rows(
-    probs_blend_BA: np.ndarray, q_task_BA: np.ndarray, probs_task_BA: np.ndarray, epsilon: float
+    probs_blend_BA: np.ndarray,
+    q_task_BA: np.ndarray,
+    probs_task_BA: np.ndarray,
+    epsilon: float | np.ndarray,
 ) -> np.ndarray:
-    """π_B of eq. R1 for each row, (B, A): `probs_blend_BA` is π_C, `probs_task_BA` π_t."""
-    inside_BA = q_task_BA >= q_task_BA.max(axis=1, keepdims=True) - epsilon
+    """π_B of eq. R1 for each row, (B, A): `probs_blend_BA` is π_C, `probs_task_BA` π_t;
+    `epsilon` one ε, or one per row (B,) (the progress guard R2 sets it to 0 per row)."""
+    epsilon_B1 = np.reshape(np.asarray(epsilon, dtype=np.float64), (-1, 1))
+    inside_BA = q_task_BA >= q_task_BA.max(axis=1, keepdims=True) - epsilon_B1
     task_mass_B1 = np.where(inside_BA, probs_task_BA, 0.0).sum(axis=1, keepdims=True)
     blend_inside_BA = np.where(inside_BA, probs_blend_BA, 0.0)
     blend_mass_B1 = blend_inside_BA.sum(axis=1, keepdims=True)

@@ -182,11 +182,21 @@ def sample_actions(probs_BA: np.ndarray, rng: np.random.Generator) -> np.ndarray
     return np.minimum((cdf_BA <= u_B1).sum(axis=1), probs_BA.shape[1] - 1)
 
 
-def regret_bound_of(request: ActRequest, group: StackedGroup) -> float | None:
-    """ε of `aail_bounded` (`policy.regret_bound`): the request's, else
-    `DEFAULT_EPSILON_PER_ALPHA` × the task network's training α; None for the other methods."""
+def regret_bound_of(
+    request: ActRequest, group: StackedGroup, checked: CheckedRequest
+) -> np.ndarray | None:
+    """ε of `aail_bounded` per row, (B,) (`policy.regret_bound`): the request's, else
+    `DEFAULT_EPSILON_PER_ALPHA` × the task network's training α; 0 on the rows where the
+    environment tells that the ego's own goal is not reached yet (the progress guard, R2).
+    None for the other methods."""
     if request.method != "aail_bounded":
         return None
     if request.regret_bound is not None:
-        return float(request.regret_bound)
-    return DEFAULT_EPSILON_PER_ALPHA * float(group.nets[0].alpha or DEFAULT_TEMPERATURE)
+        epsilon = float(request.regret_bound)
+    else:
+        epsilon = DEFAULT_EPSILON_PER_ALPHA * float(group.nets[0].alpha or DEFAULT_TEMPERATURE)
+    runtime = checked.runtime
+    reached = runtime.domain.goal_reached(checked.obs_BD, checked.n_agents, request.ego_goal)
+    if reached is None:
+        return np.full(checked.obs_BD.shape[0], epsilon)
+    return np.where(reached, epsilon, 0.0)

@@ -179,7 +179,7 @@ class InferenceEngine:
             q_impact_BPA,
             temperature,
             normalise=normalise,
-            regret_bound=regret_bound_of(request, group),
+            regret_bound=regret_bound_of(request, group, checked),
         )
         partner_weights_BP = blended.partner_weights_BP
         if blend_method == "sl":  # no impact network was evaluated: every partner weighs 0

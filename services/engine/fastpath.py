@@ -220,13 +220,14 @@ def act_row(
     method: BlendMethod = request.method  # type: ignore[assignment]  # not jl here
     temperature = request.temperature or group.nets[0].alpha or DEFAULT_TEMPERATURE
     normalise = checked.runtime.domain.blend_normalisation == "standardise"
+    epsilon = regret_bound_of(request, group, checked)
     blended = blend_row(
         method,
         q_task,
         q_impact,
         temperature,
         normalise=normalise,
-        regret_bound=regret_bound_of(request, group),
+        regret_bound=None if epsilon is None else float(epsilon[0]),
     )
     weights = blended.partner_weights_P if method != "sl" else [0.0] * len(checked.partners)
     rng = default_rng if request.seed is None else np.random.default_rng(request.seed)

@@ -91,14 +91,16 @@ def live_http(engine: InferenceEngine) -> Iterator[str]:
 
 
 @pytest.mark.slow
-def test_server_backend_gives_the_engine_episodes(tmp_path: Path) -> None:
+def test_server_backend_gives_the_engine_episodes(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """Through a real HTTP server the same episodes come out as in-process (common random
     numbers make the sampled actions a function of the probabilities alone)."""
     scenario = Scenario("non_aligned", "a2", ("b3",), 4, 2)
     with SqlModelStore(f"sqlite:///{tmp_path}/models.db") as store:
         train_tiny_zoo(store, ["a2"], ["b3"], [scenario.goals])
         engine = InferenceEngine(store)
-        cells = [Cell(scenario, m) for m in ("sl", "nail", "aail", "jl")]
+        cells = [Cell(scenario, m) for m in ("sl", "nail", "aail", "aail_bounded", "jl")]
         local = run_cells(EngineBackend(engine), cells, max_steps=25, seed=1)
         with live_http(engine) as url:
             backend = server_backend(url)
@@ -114,6 +116,14 @@ def test_server_backend_gives_the_engine_episodes(tmp_path: Path) -> None:
                 want, _ = EngineBackend(engine).probs(request)
                 np.testing.assert_allclose(got, want, rtol=1e-12)
             assert not np.allclose(got, backend.probs(replace(request, temperature=None))[0])
+            bounded = replace(request, method="aail_bounded", regret_bound=0.0)
+            np.testing.assert_allclose(
+                backend.probs(bounded)[0], EngineBackend(engine).probs(bounded)[0], rtol=1e-12
+            )
+            # a request larger than one call may carry goes in slices, with the same answer
+            monkeypatch.setattr("evaluation.backend.MAX_ROWS", 2)
+            for sliced in (backend, EngineBackend(engine)):
+                np.testing.assert_allclose(sliced.probs(request)[0], want, rtol=1e-12)
     for a, b in zip(local.results, remote.results, strict=True):
         np.testing.assert_allclose(a.returns_EN, b.returns_EN, rtol=1e-9)
         np.testing.assert_array_equal(a.length_E, b.length_E)

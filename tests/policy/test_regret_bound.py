@@ -108,3 +108,17 @@ def test_regret_bound_belongs_to_aail_bounded_only() -> None:
         blend("aail_bounded", np.zeros((1, 3)), np.zeros((1, 1, 3)), ALPHA)
     with pytest.raises(ValueError, match="regret_bound: applies to method aail_bounded only"):
         blend("aail", np.zeros((1, 3)), np.zeros((1, 1, 3)), ALPHA, regret_bound=0.1)
+
+
+def test_one_bound_per_row() -> None:
+    """The progress guard passes ε per row (0 where the ego's own goal is not reached)."""
+    q_task, q_impact = _rows(4, 6)
+    eps_B = np.array([0.0, 0.02, 0.0, 0.05, 1.0, 0.01])
+    rows = blend("aail_bounded", q_task, q_impact, ALPHA, regret_bound=eps_B).probs_BA
+    for b, eps in enumerate(eps_B):
+        one = blend("aail_bounded", q_task[b : b + 1], q_impact[b : b + 1], ALPHA, regret_bound=eps)
+        np.testing.assert_allclose(rows[b], one.probs_BA[0], atol=1e-15)
+    with pytest.raises(ValueError, match="regret_bound: expected one number or 6"):
+        blend("aail_bounded", q_task, q_impact, ALPHA, regret_bound=eps_B[:3])
+    with pytest.raises(ValueError, match="regret_bound"):
+        blend("aail_bounded", q_task, q_impact, ALPHA, regret_bound=-eps_B)

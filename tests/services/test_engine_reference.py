@@ -13,6 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from model_store.sql import SqlModelStore
+from envs.particle.goals import TARGET_BOXES_G4, goal_index
 from policy.blend import BlendMethod, blend
 from policy.maths import boltzmann
 from policy.qnet import QNetSpec, qnet_from_safetensors
@@ -67,8 +68,14 @@ def reference(
                 sum(p * _q(store, names[g], pinned.get(names[g]), pair) for g, p in goals.items())
             )
     q_impact = np.array(q_impacts).reshape(1, len(q_impacts), 5)
-    if method == "aail_bounded" and regret_bound is None:
-        regret_bound = DEFAULT_EPSILON_PER_ALPHA * alpha
+    if method == "aail_bounded":
+        if regret_bound is None:
+            regret_bound = DEFAULT_EPSILON_PER_ALPHA * alpha
+        # the progress guard: no blending before the ego is inside its target area
+        x, y = obs_D[0], obs_D[1]
+        x0, x1, y0, y1 = TARGET_BOXES_G4[goal_index(ego_goal)]
+        if not (x0 <= x <= x1 and y0 <= y <= y1):
+            regret_bound = 0.0
     out = blend(cast(BlendMethod, method), q_task[None], q_impact, alpha, regret_bound=regret_bound)
     weights = out.partner_weights_BP[0] if method != "sl" else np.zeros(len(partners))
     return out.probs_BA[0], out.task_entropy_B[0], out.task_weight_B[0], weights
@@ -100,6 +107,7 @@ def test_engine_matches_naive_reference(tiny_zoo, method: str, n_partners: int) 
     # the partners alone (with 0 partners: one bystander), and a 5-agent world with bystanders
     for n_agents in sorted({max(2, 1 + n_partners), 5}):
         obs_BD = rng.random((3, 4 * n_agents))
+        obs_BD[0, :2] = (0.1, 0.5)  # the ego inside its target area a2 (the guard lets it blend)
         indices = rng.permutation(np.arange(1, n_agents))[:n_partners]
         partners = [(int(i), {g: 1.0}) for i, g in zip(indices, PARTNER_GOALS, strict=False)]
         results = engine.act(
@@ -109,6 +117,26 @@ def test_engine_matches_naive_reference(tiny_zoo, method: str, n_partners: int) 
         for row, result in zip(obs_BD, results, strict=True):
             _check_row(result, reference(store, row, "a2", partners, method, tiny_zoo.alpha))
             assert result.method == method
+
+
+def test_the_progress_guard_blends_only_inside_the_target(tiny_zoo) -> None:
+    """aail_bounded with a bound too loose to matter: AAIL where the ego is inside its target
+    area, SL's policy where it is not (R2, `policy.regret_bound`)."""
+    engine = InferenceEngine(tiny_zoo.store)
+    obs_BD = np.array([[0.1, 0.5, 0, 0, 0.7, 0.6, 0, 0], [0.6, 0.5, 0, 0, 0.7, 0.6, 0, 0]])
+    partners = (PartnerSpec(1, goal="b3"),)
+
+    def probs(method: str, **kw: float) -> np.ndarray:
+        rows = engine.act(ActRequest("particle", "a2", obs_BD, partners, method=method, **kw))  # type: ignore[arg-type]
+        return np.array([r.probs for r in rows])
+
+    bounded = probs("aail_bounded", regret_bound=1e6)
+    np.testing.assert_allclose(bounded[0], probs("aail")[0], atol=1e-12)
+    np.testing.assert_allclose(bounded[1], probs("sl")[1], atol=1e-12)
+    assert not np.allclose(probs("aail")[1], probs("sl")[1])  # the guard made a difference
+    [single] = engine.act(ActRequest("particle", "a2", obs_BD[1:], partners,
+                                     method="aail_bounded", regret_bound=1e6))  # fmt: skip
+    np.testing.assert_allclose(single.probs, bounded[1], atol=1e-12)  # the single-row path too
 
 
 def test_engine_single_agent_uses_the_phantom(tiny_zoo) -> None:
