@@ -12,8 +12,8 @@ import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from model_store.sql import SqlModelStore
 from envs.particle.goals import TARGET_BOXES_G4, goal_index
+from model_store.sql import SqlModelStore
 from policy.blend import BlendMethod, blend
 from policy.maths import boltzmann
 from policy.qnet import QNetSpec, qnet_from_safetensors
