@@ -41,7 +41,7 @@ from envs.particle.batched import MAX_AGENTS
 from envs.particle.env import ParticleCoexistenceEnv
 from envs.particle.goals import GOAL_IDS, TARGET_BOXES_G4
 from envs.particle.scene import particle_frame, particle_scene
-from envs.particle.world import ACTION_MEANINGS, N_ACTIONS, STATE_DIM, box_distance, step_state
+from envs.particle.world import ACTION_MEANINGS, N_ACTIONS, STATE_DIM, step_state
 from envs.scene import Scene, SceneFrame
 
 ALL_ACTIONS_A1 = np.arange(N_ACTIONS)[:, None]
@@ -117,9 +117,9 @@ class ParticleDomain:
 
     def goal_reached(self, obs_BD: np.ndarray, n_agents: int, goal: str) -> np.ndarray:
         """Whether the ego is inside (or on the border of) its target area, (B,) bool."""
-        ego_B4 = self._blocks(obs_BD, n_agents)[:, 0]
-        box = TARGET_BOXES_G4[check_goal(self, goal)]
-        return box_distance(ego_B4[:, :2].astype(np.float64), box) <= 0.0
+        x_lo, x_hi, y_lo, y_hi = TARGET_BOXES_G4[check_goal(self, goal)]
+        x, y = self._blocks(obs_BD, n_agents)[:, 0, :2].T
+        return (x >= x_lo) & (x <= x_hi) & (y >= y_lo) & (y <= y_hi)
 
     def recover_action(
         self, prev_obs_D: np.ndarray, obs_D: np.ndarray, n_agents: int, partner: int
