@@ -150,7 +150,11 @@ def test_domain_views_when_no_gather(tiny_zoo, monkeypatch) -> None:
     monkeypatch.setattr(fastpath, "find_gather", lambda build, obs_dim: None)
     monkeypatch.setattr(fastpath, "_GATHERS", {})  # no gather proved by an earlier test
     request = ActRequest(
-        "particle", "c1", np.random.default_rng(2).random((1, 12)), (PartnerSpec(2, goal="e0"),)
+        "particle",
+        "c1",
+        np.random.default_rng(2).random((1, 12)),
+        (PartnerSpec(2, goal="e0"),),
+        seed=2,  # both engines draw the same action
     )
     [fast], [general] = _both(tiny_zoo, request)
     _assert_close(fast, general)
@@ -280,7 +284,11 @@ def test_a_gather_is_proved_once_per_layout_shape(tiny_zoo, monkeypatch) -> None
     obs = np.random.default_rng(4).random((1, 8))
     for goals in (("b3", "c1"), ("d4", "e0"), ("c", "b3")):  # three groups, one shape
         request = ActRequest(
-            "particle", "a2", obs, (PartnerSpec(1, goal_probs={goals[0]: 0.25, goals[1]: 0.75}),)
+            "particle",
+            "a2",
+            obs,
+            (PartnerSpec(1, goal_probs={goals[0]: 0.25, goals[1]: 0.75}),),
+            seed=3,  # unseeded, the two engines would sample their actions independently
         )
         [fast], [general] = _both(tiny_zoo, request)
         _assert_close(fast, general)
