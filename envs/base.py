@@ -42,6 +42,10 @@ class Domain(Protocol):
     # how AAIL's eq. 8 treats the Q-vectors it blends (`policy.blend`): "standardise" each over
     # the actions first, or "none" (raw Q, for rewards on one scale)
     blend_normalisation: BlendNormalisation
+    # whether a reached goal stays reached whatever the ego does next (a served dish), so that its
+    # task Q is flat from there on (AAIL-B then blends with a flat task Q: `policy.regret_bound`,
+    # R3), or the ego must keep it (a target area it could leave)
+    goal_is_final: bool
 
     @property
     def n_actions(self) -> int: ...

@@ -38,8 +38,18 @@ Why: a per-step bound does not stop the ego from drifting to where the task netw
 preferences differ by less than ε and parking there, just outside its target, for the rest of
 the episode; measured, such task networks exist (`reports/paper/blend_choice.md`). With the
 guard, helping never delays the ego's own task: it blends only once its task is done, as the
-paper's kitchen cook hands the carrot over after cooking its own dish. Where observations cannot
-tell (the kitchen), ε applies everywhere.
+paper's kitchen cook hands the carrot over after cooking its own dish (the kitchen tells it by
+the cook's `served` feature). Where an environment's observations cannot tell, ε applies
+everywhere.
+
+A finished task (R3). Where the ego's goal is reached for good (`Domain.goal_is_final`: a served
+dish stays served, and no later step costs the cook anything), no action changes the ego's own
+return, so its exact task Q is the same for every action. A trained network is only close to
+that: in the kitchen its residual preferences after the dish (a few α) are approximation error,
+yet eq. 9 reads them as confidence and keeps the impact network out. There the engine blends
+with the row's task Q replaced by its mean over the actions (`services.engine.assembly.
+finished_rows`): π_t is uniform, w_t = 0 (eq. 9), every action lies in S_ε, and π_B is the
+impact networks' blend. The ego's regret is exactly 0 there, so the bound still holds.
 
 The engine's default ε is `DEFAULT_EPSILON_PER_ALPHA` × the task network's temperature α: an
 action keeps the blend's say when the task policy rates it at least e^-1/2 ≈ 0.61 as likely as

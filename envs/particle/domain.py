@@ -60,6 +60,7 @@ class ParticleDomain:
     pair_obs_dim = 2 * STATE_DIM
     # AAIL standardises each Q-vector before eq. 8 (policy.blend): the paper's evaluation here
     blend_normalisation: BlendNormalisation = "standardise"
+    goal_is_final: bool = False  # the ego pays its distance to its target on every step
 
     @property
     def n_actions(self) -> int:

@@ -200,3 +200,16 @@ def regret_bound_of(
     if reached is None:
         return np.full(checked.obs_BD.shape[0], epsilon)
     return np.where(reached, epsilon, 0.0)
+
+
+def finished_rows(request: ActRequest, checked: CheckedRequest) -> np.ndarray | None:
+    """Rows, (B,) bool, where `aail_bounded` blends with a flat task Q (R3 of
+    `policy.regret_bound`): the environment tells that the ego's goal is reached for good
+    (`Domain.goal_is_final`: a served dish). None where no row is (and for the other methods)."""
+    domain = checked.runtime.domain
+    if request.method != "aail_bounded" or not domain.goal_is_final:
+        return None
+    reached = domain.goal_reached(checked.obs_BD, checked.n_agents, request.ego_goal)
+    if reached is None or not reached.any():
+        return None
+    return np.asarray(reached, dtype=bool)

@@ -51,6 +51,7 @@ from model_store.naming import joint_model_name
 from model_store.store import ModelStore
 from policy.blend import BlendMethod, blend
 from services.engine.assembly import (
+    finished_rows,
     impact_q,
     member_inputs,
     models_used,
@@ -164,6 +165,10 @@ class InferenceEngine:
             q_task_BA = q_members[0]
         else:  # the task Q averaged over the K task views (one per other agent)
             q_task_BA = q_members[0].reshape(batch, -1, n_actions).mean(axis=1)
+        finished_B = finished_rows(request, checked)
+        if finished_B is not None:  # R3: nothing left to earn, the exact task Q is flat
+            flat_BA = np.broadcast_to(q_task_BA.mean(axis=1, keepdims=True), q_task_BA.shape)
+            q_task_BA = np.where(finished_B[:, None], flat_BA, q_task_BA)
         blend_method: BlendMethod = "sl"
         q_impact_BPA = np.zeros((batch, 0, n_actions))  # sl, jl: the task/joint network alone
         if method in ("nail", "aail", "aail_bounded"):

@@ -42,7 +42,7 @@ from policy.belief_compiled import compiled_mix
 from policy.blend import BlendMethod
 from policy.blend_fast import blend_row
 from policy.row_forward import all_finite
-from services.engine.assembly import models_used, regret_bound_of
+from services.engine.assembly import finished_rows, models_used, regret_bound_of
 from services.engine.errors import InvalidRequest
 from services.engine.gathers import Builder, Gather, find_gather
 from services.engine.messages import DEFAULT_TEMPERATURE, ActRequest, ActResult, Member, ModelUsed
@@ -199,6 +199,8 @@ def act_row(
     q_rows: list[list[float]] = (q_RA if layout.list_rows else q_RA[:n_views]).tolist()
     # the task Q averaged over the K views (one per other agent), in float64
     q_task = [sum(column) / n_views for column in zip(*q_rows[:n_views], strict=True)]
+    if finished_rows(request, checked) is not None:  # R3: the exact task Q is flat
+        q_task = [sum(q_task) / len(q_task)] * len(q_task)
     q_impact = []
     for partner, rows, index in zip(
         partners, layout.partner_rows, layout.partner_rows_index, strict=True
