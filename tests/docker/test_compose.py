@@ -37,6 +37,8 @@ from docker_files import (
 )
 
 sys.path.insert(0, str(REPO / "tests" / "services"))  # the serve-process helpers
+from coexist_client import GrpcCoexistClient
+from coexist_client.sessions import AFFINITY_HEADER
 from replica_cluster import (
     ADMIN_TOKEN,
     OBS,
@@ -47,9 +49,6 @@ from replica_cluster import (
     server_env,
     start_server,
 )
-
-from services.sdk import GrpcCoexistClient
-from services.sdk.http_sessions import AFFINITY_HEADER
 
 COMPOSE = yaml.safe_load((DOCKER / "compose.yaml").read_text())
 SERVICES: dict[str, Any] = COMPOSE["services"]

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from services.sdk.errors import InvalidArgument
+from coexist_client.errors import InvalidArgument
 
 # The values are `str | Mapping[str, float]`; typed `Any` so mixed dict literals type-check.
 Partners = Mapping[int, Any] | Sequence[Any] | None
