@@ -1,11 +1,9 @@
-from collections.abc import Iterable as _Iterable
-from collections.abc import Mapping as _Mapping
-from typing import ClassVar as _ClassVar
-
-from google.protobuf import descriptor as _descriptor
-from google.protobuf import message as _message
 from google.protobuf.internal import containers as _containers
 from google.protobuf.internal import enum_type_wrapper as _enum_type_wrapper
+from google.protobuf import descriptor as _descriptor
+from google.protobuf import message as _message
+from collections.abc import Iterable as _Iterable, Mapping as _Mapping
+from typing import ClassVar as _ClassVar, Optional as _Optional, Union as _Union
 
 DESCRIPTOR: _descriptor.FileDescriptor
 
@@ -13,7 +11,6 @@ class BatchFormat(int, metaclass=_enum_type_wrapper.EnumTypeWrapper):
     __slots__ = ()
     BATCH_FORMAT_ROWS: _ClassVar[BatchFormat]
     BATCH_FORMAT_COLUMNS: _ClassVar[BatchFormat]
-
 BATCH_FORMAT_ROWS: BatchFormat
 BATCH_FORMAT_COLUMNS: BatchFormat
 
@@ -21,24 +18,23 @@ class Vector(_message.Message):
     __slots__ = ("values",)
     VALUES_FIELD_NUMBER: _ClassVar[int]
     values: _containers.RepeatedScalarFieldContainer[float]
-    def __init__(self, values: _Iterable[float] | None = ...) -> None: ...
+    def __init__(self, values: _Optional[_Iterable[float]] = ...) -> None: ...
 
 class State(_message.Message):
     __slots__ = ("agents",)
     AGENTS_FIELD_NUMBER: _ClassVar[int]
     agents: _containers.RepeatedCompositeFieldContainer[Vector]
-    def __init__(self, agents: _Iterable[Vector | _Mapping] | None = ...) -> None: ...
+    def __init__(self, agents: _Optional[_Iterable[_Union[Vector, _Mapping]]] = ...) -> None: ...
 
 class PartnerSpec(_message.Message):
-    __slots__ = ("goal", "goal_probs", "index", "infer")
+    __slots__ = ("index", "goal", "goal_probs", "infer")
     class GoalProbsEntry(_message.Message):
         __slots__ = ("key", "value")
         KEY_FIELD_NUMBER: _ClassVar[int]
         VALUE_FIELD_NUMBER: _ClassVar[int]
         key: str
         value: float
-        def __init__(self, key: str | None = ..., value: float | None = ...) -> None: ...
-
+        def __init__(self, key: _Optional[str] = ..., value: _Optional[float] = ...) -> None: ...
     INDEX_FIELD_NUMBER: _ClassVar[int]
     GOAL_FIELD_NUMBER: _ClassVar[int]
     GOAL_PROBS_FIELD_NUMBER: _ClassVar[int]
@@ -47,16 +43,10 @@ class PartnerSpec(_message.Message):
     goal: str
     goal_probs: _containers.ScalarMap[str, float]
     infer: bool
-    def __init__(
-        self,
-        index: int | None = ...,
-        goal: str | None = ...,
-        goal_probs: _Mapping[str, float] | None = ...,
-        infer: bool | None = ...,
-    ) -> None: ...
+    def __init__(self, index: _Optional[int] = ..., goal: _Optional[str] = ..., goal_probs: _Optional[_Mapping[str, float]] = ..., infer: _Optional[bool] = ...) -> None: ...
 
 class BeliefSettings(_message.Message):
-    __slots__ = ("blend_mass", "blend_max_goals", "floor", "forgetting", "temperature")
+    __slots__ = ("forgetting", "floor", "temperature", "blend_mass", "blend_max_goals")
     FORGETTING_FIELD_NUMBER: _ClassVar[int]
     FLOOR_FIELD_NUMBER: _ClassVar[int]
     TEMPERATURE_FIELD_NUMBER: _ClassVar[int]
@@ -67,38 +57,17 @@ class BeliefSettings(_message.Message):
     temperature: float
     blend_mass: float
     blend_max_goals: int
-    def __init__(
-        self,
-        forgetting: float | None = ...,
-        floor: float | None = ...,
-        temperature: float | None = ...,
-        blend_mass: float | None = ...,
-        blend_max_goals: int | None = ...,
-    ) -> None: ...
+    def __init__(self, forgetting: _Optional[float] = ..., floor: _Optional[float] = ..., temperature: _Optional[float] = ..., blend_mass: _Optional[float] = ..., blend_max_goals: _Optional[int] = ...) -> None: ...
 
 class ActRequest(_message.Message):
-    __slots__ = (
-        "alias",
-        "ego_goal",
-        "ego_index",
-        "env",
-        "method",
-        "observation",
-        "partners",
-        "regret_bound",
-        "seed",
-        "state",
-        "temperature",
-        "versions",
-    )
+    __slots__ = ("env", "ego_goal", "observation", "state", "ego_index", "partners", "method", "temperature", "seed", "alias", "versions", "regret_bound")
     class VersionsEntry(_message.Message):
         __slots__ = ("key", "value")
         KEY_FIELD_NUMBER: _ClassVar[int]
         VALUE_FIELD_NUMBER: _ClassVar[int]
         key: str
         value: int
-        def __init__(self, key: str | None = ..., value: int | None = ...) -> None: ...
-
+        def __init__(self, key: _Optional[str] = ..., value: _Optional[int] = ...) -> None: ...
     ENV_FIELD_NUMBER: _ClassVar[int]
     EGO_GOAL_FIELD_NUMBER: _ClassVar[int]
     OBSERVATION_FIELD_NUMBER: _ClassVar[int]
@@ -123,59 +92,27 @@ class ActRequest(_message.Message):
     alias: str
     versions: _containers.ScalarMap[str, int]
     regret_bound: float
-    def __init__(
-        self,
-        env: str | None = ...,
-        ego_goal: str | None = ...,
-        observation: _Iterable[float] | None = ...,
-        state: State | _Mapping | None = ...,
-        ego_index: int | None = ...,
-        partners: _Iterable[PartnerSpec | _Mapping] | None = ...,
-        method: str | None = ...,
-        temperature: float | None = ...,
-        seed: int | None = ...,
-        alias: str | None = ...,
-        versions: _Mapping[str, int] | None = ...,
-        regret_bound: float | None = ...,
-    ) -> None: ...
+    def __init__(self, env: _Optional[str] = ..., ego_goal: _Optional[str] = ..., observation: _Optional[_Iterable[float]] = ..., state: _Optional[_Union[State, _Mapping]] = ..., ego_index: _Optional[int] = ..., partners: _Optional[_Iterable[_Union[PartnerSpec, _Mapping]]] = ..., method: _Optional[str] = ..., temperature: _Optional[float] = ..., seed: _Optional[int] = ..., alias: _Optional[str] = ..., versions: _Optional[_Mapping[str, int]] = ..., regret_bound: _Optional[float] = ...) -> None: ...
 
 class Matrix(_message.Message):
-    __slots__ = ("cols", "rows", "values")
+    __slots__ = ("rows", "cols", "values")
     ROWS_FIELD_NUMBER: _ClassVar[int]
     COLS_FIELD_NUMBER: _ClassVar[int]
     VALUES_FIELD_NUMBER: _ClassVar[int]
     rows: int
     cols: int
     values: _containers.RepeatedScalarFieldContainer[float]
-    def __init__(
-        self, rows: int | None = ..., cols: int | None = ..., values: _Iterable[float] | None = ...
-    ) -> None: ...
+    def __init__(self, rows: _Optional[int] = ..., cols: _Optional[int] = ..., values: _Optional[_Iterable[float]] = ...) -> None: ...
 
 class ActBatchRequest(_message.Message):
-    __slots__ = (
-        "alias",
-        "ego_goal",
-        "ego_index",
-        "env",
-        "format",
-        "method",
-        "observation_matrix",
-        "observations",
-        "partners",
-        "regret_bound",
-        "seed",
-        "states",
-        "temperature",
-        "versions",
-    )
+    __slots__ = ("env", "ego_goal", "observations", "states", "ego_index", "partners", "method", "temperature", "seed", "alias", "versions", "observation_matrix", "format", "regret_bound")
     class VersionsEntry(_message.Message):
         __slots__ = ("key", "value")
         KEY_FIELD_NUMBER: _ClassVar[int]
         VALUE_FIELD_NUMBER: _ClassVar[int]
         key: str
         value: int
-        def __init__(self, key: str | None = ..., value: int | None = ...) -> None: ...
-
+        def __init__(self, key: _Optional[str] = ..., value: _Optional[int] = ...) -> None: ...
     ENV_FIELD_NUMBER: _ClassVar[int]
     EGO_GOAL_FIELD_NUMBER: _ClassVar[int]
     OBSERVATIONS_FIELD_NUMBER: _ClassVar[int]
@@ -204,45 +141,17 @@ class ActBatchRequest(_message.Message):
     observation_matrix: Matrix
     format: BatchFormat
     regret_bound: float
-    def __init__(
-        self,
-        env: str | None = ...,
-        ego_goal: str | None = ...,
-        observations: _Iterable[Vector | _Mapping] | None = ...,
-        states: _Iterable[State | _Mapping] | None = ...,
-        ego_index: int | None = ...,
-        partners: _Iterable[PartnerSpec | _Mapping] | None = ...,
-        method: str | None = ...,
-        temperature: float | None = ...,
-        seed: int | None = ...,
-        alias: str | None = ...,
-        versions: _Mapping[str, int] | None = ...,
-        observation_matrix: Matrix | _Mapping | None = ...,
-        format: BatchFormat | str | None = ...,
-        regret_bound: float | None = ...,
-    ) -> None: ...
+    def __init__(self, env: _Optional[str] = ..., ego_goal: _Optional[str] = ..., observations: _Optional[_Iterable[_Union[Vector, _Mapping]]] = ..., states: _Optional[_Iterable[_Union[State, _Mapping]]] = ..., ego_index: _Optional[int] = ..., partners: _Optional[_Iterable[_Union[PartnerSpec, _Mapping]]] = ..., method: _Optional[str] = ..., temperature: _Optional[float] = ..., seed: _Optional[int] = ..., alias: _Optional[str] = ..., versions: _Optional[_Mapping[str, int]] = ..., observation_matrix: _Optional[_Union[Matrix, _Mapping]] = ..., format: _Optional[_Union[BatchFormat, str]] = ..., regret_bound: _Optional[float] = ...) -> None: ...
 
 class EpisodeSettings(_message.Message):
-    __slots__ = (
-        "alias",
-        "belief",
-        "ego_goal",
-        "env",
-        "method",
-        "partners",
-        "regret_bound",
-        "seed",
-        "temperature",
-        "versions",
-    )
+    __slots__ = ("env", "ego_goal", "partners", "method", "temperature", "seed", "alias", "versions", "belief", "regret_bound")
     class VersionsEntry(_message.Message):
         __slots__ = ("key", "value")
         KEY_FIELD_NUMBER: _ClassVar[int]
         VALUE_FIELD_NUMBER: _ClassVar[int]
         key: str
         value: int
-        def __init__(self, key: str | None = ..., value: int | None = ...) -> None: ...
-
+        def __init__(self, key: _Optional[str] = ..., value: _Optional[int] = ...) -> None: ...
     ENV_FIELD_NUMBER: _ClassVar[int]
     EGO_GOAL_FIELD_NUMBER: _ClassVar[int]
     PARTNERS_FIELD_NUMBER: _ClassVar[int]
@@ -263,30 +172,18 @@ class EpisodeSettings(_message.Message):
     versions: _containers.ScalarMap[str, int]
     belief: BeliefSettings
     regret_bound: float
-    def __init__(
-        self,
-        env: str | None = ...,
-        ego_goal: str | None = ...,
-        partners: _Iterable[PartnerSpec | _Mapping] | None = ...,
-        method: str | None = ...,
-        temperature: float | None = ...,
-        seed: int | None = ...,
-        alias: str | None = ...,
-        versions: _Mapping[str, int] | None = ...,
-        belief: BeliefSettings | _Mapping | None = ...,
-        regret_bound: float | None = ...,
-    ) -> None: ...
+    def __init__(self, env: _Optional[str] = ..., ego_goal: _Optional[str] = ..., partners: _Optional[_Iterable[_Union[PartnerSpec, _Mapping]]] = ..., method: _Optional[str] = ..., temperature: _Optional[float] = ..., seed: _Optional[int] = ..., alias: _Optional[str] = ..., versions: _Optional[_Mapping[str, int]] = ..., belief: _Optional[_Union[BeliefSettings, _Mapping]] = ..., regret_bound: _Optional[float] = ...) -> None: ...
 
 class ObservedAction(_message.Message):
-    __slots__ = ("action", "index")
+    __slots__ = ("index", "action")
     INDEX_FIELD_NUMBER: _ClassVar[int]
     ACTION_FIELD_NUMBER: _ClassVar[int]
     index: int
     action: int
-    def __init__(self, index: int | None = ..., action: int | None = ...) -> None: ...
+    def __init__(self, index: _Optional[int] = ..., action: _Optional[int] = ...) -> None: ...
 
 class EpisodeStep(_message.Message):
-    __slots__ = ("ego_index", "observation", "observed", "settings", "state")
+    __slots__ = ("settings", "observation", "state", "ego_index", "observed")
     SETTINGS_FIELD_NUMBER: _ClassVar[int]
     OBSERVATION_FIELD_NUMBER: _ClassVar[int]
     STATE_FIELD_NUMBER: _ClassVar[int]
@@ -297,14 +194,7 @@ class EpisodeStep(_message.Message):
     state: State
     ego_index: int
     observed: _containers.RepeatedCompositeFieldContainer[ObservedAction]
-    def __init__(
-        self,
-        settings: EpisodeSettings | _Mapping | None = ...,
-        observation: _Iterable[float] | None = ...,
-        state: State | _Mapping | None = ...,
-        ego_index: int | None = ...,
-        observed: _Iterable[ObservedAction | _Mapping] | None = ...,
-    ) -> None: ...
+    def __init__(self, settings: _Optional[_Union[EpisodeSettings, _Mapping]] = ..., observation: _Optional[_Iterable[float]] = ..., state: _Optional[_Union[State, _Mapping]] = ..., ego_index: _Optional[int] = ..., observed: _Optional[_Iterable[_Union[ObservedAction, _Mapping]]] = ...) -> None: ...
 
 class PartnerWeight(_message.Message):
     __slots__ = ("index", "weight")
@@ -312,25 +202,20 @@ class PartnerWeight(_message.Message):
     WEIGHT_FIELD_NUMBER: _ClassVar[int]
     index: int
     weight: float
-    def __init__(self, index: int | None = ..., weight: float | None = ...) -> None: ...
+    def __init__(self, index: _Optional[int] = ..., weight: _Optional[float] = ...) -> None: ...
 
 class Diagnostics(_message.Message):
-    __slots__ = ("partner_weights", "task_entropy", "task_weight")
+    __slots__ = ("task_entropy", "task_weight", "partner_weights")
     TASK_ENTROPY_FIELD_NUMBER: _ClassVar[int]
     TASK_WEIGHT_FIELD_NUMBER: _ClassVar[int]
     PARTNER_WEIGHTS_FIELD_NUMBER: _ClassVar[int]
     task_entropy: float
     task_weight: float
     partner_weights: _containers.RepeatedCompositeFieldContainer[PartnerWeight]
-    def __init__(
-        self,
-        task_entropy: float | None = ...,
-        task_weight: float | None = ...,
-        partner_weights: _Iterable[PartnerWeight | _Mapping] | None = ...,
-    ) -> None: ...
+    def __init__(self, task_entropy: _Optional[float] = ..., task_weight: _Optional[float] = ..., partner_weights: _Optional[_Iterable[_Union[PartnerWeight, _Mapping]]] = ...) -> None: ...
 
 class ModelUsed(_message.Message):
-    __slots__ = ("goal", "name", "partner_index", "role", "sha256", "version")
+    __slots__ = ("role", "name", "version", "sha256", "partner_index", "goal")
     ROLE_FIELD_NUMBER: _ClassVar[int]
     NAME_FIELD_NUMBER: _ClassVar[int]
     VERSION_FIELD_NUMBER: _ClassVar[int]
@@ -343,15 +228,7 @@ class ModelUsed(_message.Message):
     sha256: str
     partner_index: int
     goal: str
-    def __init__(
-        self,
-        role: str | None = ...,
-        name: str | None = ...,
-        version: int | None = ...,
-        sha256: str | None = ...,
-        partner_index: int | None = ...,
-        goal: str | None = ...,
-    ) -> None: ...
+    def __init__(self, role: _Optional[str] = ..., name: _Optional[str] = ..., version: _Optional[int] = ..., sha256: _Optional[str] = ..., partner_index: _Optional[int] = ..., goal: _Optional[str] = ...) -> None: ...
 
 class GoalProb(_message.Message):
     __slots__ = ("goal", "prob")
@@ -359,10 +236,10 @@ class GoalProb(_message.Message):
     PROB_FIELD_NUMBER: _ClassVar[int]
     goal: str
     prob: float
-    def __init__(self, goal: str | None = ..., prob: float | None = ...) -> None: ...
+    def __init__(self, goal: _Optional[str] = ..., prob: _Optional[float] = ...) -> None: ...
 
 class PartnerBelief(_message.Message):
-    __slots__ = ("entropy", "index", "observed_action", "top", "updates")
+    __slots__ = ("index", "top", "entropy", "observed_action", "updates")
     INDEX_FIELD_NUMBER: _ClassVar[int]
     TOP_FIELD_NUMBER: _ClassVar[int]
     ENTROPY_FIELD_NUMBER: _ClassVar[int]
@@ -373,26 +250,10 @@ class PartnerBelief(_message.Message):
     entropy: float
     observed_action: int
     updates: int
-    def __init__(
-        self,
-        index: int | None = ...,
-        top: _Iterable[GoalProb | _Mapping] | None = ...,
-        entropy: float | None = ...,
-        observed_action: int | None = ...,
-        updates: int | None = ...,
-    ) -> None: ...
+    def __init__(self, index: _Optional[int] = ..., top: _Optional[_Iterable[_Union[GoalProb, _Mapping]]] = ..., entropy: _Optional[float] = ..., observed_action: _Optional[int] = ..., updates: _Optional[int] = ...) -> None: ...
 
 class ActResponse(_message.Message):
-    __slots__ = (
-        "action",
-        "action_meaning",
-        "beliefs",
-        "diagnostics",
-        "greedy_action",
-        "method",
-        "models",
-        "probs",
-    )
+    __slots__ = ("probs", "action", "greedy_action", "action_meaning", "method", "diagnostics", "models", "beliefs")
     PROBS_FIELD_NUMBER: _ClassVar[int]
     ACTION_FIELD_NUMBER: _ClassVar[int]
     GREEDY_ACTION_FIELD_NUMBER: _ClassVar[int]
@@ -409,33 +270,10 @@ class ActResponse(_message.Message):
     diagnostics: Diagnostics
     models: _containers.RepeatedCompositeFieldContainer[ModelUsed]
     beliefs: _containers.RepeatedCompositeFieldContainer[PartnerBelief]
-    def __init__(
-        self,
-        probs: _Iterable[float] | None = ...,
-        action: int | None = ...,
-        greedy_action: int | None = ...,
-        action_meaning: str | None = ...,
-        method: str | None = ...,
-        diagnostics: Diagnostics | _Mapping | None = ...,
-        models: _Iterable[ModelUsed | _Mapping] | None = ...,
-        beliefs: _Iterable[PartnerBelief | _Mapping] | None = ...,
-    ) -> None: ...
+    def __init__(self, probs: _Optional[_Iterable[float]] = ..., action: _Optional[int] = ..., greedy_action: _Optional[int] = ..., action_meaning: _Optional[str] = ..., method: _Optional[str] = ..., diagnostics: _Optional[_Union[Diagnostics, _Mapping]] = ..., models: _Optional[_Iterable[_Union[ModelUsed, _Mapping]]] = ..., beliefs: _Optional[_Iterable[_Union[PartnerBelief, _Mapping]]] = ...) -> None: ...
 
 class ActColumns(_message.Message):
-    __slots__ = (
-        "action_meanings",
-        "actions",
-        "greedy_actions",
-        "method",
-        "models",
-        "n_actions",
-        "partner_indices",
-        "partner_weights",
-        "probs",
-        "rows",
-        "task_entropies",
-        "task_weights",
-    )
+    __slots__ = ("method", "models", "rows", "n_actions", "probs", "actions", "greedy_actions", "action_meanings", "task_entropies", "task_weights", "partner_indices", "partner_weights")
     METHOD_FIELD_NUMBER: _ClassVar[int]
     MODELS_FIELD_NUMBER: _ClassVar[int]
     ROWS_FIELD_NUMBER: _ClassVar[int]
@@ -460,64 +298,32 @@ class ActColumns(_message.Message):
     task_weights: _containers.RepeatedScalarFieldContainer[float]
     partner_indices: _containers.RepeatedScalarFieldContainer[int]
     partner_weights: _containers.RepeatedScalarFieldContainer[float]
-    def __init__(
-        self,
-        method: str | None = ...,
-        models: _Iterable[ModelUsed | _Mapping] | None = ...,
-        rows: int | None = ...,
-        n_actions: int | None = ...,
-        probs: _Iterable[float] | None = ...,
-        actions: _Iterable[int] | None = ...,
-        greedy_actions: _Iterable[int] | None = ...,
-        action_meanings: _Iterable[str] | None = ...,
-        task_entropies: _Iterable[float] | None = ...,
-        task_weights: _Iterable[float] | None = ...,
-        partner_indices: _Iterable[int] | None = ...,
-        partner_weights: _Iterable[float] | None = ...,
-    ) -> None: ...
+    def __init__(self, method: _Optional[str] = ..., models: _Optional[_Iterable[_Union[ModelUsed, _Mapping]]] = ..., rows: _Optional[int] = ..., n_actions: _Optional[int] = ..., probs: _Optional[_Iterable[float]] = ..., actions: _Optional[_Iterable[int]] = ..., greedy_actions: _Optional[_Iterable[int]] = ..., action_meanings: _Optional[_Iterable[str]] = ..., task_entropies: _Optional[_Iterable[float]] = ..., task_weights: _Optional[_Iterable[float]] = ..., partner_indices: _Optional[_Iterable[int]] = ..., partner_weights: _Optional[_Iterable[float]] = ...) -> None: ...
 
 class ActBatchResponse(_message.Message):
-    __slots__ = ("columns", "results")
+    __slots__ = ("results", "columns")
     RESULTS_FIELD_NUMBER: _ClassVar[int]
     COLUMNS_FIELD_NUMBER: _ClassVar[int]
     results: _containers.RepeatedCompositeFieldContainer[ActResponse]
     columns: ActColumns
-    def __init__(
-        self,
-        results: _Iterable[ActResponse | _Mapping] | None = ...,
-        columns: ActColumns | _Mapping | None = ...,
-    ) -> None: ...
+    def __init__(self, results: _Optional[_Iterable[_Union[ActResponse, _Mapping]]] = ..., columns: _Optional[_Union[ActColumns, _Mapping]] = ...) -> None: ...
 
 class ListEnvsRequest(_message.Message):
     __slots__ = ()
     def __init__(self) -> None: ...
 
 class ObservationLayout(_message.Message):
-    __slots__ = ("features", "n_agents", "obs_dim")
+    __slots__ = ("n_agents", "obs_dim", "features")
     N_AGENTS_FIELD_NUMBER: _ClassVar[int]
     OBS_DIM_FIELD_NUMBER: _ClassVar[int]
     FEATURES_FIELD_NUMBER: _ClassVar[int]
     n_agents: int
     obs_dim: int
     features: _containers.RepeatedScalarFieldContainer[str]
-    def __init__(
-        self,
-        n_agents: int | None = ...,
-        obs_dim: int | None = ...,
-        features: _Iterable[str] | None = ...,
-    ) -> None: ...
+    def __init__(self, n_agents: _Optional[int] = ..., obs_dim: _Optional[int] = ..., features: _Optional[_Iterable[str]] = ...) -> None: ...
 
 class EnvInfo(_message.Message):
-    __slots__ = (
-        "action_meanings",
-        "goals",
-        "max_agents",
-        "methods",
-        "name",
-        "observation_layouts",
-        "pair_obs_dim",
-        "state_layout",
-    )
+    __slots__ = ("name", "goals", "action_meanings", "max_agents", "observation_layouts", "state_layout", "pair_obs_dim", "methods")
     NAME_FIELD_NUMBER: _ClassVar[int]
     GOALS_FIELD_NUMBER: _ClassVar[int]
     ACTION_MEANINGS_FIELD_NUMBER: _ClassVar[int]
@@ -534,20 +340,10 @@ class EnvInfo(_message.Message):
     state_layout: _containers.RepeatedScalarFieldContainer[str]
     pair_obs_dim: int
     methods: _containers.RepeatedScalarFieldContainer[str]
-    def __init__(
-        self,
-        name: str | None = ...,
-        goals: _Iterable[str] | None = ...,
-        action_meanings: _Iterable[str] | None = ...,
-        max_agents: int | None = ...,
-        observation_layouts: _Iterable[ObservationLayout | _Mapping] | None = ...,
-        state_layout: _Iterable[str] | None = ...,
-        pair_obs_dim: int | None = ...,
-        methods: _Iterable[str] | None = ...,
-    ) -> None: ...
+    def __init__(self, name: _Optional[str] = ..., goals: _Optional[_Iterable[str]] = ..., action_meanings: _Optional[_Iterable[str]] = ..., max_agents: _Optional[int] = ..., observation_layouts: _Optional[_Iterable[_Union[ObservationLayout, _Mapping]]] = ..., state_layout: _Optional[_Iterable[str]] = ..., pair_obs_dim: _Optional[int] = ..., methods: _Optional[_Iterable[str]] = ...) -> None: ...
 
 class ListEnvsResponse(_message.Message):
     __slots__ = ("envs",)
     ENVS_FIELD_NUMBER: _ClassVar[int]
     envs: _containers.RepeatedCompositeFieldContainer[EnvInfo]
-    def __init__(self, envs: _Iterable[EnvInfo | _Mapping] | None = ...) -> None: ...
+    def __init__(self, envs: _Optional[_Iterable[_Union[EnvInfo, _Mapping]]] = ...) -> None: ...
