@@ -11,6 +11,7 @@
 |-----------------------------------------|-------------------------------------------|----------------|
 | `list(env=, kind=, goal=, tag=, ...)`   | `GET /models`                             | `ModelPage`    |
 | `show(name)`                            | `GET /models/{name}`                      | `ModelInfo` (with versions) |
+| `create_model(name, env=, kind=, ...)` | `POST /models`                           | `ModelInfo`    |
 | `version(name, version)`                | `GET /models/{name}/-/versions/{v}`       | `VersionInfo`  |
 | `resolve(ref)`                          | `GET /resolve?ref=name@alias`             | `VersionInfo`  |
 | `upload(name, spec, weights, ...)`      | `POST /models/{name}/-/versions` (multipart) | `VersionInfo` |
@@ -86,6 +87,8 @@ class ModelInfo:
     obs_dim: int = 0
     n_actions: int = 0
     versions: tuple[VersionInfo, ...] = ()  # newest first; empty in a listing
+    created_at: str = ""  # ISO 8601, as the server wrote it
+    updated_at: str = ""
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> ModelInfo:
@@ -100,6 +103,8 @@ class ModelInfo:
             obs_dim=int(data.get("obs_dim", 0)),
             n_actions=int(data.get("n_actions", 0)),
             versions=tuple(VersionInfo.from_json(v) for v in data.get("versions", ())),
+            created_at=str(data.get("created_at", "")),
+            updated_at=str(data.get("updated_at", "")),
         )
 
 
@@ -141,6 +146,26 @@ def list_models(
 def show(core: RegistryCore, name: str) -> Plan[ModelInfo]:
     """A model with all its versions (newest first) and their lineage."""
     return ModelInfo.from_json((yield Http("GET", _model(name))))
+
+
+def create_model(
+    core: RegistryCore,
+    name: str,
+    *,
+    env: str,
+    kind: str,
+    goals: Sequence[str],
+    obs_dim: int,
+    n_actions: int,
+    description: str = "",
+    tags: Mapping[str, str] | None = None,
+) -> Plan[ModelInfo]:
+    """Register a new model (no versions yet): what it is for and its sizes."""
+    body = {
+        "name": name, "env": env, "kind": kind, "goals": list(goals), "obs_dim": obs_dim,
+        "n_actions": n_actions, "description": description, "tags": dict(tags or {}),
+    }  # fmt: skip
+    return ModelInfo.from_json((yield Http("POST", f"{PREFIX}/models", body, idempotent=False)))
 
 
 def version(core: RegistryCore, name: str, version: int) -> Plan[VersionInfo]:
@@ -210,6 +235,7 @@ class RegistryClient(RegistryCore, Closing):
 
     list = blocking(list_models)
     show = blocking(show)
+    create_model = blocking(create_model)
     version = blocking(version)
     resolve = blocking(resolve)
     upload = blocking(upload)
@@ -226,6 +252,7 @@ class AsyncRegistryClient(RegistryCore, AsyncClosing):
 
     list = awaiting(list_models)
     show = awaiting(show)
+    create_model = awaiting(create_model)
     version = awaiting(version)
     resolve = awaiting(resolve)
     upload = awaiting(upload)
