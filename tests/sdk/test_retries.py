@@ -62,16 +62,18 @@ def test_a_503_and_a_refused_connection_are_retried() -> None:
 
 def test_retries_stop_after_the_attempts_with_the_last_error() -> None:
     seen, transport = _answers(busy)
-    with Client("http://mock", transport=transport, retry=FAST) as client:
-        with pytest.raises(Unavailable):
-            client.act("particle", "a2", [0.0] * 8)
+    with (
+        Client("http://mock", transport=transport, retry=FAST) as client,
+        pytest.raises(Unavailable),
+    ):
+        client.act("particle", "a2", [0.0] * 8)
     assert len(seen) == 3
 
 
 def test_backoff_doubles_up_to_its_cap() -> None:
     retry = Retry(attempts=5, backoff_s=0.1, max_backoff_s=0.3)
     assert [retry.wait_s(k) for k in (1, 2, 3, 4)] == [0.1, 0.2, 0.3, 0.3]
-    seen, transport = _answers(busy, busy, ok)
+    _, transport = _answers(busy, busy, ok)
     start = time.monotonic()
     with Client("http://mock", transport=transport, retry=Retry(3, 0.05)) as client:
         client.act("particle", "a2", [0.0] * 8)
@@ -84,27 +86,33 @@ def test_a_bad_request_is_never_retried() -> None:
         return httpx.Response(400, json=body)
 
     seen, transport = _answers(bad)
-    with Client("http://mock", transport=transport, retry=FAST) as client:
-        with pytest.raises(InvalidArgument) as info:
-            client.act("particle", "a2", [0.0] * 8)
+    with (
+        Client("http://mock", transport=transport, retry=FAST) as client,
+        pytest.raises(InvalidArgument) as info,
+    ):
+        client.act("particle", "a2", [0.0] * 8)
     assert info.value.field == "observation" and len(seen) == 1
 
 
 def test_a_job_submission_the_server_may_have_seen_is_not_sent_twice() -> None:
     seen, transport = _answers(timed_out)
-    with JobsClient("http://mock", transport=transport, retry=FAST) as jobs:
-        with pytest.raises(Unavailable):
-            jobs.submit("task", goals="a2")
+    with (
+        JobsClient("http://mock", transport=transport, retry=FAST) as jobs,
+        pytest.raises(Unavailable),
+    ):
+        jobs.submit("task", goals="a2")
     assert seen == ["/v1/jobs"]  # a read timeout: maybe queued already
     seen, transport = _answers(timed_out)
-    with Client("http://mock", transport=transport, retry=FAST) as client:
-        with pytest.raises(Unavailable):
-            client.act("particle", "a2", [0.0] * 8)
+    with (
+        Client("http://mock", transport=transport, retry=FAST) as client,
+        pytest.raises(Unavailable),
+    ):
+        client.act("particle", "a2", [0.0] * 8)
     assert len(seen) == 3  # an act is idempotent (seeded): tried again
 
 
 def test_the_async_client_runs_the_same_plans() -> None:
-    seen, _ = _answers(busy, ok)
+    seen: list[str] = []
 
     async def run() -> int:
         def handler(request: httpx.Request) -> httpx.Response:
