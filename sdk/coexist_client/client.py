@@ -28,26 +28,32 @@ Partners: `{1: "b3"}`, `{1: {"b3": 0.7, "c": 0.3}}`, a list of PartnerSpec-like 
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+import inspect
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, ParamSpec
 
 from numpy.typing import ArrayLike
 
-from coexist_client.bodies import (
-    Partners,
-    act_batch_body,
-    act_body,
-    episode_settings,
-    session_body,
-)
+from coexist_client.bodies import Partners, act_batch_body, act_body, session_body
 from coexist_client.calls import act_exchange, columns_exchange, envs_exchange, health_exchange
-from coexist_client.exchange import AsyncClosing, Closing, Core, Plan, Retry, awaiting, blocking
+from coexist_client.exchange import (
+    AsyncClosing,
+    Closing,
+    Core,
+    Plan,
+    Retry,
+    awaiting,
+    awaiting_opening,
+    blocking,
+    opening,
+)
 from coexist_client.sessions import AsyncSession, Opened, Session, open_rest, open_stream
 from coexist_client.transport import GrpcTransport, HttpTransport, Verify
 from coexist_client.types import Action, ActionColumns, EnvInfo, Health
 
 DEFAULT_URL = "http://127.0.0.1:8000"
+P = ParamSpec("P")
 DEFAULT_TARGET = "127.0.0.1:50051"
 Protocol = Literal["http", "grpc"]
 
@@ -137,29 +143,21 @@ def act_batch_columns(
     return (yield from columns_exchange(core.transport, body))
 
 
-def act_batch(
-    core: ClientCore,
-    env: str,
-    ego_goal: str,
-    observations: ArrayLike | None = None,
-    *,
-    states: ArrayLike | None = None,
-    ego_index: int = 0,
-    partners: Partners = None,
-    method: str = "aail_bounded",
-    temperature: float | None = None,
-    regret_bound: float | None = None,
-    seed: int | None = None,
-    alias: str = "production",
-    versions: Mapping[str, int] | None = None,
-) -> Plan[list[Action]]:
-    """One action per observation (or per state), in order, from one vectorised request."""
-    columns = yield from act_batch_columns(
-        core, env, ego_goal, observations, states=states, ego_index=ego_index, partners=partners,
-        method=method, temperature=temperature, regret_bound=regret_bound, seed=seed, alias=alias,
-        versions=versions,
-    )  # fmt: skip
-    return columns.to_actions()
+def _rows(columns: Callable[P, Plan[ActionColumns]]) -> Callable[P, Plan[list[Action]]]:
+    """`act_batch` from `act_batch_columns`: the same parameters, one `Action` a row."""
+
+    def act_batch(*args: P.args, **kwargs: P.kwargs) -> Plan[list[Action]]:
+        return (yield from columns(*args, **kwargs)).to_actions()
+
+    act_batch.__doc__ = "One action per observation (or per state), in order, from one request."
+    signature = inspect.signature(columns)
+    act_batch.__signature__ = signature.replace(  # type: ignore[attr-defined]
+        return_annotation="Plan[list[Action]]"
+    )
+    return act_batch
+
+
+act_batch = _rows(act_batch_columns)
 
 
 def envs(core: ClientCore) -> Plan[list[EnvInfo]]:
@@ -187,50 +185,28 @@ def open_session(
     versions: Mapping[str, int] | None = None,
     belief: Mapping[str, Any] | None = None,
     expect_steps: bool = True,
+    episode: bool = False,
 ) -> Plan[Opened]:
-    """A session whose partners' goals the server may infer from their actions: `partners={1:
-    None}` (uniform prior) or `infer=[1]` (the announced goal is the prior); `belief`:
-    forgetting, floor, temperature, blend_mass, blend_max_goals (left out: the server's)."""
+    """A session: settings given once, then `step(obs)` (or `act(obs)`) per step, step t
+    seeded with seed + t. Partners' goals are announced, or inferred by the server from their
+    actions: `partners={1: None}` (uniform prior) or `infer=[1]` (the announced goal is the
+    prior); `belief`: forgetting, floor, temperature, blend_mass, blend_max_goals (left out:
+    the server's). Over gRPC an `Episode` stream; over HTTP a REST session, or with `episode`
+    and no goal inferred plain `POST /v1/act` per step (no state on the server)."""
     body = session_body(
         env, ego_goal, partners=partners, infer=infer, method=method, temperature=temperature,
         regret_bound=regret_bound, seed=seed, alias=alias, versions=versions, belief=belief,
     )  # fmt: skip
     if core.transport.grpc:
         return (yield from open_stream(body))
+    inferring = any(p.get("infer") for p in body["partners"]) or belief is not None
+    if episode and not inferring:
+        settings = {k: v for k, v in body.items() if k != "belief"}
+        settings["partners"] = [
+            {k: v for k, v in p.items() if k != "infer"} for p in body["partners"]
+        ]
+        return Opened("act", settings)
     return (yield from open_rest(body, expect_steps))
-
-
-def open_episode(
-    core: ClientCore,
-    env: str,
-    ego_goal: str,
-    *,
-    partners: Partners = None,
-    infer: Sequence[int] = (),
-    method: str = "aail_bounded",
-    temperature: float | None = None,
-    regret_bound: float | None = None,
-    seed: int | None = None,
-    alias: str = "production",
-    versions: Mapping[str, int] | None = None,
-    belief: Mapping[str, Any] | None = None,
-) -> Plan[Opened]:
-    """One episode: settings given once, then `act(obs)` per step, step t seeded with seed + t
-    (an Episode stream over gRPC; over HTTP `POST /v1/act` per step, or a REST session where a
-    partner's goal is inferred)."""
-    session = session_body(
-        env, ego_goal, partners=partners, infer=infer, method=method, temperature=temperature,
-        regret_bound=regret_bound, seed=seed, alias=alias, versions=versions, belief=belief,
-    )  # fmt: skip
-    if core.transport.grpc:
-        return (yield from open_stream(session))
-    if any(p.get("infer") for p in session["partners"]) or belief is not None:
-        return (yield from open_rest(session, True))
-    settings = episode_settings(
-        env, ego_goal, partners=partners, method=method, temperature=temperature,
-        regret_bound=regret_bound, seed=seed, alias=alias, versions=versions,
-    )  # fmt: skip
-    return Opened("act", settings)
 
 
 class Client(ClientCore, Closing):
@@ -241,18 +217,12 @@ class Client(ClientCore, Closing):
     act_batch_columns = blocking(act_batch_columns)
     envs = blocking(envs)
     health = blocking(health)
-    _open_session = blocking(open_session)
-    _open_episode = blocking(open_episode)
-
-    def session(self, env: str, ego_goal: str, **settings: Any) -> Session:
-        """A session (`open_session`'s settings): REST over HTTP, an Episode stream over gRPC."""
-        return Session(self.transport, self._open_session(env, ego_goal, **settings))
-
+    session = opening(open_session, Session)
     create_session = session
 
     def episode(self, env: str, ego_goal: str, **settings: Any) -> Session:
-        """One episode (`open_episode`'s settings); `act(obs)` per step."""
-        return Session(self.transport, self._open_episode(env, ego_goal, **settings))
+        """`session(..., episode=True)`: one episode, `act(obs)` per step."""
+        return self.session(env, ego_goal, episode=True, **settings)
 
 
 class AsyncClient(ClientCore, AsyncClosing):
@@ -267,17 +237,14 @@ class AsyncClient(ClientCore, AsyncClosing):
     act_batch_columns = awaiting(act_batch_columns)
     envs = awaiting(envs)
     health = awaiting(health)
-    _open_session = awaiting(open_session)
-
-    async def session(self, env: str, ego_goal: str, **settings: Any) -> AsyncSession:
-        """As `Client.session`, awaited."""
-        return AsyncSession(self.transport, await self._open_session(env, ego_goal, **settings))
-
+    session = awaiting_opening(open_session, AsyncSession)
     create_session = session
 
     def episode(self, env: str, ego_goal: str, **settings: Any) -> AsyncSession:
-        """As `Client.episode`; the episode opens with `async with` or its first step."""
-        return AsyncSession(self.transport, open_episode(self, env, ego_goal, **settings))
+        """As `Client.episode`; the episode opens with `async with` or its first step (nothing
+        is sent before), so `async with client.episode(...) as ep` needs no await."""
+        plan = open_session(self, env, ego_goal, episode=True, **settings)
+        return AsyncSession(self.transport, plan)
 
 
 class CoexistClient(Client):

@@ -167,6 +167,32 @@ def awaiting(
     return _documented(method, plan, sync=False)
 
 
+W = TypeVar("W")
+
+
+def opening(
+    plan: Callable[Concatenate[C, P], Plan[T]], wrap: Callable[[Any, T], W]
+) -> Callable[Concatenate[C, P], W]:
+    """A sync method running `plan` and handing its result, with the transport, to `wrap` (a
+    session class: `wrap(transport, opened)`)."""
+
+    def method(self: C, /, *args: P.args, **kwargs: P.kwargs) -> W:
+        return wrap(self.transport, drive(self.transport, plan(self, *args, **kwargs)))
+
+    return _documented(method, plan, sync=True)
+
+
+def awaiting_opening(
+    plan: Callable[Concatenate[C, P], Plan[T]], wrap: Callable[[Any, T], W]
+) -> Callable[Concatenate[C, P], Awaitable[W]]:
+    """`opening`, awaited."""
+
+    async def method(self: C, /, *args: P.args, **kwargs: P.kwargs) -> W:
+        return wrap(self.transport, await adrive(self.transport, plan(self, *args, **kwargs)))
+
+    return _documented(method, plan, sync=False)
+
+
 F = TypeVar("F", bound=Callable[..., Any])
 
 

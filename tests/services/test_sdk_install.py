@@ -6,6 +6,7 @@ packages), and run act (HTTP and gRPC), a session and a registry promote against
 from __future__ import annotations
 
 import json
+import shutil
 import subprocess
 import sys
 import venv
@@ -23,9 +24,11 @@ OBS = [0.1, 0.5, 0.0, 0.0, 0.7, 0.6, 0.0, 0.0]
 
 @pytest.mark.slow
 def test_the_sdk_wheel_works_alone_against_a_real_server(tmp_path: Path) -> None:
+    source = tmp_path / "sdk"  # a copy: building writes build/ beside the sources
+    shutil.copytree(REPO / "sdk", source, ignore=shutil.ignore_patterns("build", "*.egg-info"))
     subprocess.run(
         [sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q",
-         "-w", str(tmp_path / "dist"), str(REPO / "sdk")],
+         "-w", str(tmp_path / "dist"), str(source)],
         check=True, capture_output=True, timeout=300,
     )  # fmt: skip
     (wheel,) = (tmp_path / "dist").glob("coexist_client-*.whl")
