@@ -22,6 +22,7 @@ it (already gone: no error) or half-closes the stream.
 from __future__ import annotations
 
 import contextlib
+import math
 import secrets
 from dataclasses import dataclass, fields
 from typing import Any
@@ -82,7 +83,8 @@ class SessionCore(Core):
         self.transport = transport
         self.opening = opening if not isinstance(opening, Opened) else None
         self.opened: Opened | None = None
-        self.created: SessionInfo | None = None
+        # the REST session as created; other kinds hold no state on the server: a blank one
+        self.created = SessionInfo(session_id="", step=0, expires_in_s=math.inf)
         self.session_id, self.path = "", ""
         self.headers: dict[str, str] = {}
         self.next_step, self.expect_steps = 0, True
@@ -91,7 +93,8 @@ class SessionCore(Core):
 
     def _set(self, opened: Opened) -> None:
         self.opened = opened
-        self.created = opened.info
+        if opened.info is not None:
+            self.created = opened.info
         self.session_id = opened.info.session_id if opened.info else ""
         self.headers = opened.headers or {}
         self.path = f"/v1/sessions/{self.session_id}"
