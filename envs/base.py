@@ -76,6 +76,13 @@ class Domain(Protocol):
         the progress guard): elsewhere the ego acts with its task policy."""
         ...
 
+    def goal_kept(self, obs_BD: np.ndarray, n_agents: int, goal: str) -> np.ndarray | None:
+        """Per row and action, whether the ego's own `goal` is still reached after the action and
+        can be kept from there, (B, A) bool; None where the environment cannot tell or the goal
+        cannot be lost. AAIL-B takes no action that loses a reached goal where another keeps it
+        (`policy.regret_bound`, R4)."""
+        ...
+
     def scene(self, env: Any) -> Scene:
         """What does not move in `env` (an env of this domain, from `envs.registry.make_env`),
         as shapes to draw (`envs.scene`): the web console paints it once per episode."""

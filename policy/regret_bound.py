@@ -51,6 +51,21 @@ with the row's task Q replaced by its mean over the actions (`services.engine.as
 finished_rows`): π_t is uniform, w_t = 0 (eq. 9), every action lies in S_ε, and π_B is the
 impact networks' blend. The ego's regret is exactly 0 there, so the bound still holds.
 
+Keeping the goal (R4). Where the goal is reached but can be lost (the particle world's target
+area) and ε > 0, let K be the actions after which the ego is still inside and can stay there by
+resting (`Domain.goal_kept`). If K holds some but not all actions,
+
+    π_K(a) = π_B(a) / π_B(K)   for a in K,   0 otherwise,                        (R4)
+
+else π_K = π_B (also when π_B(K) = 0). Why: the ego's own reward is 0 inside its target and
+negative outside, so under the exact task Q no action of K is worse than one outside it, and R4
+moves probability only towards better actions; the bound of R1 still holds. And it matters
+beyond the ego's own reward: an episode ends only when every agent is inside its target at the
+same step, so an ego that R1 lets drift to its target's edge and step out just as the last
+partner arrives keeps everybody paying for several more steps (measured in five-agent scenes:
+`reports/paper/blend_choice.md`). R4 applies where the blend does (ε > 0 on the row), so an
+explicit ε = 0 still gives the task policy itself.
+
 The engine's default ε is `DEFAULT_EPSILON_PER_ALPHA` × the task network's temperature α: an
 action keeps the blend's say when the task policy rates it at least e^-1/2 ≈ 0.61 as likely as
 its best. Chosen by measurement (`reports/paper/blend_choice.md`): ε = α already lets the ego
@@ -67,7 +82,14 @@ from collections.abc import Sequence
 
 import numpy as np
 
-__all__ = ["DEFAULT_EPSILON_PER_ALPHA", "bound_row", "bound_rows", "check_regret_bound"]
+__all__ = [
+    "DEFAULT_EPSILON_PER_ALPHA",
+    "bound_row",
+    "bound_rows",
+    "check_regret_bound",
+    "keep_goal_row",
+    "keep_goal_rows",
+]
 
 DEFAULT_EPSILON_PER_ALPHA = 0.5
 
@@ -119,3 +141,21 @@ def bound_row(
         pb * scale if keep else pt
         for pb, pt, keep in zip(probs_blend_A, probs_task, inside, strict=True)
     ]
+
+
+def keep_goal_rows(probs_BA: np.ndarray, kept_BA: np.ndarray) -> np.ndarray:
+    """π_K of eq. R4 for each row, (B, A): `probs_BA` is π_B, `kept_BA` the actions that keep the
+    goal (a row of all True, or all False, is left as it is; so is a row with π_B(K) = 0)."""
+    kept_mass_B1 = np.where(kept_BA, probs_BA, 0.0).sum(axis=1, keepdims=True)
+    partial_B1 = kept_BA.any(axis=1, keepdims=True) & ~kept_BA.all(axis=1, keepdims=True)
+    usable_B1 = partial_B1 & (kept_mass_B1 > 0.0)
+    kept_BA_probs = np.where(kept_BA, probs_BA, 0.0) / np.where(usable_B1, kept_mass_B1, 1.0)
+    return np.where(usable_B1, kept_BA_probs, probs_BA)
+
+
+def keep_goal_row(probs_A: Sequence[float], kept_A: Sequence[bool]) -> list[float]:
+    """`keep_goal_rows` of one row, in Python floats."""
+    kept_mass = math.fsum(p for p, keep in zip(probs_A, kept_A, strict=True) if keep)
+    if all(kept_A) or not any(kept_A) or kept_mass <= 0.0:
+        return list(probs_A)
+    return [p / kept_mass if keep else 0.0 for p, keep in zip(probs_A, kept_A, strict=True)]

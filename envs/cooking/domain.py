@@ -105,6 +105,10 @@ class CookingDomain:
         later action changes the cook's own return (`goal_is_final`)."""
         return self._checked(obs_BD, n_agents)[:, SERVED] > 0.5
 
+    def goal_kept(self, obs_BD: np.ndarray, n_agents: int, goal: str) -> None:
+        """None: a served dish stays served whatever the cook does (`goal_is_final`)."""
+        return None
+
     def scene(self, env: Any) -> Scene:
         """The kitchen's cells and stations (`envs.cooking.scene`)."""
         kitchen = _cooking_env(env)

@@ -41,10 +41,22 @@ from envs.particle.batched import MAX_AGENTS
 from envs.particle.env import ParticleCoexistenceEnv
 from envs.particle.goals import GOAL_IDS, TARGET_BOXES_G4
 from envs.particle.scene import particle_frame, particle_scene
-from envs.particle.world import ACTION_MEANINGS, N_ACTIONS, STATE_DIM, step_state
+from envs.particle.world import (
+    ACTION_DIRECTIONS_A2,
+    ACTION_MEANINGS,
+    DAMPING,
+    DT,
+    N_ACTIONS,
+    STATE_DIM,
+    integrate,
+    step_state,
+)
 from envs.scene import Scene, SceneFrame
 
 ALL_ACTIONS_A1 = np.arange(N_ACTIONS)[:, None]
+# how far a resting agent still travels, in units of DT × its velocity after a step:
+# Σ_k (1 - DAMPING)^k for k >= 1 (each rest keeps 1 - DAMPING of the velocity)
+COAST = (1.0 - DAMPING) / DAMPING
 SAME_PREDICTION_ATOL = 1e-9  # `recover_action`: predictions closer than this are one state
 PHANTOM_4 = np.array([0.5, 0.5, 0.0, 0.0], dtype=np.float32)
 _FEATURES = ("x", "y", "vx", "vy")
@@ -121,6 +133,20 @@ class ParticleDomain:
         x_lo, x_hi, y_lo, y_hi = TARGET_BOXES_G4[check_goal(self, goal)]
         x, y = self._blocks(obs_BD, n_agents)[:, 0, :2].T
         return (x >= x_lo) & (x <= x_hi) & (y >= y_lo) & (y <= y_hi)
+
+    def goal_kept(self, obs_BD: np.ndarray, n_agents: int, goal: str) -> np.ndarray:
+        """(B, A) bool: whether after each action the ego is inside its target area and stays
+        inside if it rests from then on. Resting, it coasts along a straight segment of length
+        COAST × DT × |v| (walls only stop it), so each coordinate moves monotonically between
+        the position after the action and the coast's end clipped to the world: both inside the
+        box means the whole coast is."""
+        box_4 = TARGET_BOXES_G4[check_goal(self, goal)]
+        ego_B14 = self._blocks(obs_BD, n_agents)[:, :1].astype(np.float64)
+        next_BA4 = integrate(ego_B14, ACTION_DIRECTIONS_A2)  # each action from each row
+        coast_BA2 = np.clip(next_BA4[..., :2] + (COAST * DT) * next_BA4[..., 2:], 0.0, 1.0)
+        ends_BAE2 = np.stack([next_BA4[..., :2], coast_BA2], axis=2)
+        inside_BAE2 = (ends_BAE2 >= box_4[[0, 2]]) & (ends_BAE2 <= box_4[[1, 3]])
+        return inside_BAE2.all(axis=(2, 3))
 
     def recover_action(
         self, prev_obs_D: np.ndarray, obs_D: np.ndarray, n_agents: int, partner: int

@@ -213,3 +213,18 @@ def finished_rows(request: ActRequest, checked: CheckedRequest) -> np.ndarray | 
     if reached is None or not reached.any():
         return None
     return np.asarray(reached, dtype=bool)
+
+
+def goal_kept_of(
+    request: ActRequest, checked: CheckedRequest, epsilon_B: np.ndarray | None
+) -> np.ndarray | None:
+    """(B, A) bool for R4 of `policy.regret_bound`: the actions that keep the ego's reached goal,
+    on the rows where `aail_bounded` blends (ε > 0); every action elsewhere. None where nothing
+    is to keep (another method, no row blending, or a goal that cannot be lost)."""
+    if epsilon_B is None or not (epsilon_B > 0.0).any():
+        return None
+    domain = checked.runtime.domain
+    kept_BA = domain.goal_kept(checked.obs_BD, checked.n_agents, request.ego_goal)
+    if kept_BA is None:
+        return None
+    return np.where((epsilon_B > 0.0)[:, None], kept_BA, True)

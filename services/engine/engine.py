@@ -50,8 +50,10 @@ from model_store.errors import InvalidArgument, ModelStoreError
 from model_store.naming import joint_model_name
 from model_store.store import ModelStore
 from policy.blend import BlendMethod, blend
+from policy.regret_bound import keep_goal_rows
 from services.engine.assembly import (
     finished_rows,
+    goal_kept_of,
     impact_q,
     member_inputs,
     models_used,
@@ -178,19 +180,23 @@ class InferenceEngine:
             raise InvalidRequest("observations", "values so large that the Q-values overflow")
         temperature = request.temperature or group.nets[0].alpha or DEFAULT_TEMPERATURE
         normalise = checked.runtime.domain.blend_normalisation == "standardise"
+        epsilon_B = regret_bound_of(request, group, checked)
         blended = blend(
             blend_method,
             q_task_BA,
             q_impact_BPA,
             temperature,
             normalise=normalise,
-            regret_bound=regret_bound_of(request, group, checked),
+            regret_bound=epsilon_B,
         )
         partner_weights_BP = blended.partner_weights_BP
         if blend_method == "sl":  # no impact network was evaluated: every partner weighs 0
             partner_weights_BP = np.zeros((batch, len(checked.partners)))
         rng = self._rng if request.seed is None else np.random.default_rng(request.seed)
         probs_BA = np.asarray(blended.probs_BA, dtype=np.float64)
+        kept_BA = goal_kept_of(request, checked, epsilon_B)
+        if kept_BA is not None:  # R4: no action that loses the reached goal where one keeps it
+            probs_BA = keep_goal_rows(probs_BA, kept_BA)
         return ActColumns(
             method=method,
             models=models_used(checked, members, group),

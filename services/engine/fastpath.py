@@ -41,8 +41,9 @@ from envs.base import Domain
 from policy.belief_compiled import compiled_mix
 from policy.blend import BlendMethod
 from policy.blend_fast import blend_row
+from policy.regret_bound import keep_goal_row
 from policy.row_forward import all_finite
-from services.engine.assembly import finished_rows, models_used, regret_bound_of
+from services.engine.assembly import finished_rows, goal_kept_of, models_used, regret_bound_of
 from services.engine.errors import InvalidRequest
 from services.engine.gathers import Builder, Gather, find_gather
 from services.engine.messages import DEFAULT_TEMPERATURE, ActRequest, ActResult, Member, ModelUsed
@@ -234,6 +235,9 @@ def act_row(
     weights = blended.partner_weights_P if method != "sl" else [0.0] * len(checked.partners)
     rng = default_rng if request.seed is None else np.random.default_rng(request.seed)
     probs = blended.probs_A
+    kept = goal_kept_of(request, checked, epsilon)
+    if kept is not None:  # R4 of `policy.regret_bound`
+        probs = keep_goal_row(probs, kept[0].tolist())
     # `assembly.sample_actions` on one row: the first action whose cumulative probability
     # exceeds u (the cdf never decreases, so that is the count of entries <= u)
     cdf = list(accumulate(probs))

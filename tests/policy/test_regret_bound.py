@@ -10,7 +10,13 @@ import pytest
 from policy.blend import blend, blend_vectorised
 from policy.blend_fast import blend_row
 from policy.maths import boltzmann
-from policy.regret_bound import bound_row, bound_rows, check_regret_bound
+from policy.regret_bound import (
+    bound_row,
+    bound_rows,
+    check_regret_bound,
+    keep_goal_row,
+    keep_goal_rows,
+)
 
 ALPHA = 0.02
 
@@ -122,3 +128,27 @@ def test_one_bound_per_row() -> None:
         blend("aail_bounded", q_task, q_impact, ALPHA, regret_bound=eps_B[:3])
     with pytest.raises(ValueError, match="regret_bound"):
         blend("aail_bounded", q_task, q_impact, ALPHA, regret_bound=-eps_B)
+
+
+def keep_direct(probs: list[float], kept: list[bool]) -> list[float]:
+    """Eq. R4 written out action by action."""
+    mass = sum(p for p, k in zip(probs, kept, strict=True) if k)
+    if all(kept) or not any(kept) or mass == 0:
+        return probs
+    return [p / mass if k else 0.0 for p, k in zip(probs, kept, strict=True)]
+
+
+def test_keep_goal_matches_the_direct_equation() -> None:
+    rng = np.random.default_rng(9)
+    probs = rng.dirichlet(np.ones(5), size=300)
+    probs[:20, :2] = 0.0  # rows whose kept actions may carry no probability
+    probs[:20] /= probs[:20].sum(axis=1, keepdims=True)
+    kept = rng.random((300, 5)) < rng.choice([0.0, 0.4, 0.8, 1.0], size=(300, 1))
+    kept[:20] = [True, True, False, False, False]
+    rows = keep_goal_rows(probs, kept)
+    for p, k, got in zip(probs, kept, rows, strict=True):
+        want = keep_direct(p.tolist(), k.tolist())
+        np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(keep_goal_row(p.tolist(), k.tolist()), want, rtol=1e-12)
+        assert got.sum() == pytest.approx(1.0)
+    assert keep_goal_row([0.2, 0.3, 0.5], [True, False, True]) == [0.2 / 0.7, 0.0, 0.5 / 0.7]

@@ -4,6 +4,8 @@ task Q is flat and the blend is the impact network's policy, whatever the task n
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import numpy as np
 import pytest
 import torch
@@ -24,7 +26,7 @@ SEEDS = {"task": 1, "impact": 2}
 
 
 @pytest.fixture
-def kitchen_store(tmp_path) -> SqlModelStore:
+def kitchen_store(tmp_path) -> Iterator[SqlModelStore]:
     store = SqlModelStore(f"sqlite:///{tmp_path / 'models.db'}")
     for kind, name, goal in (
         ("task", task_model_name("cooking", EGO), EGO),
@@ -48,9 +50,11 @@ def _q(seed: int, view: np.ndarray) -> np.ndarray:
     """The Q-vector of the network `random_weights(SPEC, seed)` registered, in float64."""
     torch.manual_seed(seed)
     net = QNetwork(SPEC)
+    last = net.layers[-1]
+    assert isinstance(last, torch.nn.Linear)
     with torch.no_grad():
-        net.layers[-1].weight.mul_(4.0)
-        net.layers[-1].bias.mul_(4.0)
+        last.weight.mul_(4.0)
+        last.bias.mul_(4.0)
         return net(torch.as_tensor(view[None], dtype=torch.float32))[0].double().numpy()
 
 
