@@ -42,6 +42,7 @@ from services.engine import InferenceEngine
 from services.jobs_api import router as jobs_router
 from services.logging import RequestIdMiddleware
 from services.metrics import EngineCollector, HttpMetrics, SessionCollector
+from services.oip.rest import router as v2_router
 from services.registry import router as registry_router
 from services.registry.errors import install_error_handlers as install_registry_errors
 from services.registry.errors import unexpected_response
@@ -52,11 +53,12 @@ from services.rest import sessions_router
 from services.rest.body_limit import BodyLimit
 from services.sessions import SessionStore
 from services.settings import Settings, get_settings
+from services.version import VERSION
 from services.warmup import warm_up
 
 log = logging.getLogger("coexist.server")
 
-ROUTERS: list[APIRouter] = [act_router, sessions_router, registry_router, jobs_router]
+ROUTERS: list[APIRouter] = [act_router, sessions_router, registry_router, jobs_router, v2_router]
 
 
 def create_app(
@@ -135,7 +137,7 @@ def create_app(
     app = FastAPI(
         title="coexist",
         summary="Policy server for multi-agent coexistence (AAIL) and its model registry.",
-        version="0.1.0",
+        version=VERSION,
         lifespan=lifespan,
     )
     app.state.settings = settings

@@ -42,6 +42,9 @@ from services.grpc_api.errors import parse_or_malformed
 from services.grpc_api.gen.coexist.v1 import policy_pb2 as pb
 from services.grpc_api.request_ids import RequestIdInterceptor
 from services.grpc_api.servicer import PolicyServicer
+from services.oip.grpc_servicer import SERVICE_NAME as OIP_SERVICE_NAME
+from services.oip.grpc_servicer import InferenceServicer
+from services.oip.grpc_servicer import handlers as oip_handlers
 
 log = logging.getLogger(__name__)
 
@@ -182,6 +185,11 @@ def build_grpc_server(
     handlers = _policy_handlers(servicer)
     server.add_generic_rpc_handlers((grpc.method_handlers_generic_handler(SERVICE_NAME, handlers),))
     server.add_registered_method_handlers(SERVICE_NAME, handlers)
+    # the Open Inference Protocol (KServe v2) beside the policy service
+    v2_handlers = oip_handlers(InferenceServicer(engine))
+    server.add_generic_rpc_handlers(
+        (grpc.method_handlers_generic_handler(OIP_SERVICE_NAME, v2_handlers),)
+    )
 
     health_servicer = EngineHealthServicer(
         ready or (lambda: engine.status().store_reachable), recheck_s=health_recheck_s

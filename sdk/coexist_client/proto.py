@@ -1,4 +1,4 @@
-"""Client-side translation between the REST JSON bodies (`services.sdk.bodies`) and protobuf.
+"""Client-side translation between the REST JSON bodies (`coexist_client.bodies`) and protobuf.
 
 | function              | from                        | to                                |
 |-----------------------|-----------------------------|-----------------------------------|
@@ -7,11 +7,11 @@
 |                       |                             | (observations as one `Matrix`)    |
 | `episode_step`        | settings and/or observation,| `coexist.v1.EpisodeStep`          |
 |                       | observed actions            |                                   |
-| `action_from_proto`   | `coexist.v1.ActResponse`    | `services.sdk.types.Action`       |
-| `columns_from_proto`  | `coexist.v1.ActColumns`     | `services.sdk.types.ActionColumns`|
+| `action_from_proto`   | `coexist.v1.ActResponse`    | `coexist_client.types.Action`       |
+| `columns_from_proto`  | `coexist.v1.ActColumns`     | `coexist_client.types.ActionColumns`|
 | `blame_observations`  | an error naming             | the same naming `observations`    |
 |                       | `observation_matrix...`     | (the field the SDK user gave)     |
-| `env_from_proto`      | `coexist.v1.EnvInfo`        | `services.sdk.types.EnvInfo`      |
+| `env_from_proto`      | `coexist.v1.EnvInfo`        | `coexist_client.types.EnvInfo`      |
 """
 
 from __future__ import annotations
@@ -20,9 +20,9 @@ from typing import Any
 
 import numpy as np
 
-from services.grpc_api.gen.coexist.v1 import policy_pb2 as pb
-from services.sdk.errors import CoexistError, InvalidArgument
-from services.sdk.types import (
+from coexist_client.errors import CoexistError, InvalidArgument
+from coexist_client.gen.coexist.v1 import policy_pb2 as pb
+from coexist_client.types import (
     COLUMN_FIELDS,
     Action,
     ActionColumns,

@@ -19,10 +19,9 @@
 
 from __future__ import annotations
 
-import inspect
-from collections.abc import Awaitable, Callable, Iterable, Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Concatenate, ParamSpec, TypeVar
+from typing import Any
 
 import numpy as np
 
@@ -298,42 +297,3 @@ class Health:
     live: bool  # the server answers
     ready: bool  # models loaded and store reachable
     detail: Mapping[str, Any] = field(default_factory=dict)
-
-
-Client = TypeVar("Client")
-Args = ParamSpec("Args")
-ACT_BATCH_DOC = "One action per observation (or per state), in order, from one vectorised request."
-
-
-def rows_of(
-    columns: Callable[Concatenate[Client, Args], ActionColumns],
-) -> Callable[Concatenate[Client, Args], list[Action]]:
-    """A client's `act_batch`: its `act_batch_columns` (same arguments) as one `Action` a row."""
-
-    def act_batch(self: Client, /, *args: Args.args, **kwargs: Args.kwargs) -> list[Action]:
-        return columns(self, *args, **kwargs).to_actions()
-
-    return _named_like(act_batch, columns)
-
-
-def async_rows_of(
-    columns: Callable[Concatenate[Client, Args], Awaitable[ActionColumns]],
-) -> Callable[Concatenate[Client, Args], Awaitable[list[Action]]]:
-    """`rows_of` for the async clients."""
-
-    async def act_batch(self: Client, /, *args: Args.args, **kwargs: Args.kwargs) -> list[Action]:
-        return (await columns(self, *args, **kwargs)).to_actions()
-
-    return _named_like(act_batch, columns)
-
-
-F = TypeVar("F", bound=Callable[..., Any])
-
-
-def _named_like(act_batch: F, columns: Callable[..., Any]) -> F:
-    """`act_batch` documented with `columns`' parameters (help() and IDEs show them)."""
-    act_batch.__doc__ = ACT_BATCH_DOC
-    act_batch.__qualname__ = columns.__qualname__.replace("act_batch_columns", "act_batch")
-    signature = inspect.signature(columns)
-    act_batch.__signature__ = signature.replace(return_annotation="list[Action]")  # type: ignore[attr-defined]
-    return act_batch

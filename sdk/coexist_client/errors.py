@@ -21,6 +21,10 @@ from __future__ import annotations
 class CoexistError(Exception):
     """An error answered by (or on the way to) a coexist server."""
 
+    # True where the server did not act on the request (no connection, HTTP 503, gRPC
+    # UNAVAILABLE): safe to send again (`coexist_client.exchange`)
+    unsent: bool = False
+
     def __init__(self, code: str, message: str, field: str | None = None) -> None:
         super().__init__(message)
         self.code = code

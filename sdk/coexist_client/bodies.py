@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from services.sdk.errors import InvalidArgument
+from coexist_client.errors import InvalidArgument
 
 # The values are `str | Mapping[str, float]`; typed `Any` so mixed dict literals type-check.
 Partners = Mapping[int, Any] | Sequence[Any] | None
@@ -189,24 +189,6 @@ def act_batch_body(
     return body
 
 
-def episode_settings(
-    env: str,
-    ego_goal: str,
-    *,
-    partners: Partners = None,
-    method: str = "aail_bounded",
-    temperature: float | None = None,
-    regret_bound: float | None = None,
-    seed: int | None = None,
-    alias: str = "production",
-    versions: Mapping[str, int] | None = None,
-) -> dict[str, Any]:
-    """The settings of an episode: `act_body`'s fields without the observation."""
-    return _settings(
-        env, ego_goal, partners, method, temperature, seed, alias, versions, regret_bound
-    )
-
-
 def _inferring(partners: Partners, infer: Sequence[int]) -> list[dict[str, Any]]:
     """Partners in JSON form with `infer` set on the indices in `infer` (added if absent)."""
     specs = normalise_partners(partners, infer_allowed=True)
@@ -233,8 +215,8 @@ def session_body(
     versions: Mapping[str, int] | None = None,
     belief: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
-    """The JSON body of `POST /v1/sessions` (also an Episode's settings): `episode_settings`'s
-    fields with `infer` marked on partners, plus `belief` (forgetting, floor, temperature,
+    """The JSON body of `POST /v1/sessions` (also an Episode's settings): `act_body`'s
+    fields without the observation, `infer` marked on partners, plus `belief` (forgetting, floor, temperature,
     blend_mass, blend_max_goals; left out: the server's defaults)."""
     body = _settings(env, ego_goal, None, method, temperature, seed, alias, versions, regret_bound)
     body["partners"] = _inferring(partners, infer)

@@ -1,4 +1,4 @@
-"""`JobsClient`: the training job API (`services.jobs_api`) over HTTP, typed.
+"""`JobsClient` (sync) and `AsyncJobsClient`: the server's training job API over HTTP, typed.
 
     with JobsClient("http://127.0.0.1:8000", token="...") as jobs:
         job = jobs.submit("task", goals="a2", steps=2_000)
@@ -12,12 +12,12 @@
 | `get(id)`                     | `GET /v1/jobs/{id}`            | `JobInfo`       |
 | `logs(id, tail=, offset=)`    | `GET /v1/jobs/{id}/logs`       | `JobLog`        |
 | `cancel(id)`                  | `DELETE /v1/jobs/{id}`         | `JobInfo`       |
-| `wait(id, ...)`               | `GET /v1/jobs/{id}`, polled    | `JobInfo`       |
-| `follow_logs(id, ...)`        | `GET /v1/jobs/{id}/logs?offset`| chunks of text  |
+| `wait(id, ...)` (sync)        | `GET /v1/jobs/{id}`, polled    | `JobInfo`       |
+| `follow_logs(id, ...)` (sync) | `GET /v1/jobs/{id}/logs?offset`| chunks of text  |
 
 `token` is sent as `Authorization: Bearer <token>`: the admin token for submit and cancel, the read
 token (or the admin one) for the rest when the server wants one. Errors are the SDK's
-(`services.sdk.errors`): `InvalidArgument` (422, names the field), `NotFound` (404), `Unavailable`;
+(`coexist_client.errors`): `InvalidArgument` (422, names the field), `NotFound` (404), `Unavailable`;
 cancelling a finished job is the SDK's error for HTTP 409 (a `CoexistError` whose message names the
 job's status), a missing or wrong token one with code `unauthenticated` / `permission_denied`.
 """
@@ -30,10 +30,10 @@ from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
 
-import httpx
+from coexist_client.exchange import AsyncClosing, Closing, Core, Plan, awaiting, blocking
+from coexist_client.transport import Http, HttpTransport
 
-from services.sdk.connect import Verify, http_headers, http_verify
-from services.sdk.http_client import DEFAULT_URL, checked_json, unavailable_error
+DEFAULT_URL = "http://127.0.0.1:8000"
 
 # A job in one of these has ended: no runner touches it again.
 FINISHED_STATUSES = frozenset({"succeeded", "failed", "interrupted", "cancelled"})
@@ -92,65 +92,68 @@ class JobLog:
     next_offset: int | None = None
 
 
-class JobsClient:
+class JobsCore(Core):
+    def __init__(self, base_url: str = DEFAULT_URL, *, aio: bool = False, **options: Any) -> None:
+        """`options`: `HttpTransport`'s (token, timeout, headers, verify, transport, retry)."""
+        self.transport = HttpTransport(base_url, aio=aio, **options)
+
+
+def submit(
+    core: JobsCore,
+    kind: str,
+    *,
+    env: str = "particle",
+    goals: str = "all",
+    combos: str = "",
+    seed: int = 0,
+    steps: int | None = None,
+) -> Plan[JobInfo]:
+    """Queue `coexist train <kind> ...` on the server (the server's `trainer.jobs.spec` rules)."""
+    body: dict[str, Any] = {
+        "kind": kind,
+        "env": env,
+        "goals": goals,
+        "combos": combos,
+        "seed": seed,
+    }
+    if steps is not None:
+        body["steps"] = steps
+    return JobInfo.from_json((yield Http("POST", "/v1/jobs", body, idempotent=False)))
+
+
+def list_jobs(core: JobsCore, limit: int = 100) -> Plan[list[JobInfo]]:
+    """The newest `limit` jobs, newest first."""
+    data = yield Http("GET", "/v1/jobs", params={"limit": limit})
+    return [JobInfo.from_json(j) for j in data["jobs"]]
+
+
+def get(core: JobsCore, job_id: str) -> Plan[JobInfo]:
+    """One job's status."""
+    return JobInfo.from_json((yield Http("GET", f"/v1/jobs/{job_id}")))
+
+
+def logs(
+    core: JobsCore, job_id: str, *, tail: int | None = None, offset: int | None = None
+) -> Plan[JobLog]:
+    """The last `tail` characters (server default 64 000), or the log from byte `offset` on."""
+    params = {k: v for k, v in (("tail", tail), ("offset", offset)) if v is not None}
+    data = yield Http("GET", f"/v1/jobs/{job_id}/logs", params=params)
+    return JobLog(data["id"], data["status"], data["log"], data.get("next_offset"))
+
+
+def cancel(core: JobsCore, job_id: str) -> Plan[JobInfo]:
+    """Cancel: a queued job comes back `cancelled`, a running one `cancelling` (see `wait`)."""
+    return JobInfo.from_json((yield Http("DELETE", f"/v1/jobs/{job_id}")))
+
+
+class JobsClient(JobsCore, Closing):
     """Synchronous client of the job API; see the module docstring."""
 
-    def __init__(
-        self,
-        base_url: str = DEFAULT_URL,
-        *,
-        token: str | None = None,
-        timeout: float = 10.0,
-        transport: httpx.BaseTransport | None = None,
-        verify: Verify = True,
-    ) -> None:
-        self._http = httpx.Client(
-            base_url=base_url, timeout=timeout, headers=http_headers(token, None),
-            transport=transport, verify=http_verify(verify),
-        )  # fmt: skip
-
-    def _request(
-        self, method: str, path: str, *, body: Any = None, params: dict[str, Any] | None = None
-    ) -> Any:
-        try:
-            response = self._http.request(method, path, json=body, params=params)
-        except httpx.TransportError as err:
-            raise unavailable_error(err) from err
-        return checked_json(response)
-
-    def submit(
-        self,
-        kind: str,
-        *,
-        env: str = "particle",
-        goals: str = "all",
-        combos: str = "",
-        seed: int = 0,
-        steps: int | None = None,
-    ) -> JobInfo:
-        """Queue `coexist train <kind> ...` on the server (see `trainer.jobs.spec` for the rules)."""
-        body = {"kind": kind, "env": env, "goals": goals, "combos": combos, "seed": seed}
-        if steps is not None:
-            body["steps"] = steps
-        return JobInfo.from_json(self._request("POST", "/v1/jobs", body=body))
-
-    def list(self, limit: int = 100) -> list[JobInfo]:
-        """The newest `limit` jobs, newest first."""
-        data = self._request("GET", "/v1/jobs", params={"limit": limit})
-        return [JobInfo.from_json(j) for j in data["jobs"]]
-
-    def get(self, job_id: str) -> JobInfo:
-        return JobInfo.from_json(self._request("GET", f"/v1/jobs/{job_id}"))
-
-    def logs(self, job_id: str, *, tail: int | None = None, offset: int | None = None) -> JobLog:
-        """The last `tail` characters (server default 64 000), or the log from byte `offset` on."""
-        params = {k: v for k, v in (("tail", tail), ("offset", offset)) if v is not None}
-        data = self._request("GET", f"/v1/jobs/{job_id}/logs", params=params)
-        return JobLog(data["id"], data["status"], data["log"], data.get("next_offset"))
-
-    def cancel(self, job_id: str) -> JobInfo:
-        """Cancel: a queued job comes back `cancelled`, a running one `cancelling` (see `wait`)."""
-        return JobInfo.from_json(self._request("DELETE", f"/v1/jobs/{job_id}"))
+    submit = blocking(submit)
+    list = blocking(list_jobs)
+    get = blocking(get)
+    logs = blocking(logs)
+    cancel = blocking(cancel)
 
     def wait(
         self,
@@ -189,11 +192,15 @@ class JobsClient:
             if not moved:
                 time.sleep(poll_s)
 
-    def close(self) -> None:
-        self._http.close()
 
-    def __enter__(self) -> JobsClient:
-        return self
+class AsyncJobsClient(JobsCore, AsyncClosing):
+    """The job API, awaited (`aclose()` to close)."""
 
-    def __exit__(self, *exc_info: object) -> None:
-        self.close()
+    def __init__(self, base_url: str = DEFAULT_URL, **options: Any) -> None:
+        super().__init__(base_url, aio=True, **options)
+
+    submit = awaiting(submit)
+    list = awaiting(list_jobs)
+    get = awaiting(get)
+    logs = awaiting(logs)
+    cancel = awaiting(cancel)
