@@ -41,7 +41,7 @@ from services.console import is_public as console_is_public
 from services.engine import InferenceEngine
 from services.jobs_api import router as jobs_router
 from services.logging import RequestIdMiddleware
-from services.metrics import EngineCollector, HttpMetrics, SessionCollector
+from services.metrics import EngineCollector, GrpcMetrics, HttpMetrics, SessionCollector
 from services.registry import router as registry_router
 from services.registry.errors import install_error_handlers as install_registry_errors
 from services.registry.errors import unexpected_response
@@ -110,6 +110,7 @@ def create_app(
                 tokens=settings.accepted_tokens() if settings.reads_need_token else None,
                 tls=settings.tls_pair(),
                 episodes_per_client=settings.max_episodes_per_client,
+                metrics=app.state.grpc_metrics,
             )
             grpc_server.start()
             app.state.grpc_port = grpc_server.port
@@ -147,13 +148,12 @@ def create_app(
     # validation errors for every route): one JSON error shape everywhere.
     install_registry_errors(app)
     install_act_errors(app)
-    for router in [*ROUTERS, *routers]:
-        app.include_router(router)
 
     registry = CollectorRegistry()
     registry.register(EngineCollector(lambda: app.state.engine))
     registry.register(SessionCollector(lambda: getattr(app.state, "sessions", None)))
     http_metrics = HttpMetrics(registry)
+    app.state.grpc_metrics = GrpcMetrics(registry)
     # Outermost last: request ids, then metrics, then the body limit (pure ASGI, cheap checks).
     app.add_middleware(
         BodyLimit,
@@ -164,11 +164,14 @@ def create_app(
         app.add_middleware(
             TokenGate, accepted=settings.accepted_tokens(), is_public=console_is_public
         )
-    app.add_middleware(_AsgiWrapper, wrap=http_metrics.middleware)
     # outermost: the id is set before anything logs, and an error no handler took is answered
-    # here (with the id; Starlette's last-resort handler would close the connection)
-    app.add_middleware(RequestIdMiddleware, on_error=unexpected_response)
+    # here (with the id; Starlette's last-resort handler would close the connection); the same
+    # layer counts the request and times it for /metrics
+    app.add_middleware(
+        RequestIdMiddleware, on_error=unexpected_response, record=http_metrics.record
+    )
 
+    # The probes first: routes are matched in order, and a load balancer polls these often.
     @app.get("/healthz", tags=["health"])
     async def healthz() -> dict[str, str]:
         """Liveness: the process answers (touches neither the database nor the models)."""
@@ -188,6 +191,8 @@ def create_app(
         """Prometheus metrics: request counts, latency histograms, cache hits, models served."""
         return Response(generate_latest(registry), media_type=CONTENT_TYPE_LATEST)
 
+    for router in [*ROUTERS, *routers]:
+        app.include_router(router)
     install_console(app)  # last: every other route is matched before a console route is tried
     return app
 
@@ -208,13 +213,3 @@ def _readiness(engine: InferenceEngine | None) -> tuple[bool, dict[str, Any]]:
         "refresh_thread_alive": status.refresh_thread_alive,
     }
     return ready, body
-
-
-class _AsgiWrapper:
-    """Adapts a plain `wrap(app) -> app` function to Starlette's middleware signature."""
-
-    def __init__(self, app: Any, wrap: Any) -> None:
-        self.inner = wrap(app)
-
-    async def __call__(self, scope: Any, receive: Any, send: Any) -> None:
-        await self.inner(scope, receive, send)

@@ -18,7 +18,7 @@ container as docker/ does).
 
 from __future__ import annotations
 
-import time
+import threading
 from collections.abc import Callable, Iterator
 from typing import Any
 
@@ -27,7 +27,6 @@ from prometheus_client.core import CounterMetricFamily, GaugeMetricFamily, Metri
 from prometheus_client.registry import Collector
 
 from services.engine import InferenceEngine
-from services.logging import route_template
 from services.sessions import SessionStore
 
 # Latency buckets from 50 µs to 1 s: single acts take well under a millisecond.
@@ -81,9 +80,14 @@ class SessionCollector(Collector):
 
 
 class HttpMetrics:
-    """Request counters and latency histograms, recorded by a small ASGI middleware."""
+    """HTTP request counters and latency histograms, fed by `RequestIdMiddleware` (`record`).
 
-    def __init__(self, registry: CollectorRegistry) -> None:
+    The labelled children are kept in a dict keyed by (route, method, status), so a request
+    costs one dict lookup, one counter increment and one histogram observation: no label
+    validation per request (prometheus_client's `labels()` does that on every call).
+    """
+
+    def __init__(self, registry: CollectorRegistry | None) -> None:
         self.requests = Counter(
             "coexist_http_requests",
             "HTTP requests answered",
@@ -97,26 +101,49 @@ class HttpMetrics:
             buckets=LATENCY_BUCKETS,
             registry=registry,
         )
+        self._children: dict[tuple[str, str, int], tuple[Any, Any]] = {}
 
-    def middleware(self, app: Any) -> Any:
-        """Wrap an ASGI app; the route label is the matched route's path template."""
+    def record(self, route: str, method: str, status: int, seconds: float) -> None:
+        """Count one answered request and observe its latency (seconds to the response start)."""
+        key = (route, method, status)
+        children = self._children.get(key)
+        if children is None:
+            children = (self.requests.labels(route, method, str(status)),
+                        self.latency.labels(route))  # fmt: skip
+            self._children[key] = children
+        children[0].inc()
+        children[1].observe(seconds)
 
-        async def wrapped(scope: dict[str, Any], receive: Any, send: Any) -> None:
-            if scope["type"] != "http":
-                await app(scope, receive, send)
-                return
-            start = time.perf_counter()
-            status = 500
 
-            async def send_and_record(message: dict[str, Any]) -> None:
-                nonlocal status
-                if message["type"] == "http.response.start":
-                    status = message["status"]
-                    label = route_template(scope) or "unmatched"
-                    self.latency.labels(label).observe(time.perf_counter() - start)
-                    self.requests.labels(label, scope["method"], str(status)).inc()
-                await send(message)
+class GrpcMetrics:
+    """gRPC call counters and latency histograms, fed by the gRPC server's interceptor.
 
-            await app(scope, receive, send_and_record)
+    `method` is the full method name (`/coexist.v1.PolicyService/Act`), `code` the status code's
+    name (`OK`, `INVALID_ARGUMENT` ...); the latency runs from the handler's start to its return
+    (for a stream, to its last answer). Children are cached as in `HttpMetrics`; the cache is
+    filled under a lock, since grpcio's handlers run on a thread pool.
+    """
 
-        return wrapped
+    def __init__(self, registry: CollectorRegistry | None) -> None:
+        self.requests = Counter(
+            "coexist_grpc_requests", "gRPC calls answered", ["method", "code"], registry=registry
+        )
+        self.latency = Histogram(
+            "coexist_grpc_request_seconds",
+            "gRPC call latency",
+            ["method"],
+            buckets=LATENCY_BUCKETS,
+            registry=registry,
+        )
+        self._children: dict[tuple[str, str], tuple[Any, Any]] = {}
+        self._lock = threading.Lock()
+
+    def record(self, method: str, code: str, seconds: float) -> None:
+        """Count one finished call and observe its latency in seconds."""
+        children = self._children.get((method, code))
+        if children is None:
+            with self._lock:
+                children = (self.requests.labels(method, code), self.latency.labels(method))
+                self._children[method, code] = children
+        children[0].inc()
+        children[1].observe(seconds)
