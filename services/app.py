@@ -41,7 +41,14 @@ from services.console import is_public as console_is_public
 from services.engine import InferenceEngine
 from services.jobs_api import router as jobs_router
 from services.logging import RequestIdMiddleware
-from services.metrics import EngineCollector, GrpcMetrics, HttpMetrics, SessionCollector
+from services.metrics import (
+    EngineCollector,
+    GrpcMetrics,
+    HttpMetrics,
+    SessionCollector,
+    request_registry,
+    scrape_registry,
+)
 from services.registry import router as registry_router
 from services.registry.errors import install_error_handlers as install_registry_errors
 from services.registry.errors import unexpected_response
@@ -152,8 +159,9 @@ def create_app(
     registry = CollectorRegistry()
     registry.register(EngineCollector(lambda: app.state.engine))
     registry.register(SessionCollector(lambda: getattr(app.state, "sessions", None)))
-    http_metrics = HttpMetrics(registry)
-    app.state.grpc_metrics = GrpcMetrics(registry)
+    http_metrics = HttpMetrics(request_registry(registry))
+    app.state.grpc_metrics = GrpcMetrics(request_registry(registry))
+    scraped = scrape_registry(registry)  # every worker's requests with `--workers N`
     # Outermost last: request ids, then metrics, then the body limit (pure ASGI, cheap checks).
     app.add_middleware(
         BodyLimit,
@@ -189,7 +197,7 @@ def create_app(
     @app.get("/metrics", tags=["health"])
     async def metrics() -> Response:
         """Prometheus metrics: request counts, latency histograms, cache hits, models served."""
-        return Response(generate_latest(registry), media_type=CONTENT_TYPE_LATEST)
+        return Response(generate_latest(scraped), media_type=CONTENT_TYPE_LATEST)
 
     for router in [*ROUTERS, *routers]:
         app.include_router(router)
