@@ -13,7 +13,7 @@ $(STAMP): pyproject.toml setup.py $(wildcard policy/*.c policy/*.h)
 	# The CPU build of torch first, exactly: a bare `torch` requirement would pull CUDA wheels.
 	$(BIN)/pip install --quiet "torch==2.13.0"
 	# The ray extra too: the test suite trains through a real local Ray instance.
-	$(BIN)/pip install --quiet -e ".[dev,ray]"
+	$(BIN)/pip install --quiet -e ".[dev,ray,otel]"
 	touch $(STAMP)
 
 setup: $(STAMP)

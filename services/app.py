@@ -72,9 +72,13 @@ def create_app(
     *,
     engine: InferenceEngine | None = None,
     routers: Sequence[APIRouter] = (),
+    tracer_provider: Any = None,
 ) -> FastAPI:
     settings = settings or get_settings()
     settings.check_secure()
+    # OpenTelemetry (services.tracing) with `otel_enabled` or a provider given (the tests'):
+    # otherwise None, and nothing of tracing runs per request
+    tracer = _tracer(tracer_provider) if settings.otel_enabled or tracer_provider else None
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
@@ -96,6 +100,8 @@ def create_app(
             warm_up(owned_engine, limit=settings.cache_size)
             owned_engine.start_refresh_thread()
             app.state.engine = owned_engine
+        if tracer is not None:
+            tracer.instrument(app.state.engine, app.state.engine.store)
         app.state.sessions = SessionStore(
             app.state.engine,
             max_sessions=settings.max_sessions,
@@ -118,6 +124,7 @@ def create_app(
                 tls=settings.tls_pair(),
                 episodes_per_client=settings.max_episodes_per_client,
                 metrics=app.state.grpc_metrics,
+                tracer=tracer,
             )
             grpc_server.start()
             app.state.grpc_port = grpc_server.port
@@ -176,7 +183,10 @@ def create_app(
     # here (with the id; Starlette's last-resort handler would close the connection); the same
     # layer counts the request and times it for /metrics
     app.add_middleware(
-        RequestIdMiddleware, on_error=unexpected_response, record=http_metrics.record
+        RequestIdMiddleware,
+        on_error=unexpected_response,
+        record=http_metrics.record,
+        tracer=tracer,
     )
 
     # The probes first: routes are matched in order, and a load balancer polls these often.
@@ -203,6 +213,19 @@ def create_app(
         app.include_router(router)
     install_console(app)  # last: every other route is matched before a console route is tried
     return app
+
+
+def _tracer(provider: Any) -> Any:
+    """A `services.tracing.Tracer`, or a clear error when the `otel` extra is not installed."""
+    try:
+        from services.tracing import Tracer
+
+        return Tracer(provider)
+    except ImportError as err:
+        raise RuntimeError(
+            f"COEXIST_OTEL_ENABLED needs OpenTelemetry ({err.name} is missing): "
+            "pip install 'coexist[otel]'"
+        ) from None
 
 
 def _readiness(engine: InferenceEngine | None) -> tuple[bool, dict[str, Any]]:

@@ -118,6 +118,7 @@ class Settings(BaseSettings):
     log_format: Literal["json", "text"] = "text"
     log_level: Literal["debug", "info", "warning", "error"] = "info"
     shutdown_grace_s: int = Field(default=10, ge=0, le=3600)
+    otel_enabled: bool = False  # OpenTelemetry spans (services.tracing; the `otel` extra)
     job_lease_s: float = Field(default=30.0, ge=1.0, le=3600)
 
     @field_validator("log_format", "log_level", mode="before")
