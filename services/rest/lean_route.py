@@ -3,8 +3,9 @@ and session routers).
 
 FastAPI's request handler does work per request before the endpoint runs (dependency solving,
 query, header and cookie parsing, exit stacks) that an endpoint of the shape below does not need:
-a measurable share of a session step's route overhead (`benchmarks/session_breakdown.py`). For an endpoint taking only plain `str` path parameters, one pydantic
-body model and the `Request`, a request whose `content-type` is `application/json` and whose body
+a measurable share of a session step's route overhead (`benchmarks/session_breakdown.py`).
+For an endpoint taking only plain `str` path parameters, one pydantic body model and the
+`Request`, a request whose `content-type` is `application/json` and whose body
 parses (orjson, as `FastJsonRequest`) and validates against the model calls the endpoint
 directly, with the arguments FastAPI would pass. Anything else (another content type, an empty,
 malformed or invalid body, an unreadable stream, a body size limit, FastAPI telemetry on) takes
