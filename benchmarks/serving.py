@@ -351,7 +351,14 @@ def verdicts(cases: list[Case]) -> list[tuple[str, float, float, bool]]:
         rows.append((f"{t}: act req/s / no-op req/s (c=32)", share, 0.4, share >= 0.4))
         batch = get[t, "batch", 1].actions_per_s / get[t, "act", 1].rps
         rows.append((f"{t}: batch actions/s / act req/s (c=1)", batch, 30.0, batch >= 30.0))
-    # against the bare servers (issue 22): what coexist adds to a request
+    if ("REST", "floor no-op", 1) in get and ("gRPC", "floor no-op", 1) in get:
+        rows += floor_verdicts(get)
+    return rows
+
+
+def floor_verdicts(get: dict[tuple[str, str, int], Case]) -> list[tuple[str, float, float, bool]]:
+    """Issue 22's targets: coexist against the bare servers (what coexist adds to a request)."""
+    rows = []
     floor_rest, floor_grpc = get["REST", "floor no-op", 1], get["gRPC", "floor no-op", 1]
     against = [
         ("REST: no-op p50 / bare FastAPI no-op p50 (c=1)", get["REST", "no-op", 1], floor_rest, 1.15),
