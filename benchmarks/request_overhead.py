@@ -31,18 +31,14 @@ from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
 
 
 def bare_app() -> Any:
-    from fastapi import FastAPI
+    """The bare FastAPI app of `benchmarks/serving.py`'s REST floor."""
+    from floor_servers import rest_app
 
-    app = FastAPI()
-
-    @app.get("/healthz")
-    async def healthz() -> dict[str, str]:
-        return {"status": "ok"}
-
-    return app
+    return rest_app()
 
 
 def coexist_app(tmp: str) -> Any:
