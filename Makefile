@@ -1,7 +1,7 @@
 # The two commands of the README's quick start are `make serve` and `make test`.
 # Each sets up the virtual environment first (idempotent) with what it needs, so a fresh clone
 # needs nothing else: `make serve` the server and training (`.[train]`: torch, matplotlib; no dev
-# tools, no Ray), `make test` everything (`.[dev,ray]`; dev brings train, eval and postgres).
+# tools, no Ray), `make test` everything (`.[dev,ray,otel]`; dev brings train, eval and postgres).
 PY ?= python3
 comma := ,
 VENV ?= .venv
@@ -26,9 +26,10 @@ $(VENV)/.installed-serve: $(DEPS) | $(BIN)/python
 	$(call install,train)
 	touch $@
 
-# The ray extra too: the test suite trains through a real local Ray instance.
+# The ray and otel extras too: the test suite trains through a real local Ray instance and
+# checks the optional traces.
 $(VENV)/.installed: $(DEPS) | $(BIN)/python
-	$(call install,dev$(comma)ray)
+	$(call install,dev$(comma)ray$(comma)otel)
 	touch $@ $(VENV)/.installed-serve
 
 setup: $(VENV)/.installed

@@ -64,6 +64,10 @@ def serve(
         raise typer.Exit(2) from None
     if bootstrap:
         _bootstrap(settings.resolved_store_url(), settings.data_dir, bootstrap_steps)
+    if workers > 1:  # one /metrics for all workers: prometheus_client's multiprocess mode
+        from services.metrics import prepare_multiprocess_dir
+
+        prepare_multiprocess_dir(settings.data_dir / "prometheus")
     scheme, grpc_kind = ("https", "gRPC with TLS") if settings.tls else ("http", "gRPC")
     typer.echo(
         f"serving REST on {scheme}://{host}:{http_port} (docs at /docs)"

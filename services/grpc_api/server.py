@@ -42,6 +42,7 @@ from services.grpc_api.errors import parse_or_malformed
 from services.grpc_api.gen.coexist.v1 import policy_pb2 as pb
 from services.grpc_api.request_ids import RequestIdInterceptor
 from services.grpc_api.servicer import PolicyServicer
+from services.metrics import GrpcMetrics
 from services.oip.grpc_servicer import SERVICE_NAME as OIP_SERVICE_NAME
 from services.oip.grpc_servicer import InferenceServicer
 from services.oip.grpc_servicer import handlers as oip_handlers
@@ -154,6 +155,8 @@ def build_grpc_server(
     tokens: tuple[str, ...] | None = None,
     tls: tuple[bytes, bytes] | None = None,
     episodes_per_client: int | None = None,
+    metrics: GrpcMetrics | None = None,
+    tracer: Any = None,
 ) -> GrpcServer:
     """A gRPC server (not started) bound to `host:port`; port 0 binds a free port (`.port`).
 
@@ -166,11 +169,14 @@ def build_grpc_server(
     step's evidence after sending each answer (`services.sessions.session`, "Scoring ahead").
     `tokens`: every call but health checks needs `authorization: Bearer <one of them>`
     (`services.auth.TokenInterceptor`); None: open. `tls`: (certificate chain, private key),
-    PEM: the port speaks TLS only; None: plaintext.
+    PEM: the port speaks TLS only; None: plaintext. `metrics`: every call counted and timed
+    (`services.metrics.GrpcMetrics`, served on the REST server's `/metrics`); `tracer`: every
+    call a span (`services.tracing.Tracer`; None, the default: tracing off).
     """
     if max_workers < 1:
         raise ValueError(f"max_workers: expected >= 1, got {max_workers}")
-    interceptors: list[grpc.ServerInterceptor] = [RequestIdInterceptor()]  # ids, access lines
+    # ids, access lines, metrics, spans
+    interceptors: list[grpc.ServerInterceptor] = [RequestIdInterceptor(metrics, tracer)]
     if tokens is not None:
         interceptors.append(TokenInterceptor(tokens))  # inside: refusals are logged with ids
     server = grpc.server(
