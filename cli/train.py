@@ -37,6 +37,10 @@ StepsOpt = Annotated[
     int | None, typer.Option(help="Batched env steps per batch (default: config).")
 ]
 BatchOpt = Annotated[int, typer.Option(help="Goals trained together in one batch.")]
+WorkersOpt = Annotated[
+    int,
+    typer.Option(min=1, help="Batches trained at once, one process each (the same networks as 1)."),
+]
 StoreOpt = Annotated[str | None, typer.Option(help="Model store URL (default: embedded SQLite).")]
 RunDirOpt = Annotated[Path, typer.Option(help="Where the run's record and plots go.")]
 ResumeOpt = Annotated[bool, typer.Option(help="Skip batches this run directory already finished.")]
@@ -244,6 +248,7 @@ def task(
     seed: SeedOpt = 0,
     steps: StepsOpt = None,
     goals_per_batch: BatchOpt = 35,
+    workers: WorkersOpt = 1,
     store_url: StoreOpt = None,
     run_dir: RunDirOpt = Path("runs/task"),
     resume: ResumeOpt = False,
@@ -286,6 +291,7 @@ def task(
                 progress=progress,
                 env=env,
                 serve_alias=alias,
+                workers=workers,
             )
     print_summary(batches)
     _print_cooking_gates(batches)
@@ -299,6 +305,7 @@ def impact(
     seed: SeedOpt = 0,
     steps: StepsOpt = None,
     goals_per_batch: BatchOpt = 35,
+    workers: WorkersOpt = 1,
     store_url: StoreOpt = None,
     run_dir: RunDirOpt = Path("runs/impact"),
     resume: ResumeOpt = False,
@@ -330,6 +337,7 @@ def impact(
                 run=run,
                 progress=progress,
                 env=env,
+                workers=workers,
             )
     print_summary(batches)
     _print_cooking_gates(batches)
@@ -380,6 +388,7 @@ def zoo(
     seed: SeedOpt = 0,
     steps: StepsOpt = None,
     goals_per_batch: BatchOpt = 35,
+    workers: WorkersOpt = 1,
     store_url: StoreOpt = None,
     run_dir: RunDirOpt = Path("runs/zoo"),
     resume: ResumeOpt = False,
@@ -415,12 +424,9 @@ def zoo(
                               env=env, address=ray_address)  # fmt: skip
         else:
             common = dict(seed=seed, run=run, progress=progress, env=env)
-            batches = run_tasks(
-                store, goal_ids, task_cfg, goals_per_batch=goals_per_batch, **common
-            )
-            batches += run_impacts(
-                store, goal_ids, impact_cfg, goals_per_batch=goals_per_batch, **common
-            )
+            sizes: dict[str, Any] = dict(goals_per_batch=goals_per_batch, workers=workers)
+            batches = run_tasks(store, goal_ids, task_cfg, **sizes, **common)
+            batches += run_impacts(store, goal_ids, impact_cfg, **sizes, **common)
             if combo_ids:
                 batches += run_joint(store, combo_ids, joint_cfg, **common)
     print_summary(batches)
