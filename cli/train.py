@@ -87,11 +87,11 @@ def _goals(env: str, goals: str) -> list[str]:
 
 
 def _combos(env: str, combos: str) -> list[list[str]]:
-    if env == "cooking":
-        raise typer.BadParameter(
-            "the joint-learner baseline is trained for the particle world only",
-            param_hint="--combos",
-        )
+    from trainer.domain import env_trainer
+
+    no_joint = env_trainer(env).no_joint_reason
+    if no_joint:
+        raise typer.BadParameter(no_joint, param_hint="--combos")
     out = [_goals(env, ",".join(c.split("+"))) for c in combos.split(",") if c.strip()]
     for combo in out:
         if not 2 <= len(combo) <= 5:
@@ -218,22 +218,20 @@ def _on_ray(
     )
 
 
-def _print_cooking_gates(batches: list[Any]) -> None:
-    from trainer.cooking_gates import print_cooking_gates
+def _print_gates(env: str, batches: list[Any]) -> None:
+    """The environment's gate details beyond the summary table (the kitchen's dish table)."""
+    from trainer.domain import env_trainer
 
-    print_cooking_gates(batches)  # the summary table shows the particle gates' numbers only
+    env_trainer(env).print_gates(batches)
 
 
 def _configs(steps: int | None, env: str = "particle") -> tuple[Any, Any, Any]:
     """Task, impact and joint configurations of `env` (the kitchen has its own: sparse dishes)."""
-    from trainer.config import ImpactConfig, JointConfig, TaskConfig
-    from trainer.cooking_config import CookingImpactConfig, CookingTaskConfig
+    from trainer.config import JointConfig
+    from trainer.domain import env_trainer
 
-    task: TaskConfig | CookingTaskConfig = TaskConfig()
-    impact: ImpactConfig | CookingImpactConfig = ImpactConfig()
+    task, impact = env_trainer(env).default_configs()
     joint = JointConfig()
-    if env == "cooking":
-        task, impact = CookingTaskConfig(), CookingImpactConfig()
     if steps is not None:
         task = replace(task, total_steps=steps)
         impact = replace(impact, total_steps=steps)
@@ -294,7 +292,7 @@ def task(
                 workers=workers,
             )
     print_summary(batches)
-    _print_cooking_gates(batches)
+    _print_gates(env, batches)
     write_curves(batches, run_dir)
 
 
@@ -340,7 +338,7 @@ def impact(
                 workers=workers,
             )
     print_summary(batches)
-    _print_cooking_gates(batches)
+    _print_gates(env, batches)
     write_curves(batches, run_dir)
 
 
@@ -376,7 +374,7 @@ def joint(
                 store, combo_ids, config, seed=seed, run=run, progress=progress, env=env
             )
     print_summary(batches)
-    _print_cooking_gates(batches)
+    _print_gates(env, batches)
     write_curves(batches, run_dir)
 
 
@@ -430,5 +428,5 @@ def zoo(
             if combo_ids:
                 batches += run_joint(store, combo_ids, joint_cfg, **common)
     print_summary(batches)
-    _print_cooking_gates(batches)
+    _print_gates(env, batches)
     write_curves(batches, run_dir)

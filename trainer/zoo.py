@@ -2,12 +2,11 @@
 
 Order matters: an impact network for partner goal h is trained against the *registered* task
 network of h (its `production` version, else `latest`), and names that version as its parent.
-In the kitchen (env `cooking`) it must be the `production` version: a goal whose task network
-failed every gate attempt gets no impact network (`run_impacts` skips it with a warning, and a
-later `--resume` or `coexist train impact` trains it once a task network has passed). An impact
-network learned beside a task network that cannot cook learns to help a partner that fails
-anyway (the first cooking zoo did: parent `latest`, a 75 % CarrotBanana network). The particle
-world keeps the fallback: its quick tiny zoos (`--fast`, tests) serve networks that fail gates.
+Where the environment's trainer says so (`EnvTrainer.production_parents_only`: the kitchen) it
+must be the `production` version: a goal whose task network failed every gate attempt gets no
+impact network (`run_impacts` skips it with a warning, and a later `--resume` or `coexist train
+impact` trains it once a task network has passed). The particle world keeps the fallback: its
+quick tiny zoos (`--fast`, tests) serve networks that fail gates.
 Work is done in batches of goals; a run directory records finished batches, so an interrupted
 run resumes where it stopped (`--resume`) instead of starting again.
 """
@@ -28,8 +27,8 @@ from model_store.errors import NotFound
 from model_store.naming import task_model_name
 from model_store.store import ModelStore
 from policy.qnet import QNetSpec, StackedQNet, tensors_from_safetensors
-from trainer.config import GATE_RETRIES, ImpactConfig, JointConfig, TaskConfig
-from trainer.cooking_config import CookingImpactConfig, CookingTaskConfig
+from trainer.config import GATE_RETRIES, SoftQConfig
+from trainer.domain import env_trainer
 from trainer.learners import TrainedBatch, chunked, train_impacts, train_joint, train_tasks
 from trainer.loop import ProgressFactory
 from trainer.parallel import BatchJob, train_batches
@@ -98,17 +97,16 @@ def fingerprint(**parts: object) -> str:
     return hashlib.sha256(blob).hexdigest()[:16]
 
 
-def check_config_env(config: object, env: str) -> None:
-    """A cooking configuration trains in the kitchen, any other in the particle world."""
-    cooking = isinstance(config, CookingTaskConfig | CookingImpactConfig)
-    if cooking != (env == "cooking"):
+def check_config_env(config: SoftQConfig, env: str) -> None:
+    """A configuration trains in the environment it names (`SoftQConfig.ENV`)."""
+    if env != config.ENV:
         raise ValueError(f"config: a {type(config).__name__} does not train env {env!r}")
 
 
 def run_tasks(
     store: ModelStore,
     goals: Sequence[str],
-    config: TaskConfig | CookingTaskConfig,
+    config: SoftQConfig,
     *,
     seed: int,
     goals_per_batch: int,
@@ -162,7 +160,7 @@ def run_tasks(
 def run_impacts(
     store: ModelStore,
     goals: Sequence[str],
-    config: ImpactConfig | CookingImpactConfig,
+    config: SoftQConfig,
     *,
     seed: int,
     goals_per_batch: int,
@@ -212,7 +210,7 @@ def run_impacts(
 def _impact_batches(
     store: ModelStore,
     chunks: Sequence[tuple[list[str], int, str, str]],
-    config: ImpactConfig | CookingImpactConfig,
+    config: SoftQConfig,
     *,
     run: RunState,
     progress: ProgressFactory,
@@ -248,7 +246,7 @@ def _impact_batches(
 def run_joint(
     store: ModelStore,
     combos: Sequence[Sequence[str]],
-    config: JointConfig,
+    config: SoftQConfig,
     *,
     seed: int,
     run: RunState,
@@ -286,7 +284,7 @@ def run_joint(
 def production_parents_required(env: str) -> bool:
     """Whether an impact network must be trained against a `production` task network (the
     kitchen: module docstring), or may fall back to `latest` (the particle world)."""
-    return env == "cooking"
+    return env_trainer(env).production_parents_only
 
 
 def warn_unserved_parents(goals: Sequence[str], env: str) -> None:
