@@ -26,9 +26,9 @@ import torch
 
 from envs.cooking import COOKING
 from policy.qnet import StackedQNet
-from policy.torch_ops import sample_boltzmann_t, soft_value_t
 from trainer.cooking.config import CookingConfig, CookingImpactConfig
 from trainer.cooking.kitchens import Kitchens
+from trainer.frozen import FrozenTaskNets
 
 
 class _Returns:
@@ -46,25 +46,6 @@ class _Returns:
     def pop(self) -> list[list[float]]:
         out, self.finished = self.finished, [[] for _ in self.finished]
         return out
-
-
-class FrozenTaskNets:
-    """G frozen task networks acting (Boltzmann at α) and valuing (eq. 3) their views."""
-
-    def __init__(self, nets: StackedQNet, alpha: float, generator: torch.Generator) -> None:
-        self.nets, self.alpha, self.generator = nets, alpha, generator
-
-    @torch.no_grad()
-    def q_values(self, views_GED: np.ndarray) -> torch.Tensor:
-        return self.nets(torch.from_numpy(np.ascontiguousarray(views_GED, dtype=np.float32)))
-
-    def act(self, views_GED: np.ndarray) -> np.ndarray:
-        """Actions (G, E)."""
-        return sample_boltzmann_t(self.q_values(views_GED), self.alpha, self.generator).numpy()
-
-    def soft_value(self, views_GED: np.ndarray) -> np.ndarray:
-        """V (G, E), eq. 3."""
-        return soft_value_t(self.q_values(views_GED), self.alpha).numpy()
 
 
 class CookingTaskRollout:

@@ -22,8 +22,8 @@ from envs.particle.domain import PARTICLE
 from envs.particle.goals import GOAL_IDS
 from envs.particle.scripted import scripted_actions
 from policy.qnet import StackedQNet
-from policy.torch_ops import sample_boltzmann_t, soft_value_t
 from trainer.config import SoftQConfig, TaskConfig
+from trainer.frozen import FrozenTaskNets
 
 N_GOALS = len(GOAL_IDS)
 
@@ -45,30 +45,6 @@ class _EpisodeTracker:
     def pop(self) -> list[list[float]]:
         out, self.finished = self.finished, [[] for _ in range(self.n_nets)]
         return out
-
-
-class _FrozenPartners:
-    """Partners that act with frozen task networks (Boltzmann at α), one network per env group."""
-
-    def __init__(self, nets: StackedQNet, alpha: float, generator: torch.Generator) -> None:
-        self.nets, self.alpha, self.generator = nets, alpha, generator
-
-    @torch.no_grad()
-    def q_values(self, partner_view_GED: np.ndarray) -> torch.Tensor:
-        """Q of each env's partner; views (G, E, K, D) are K task views averaged, as served."""
-        views = torch.from_numpy(np.ascontiguousarray(partner_view_GED, dtype=np.float32))
-        if views.dim() == 3:
-            return self.nets(views)
-        n_nets, n_envs, n_views, dim = views.shape
-        q = self.nets(views.reshape(n_nets, n_envs * n_views, dim))
-        return q.reshape(n_nets, n_envs, n_views, -1).mean(dim=2)
-
-    def act(self, partner_view_GED: np.ndarray) -> np.ndarray:
-        q_GEA = self.q_values(partner_view_GED)
-        return sample_boltzmann_t(q_GEA, self.alpha, self.generator).numpy().reshape(-1)
-
-    def soft_value(self, partner_view_GED: np.ndarray) -> np.ndarray:
-        return soft_value_t(self.q_values(partner_view_GED), self.alpha).numpy()
 
 
 class ParticleTaskRollout:
@@ -149,7 +125,7 @@ class ParticleImpactRollout:
         self.world = BatchedParticleWorld(self.goals_BN, max_steps=config.episode_steps, seed=seed)
         self.obs_BND = self.world.reset()
         generator = torch.Generator().manual_seed(seed + 1)
-        self.partners = _FrozenPartners(partner_task_nets, config.alpha, generator)
+        self.partners = FrozenTaskNets(partner_task_nets, config.alpha, generator)
         self.tracker = _EpisodeTracker(self.n_nets, self.envs_per_net)
         self.partner_return_tracker = _EpisodeTracker(self.n_nets, self.envs_per_net)
         assert n_envs == self.goals_BN.shape[0]
@@ -162,7 +138,9 @@ class ParticleImpactRollout:
 
     def step(self, actions_GE: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         partner_view = self._grouped(PARTICLE.partner_view(self.obs_BND[:, 0], 2, 1))
-        actions_BN = np.stack([actions_GE.reshape(-1), self.partners.act(partner_view)], axis=1)
+        actions_BN = np.stack(
+            [actions_GE.reshape(-1), self.partners.act(partner_view).reshape(-1)], axis=1
+        )
         result = self.world.step(actions_BN)
         ego_next_B = result.next_obs_BND[:, 0]
         next_partner_view = self._grouped(PARTICLE.partner_view(ego_next_B, 2, 1))
@@ -206,7 +184,7 @@ class ParticleJointRollout:
         self.obs_BND = self.world.reset()
         generator = torch.Generator().manual_seed(seed + 1)
         # partner_task_nets[k]: stacked task nets of the k-th partner's goal, one member per combo.
-        self.partners = [_FrozenPartners(n, config.alpha, generator) for n in partner_task_nets]
+        self.partners = [FrozenTaskNets(n, config.alpha, generator) for n in partner_task_nets]
         self.tracker = _EpisodeTracker(self.n_nets, self.envs_per_net)
 
     def observe(self) -> np.ndarray:
@@ -220,7 +198,7 @@ class ParticleJointRollout:
             # the same rule the inference engine applies to the ego's task net.
             views_BKD = PARTICLE.task_views(self.obs_BND[:, k], self.n_agents)
             shape = (self.n_nets, self.envs_per_net, *views_BKD.shape[1:])
-            columns.append(partner.act(views_BKD.reshape(shape)))
+            columns.append(partner.act(views_BKD.reshape(shape)).reshape(-1))
         result = self.world.step(np.stack(columns, axis=1))
         team_B = result.rewards_BN.sum(axis=1)
         done_B = self.world.steps >= self.world.max_steps  # time limit, whatever the state

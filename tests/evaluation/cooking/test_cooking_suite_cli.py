@@ -8,7 +8,6 @@ from dataclasses import replace
 from pathlib import Path
 
 import pytest
-from test_eval_suite import live_http  # a uvicorn thread on 127.0.0.1 serving an engine
 from typer.testing import CliRunner
 
 from cli.main import app
@@ -22,6 +21,9 @@ from evaluation.cooking.report import (
 from evaluation.cooking.suite import evaluate_cooking
 from model_store.sql.sql_store import SqlModelStore
 from services.engine import InferenceEngine
+from tests.evaluation.paper.test_eval_suite import (
+    live_http,  # a uvicorn thread on 127.0.0.1 serving an engine
+)
 from trainer.cooking.config import CookingImpactConfig, CookingTaskConfig
 from trainer.learners import train_impacts, train_tasks
 from trainer.publish import publish_batch
