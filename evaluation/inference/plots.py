@@ -29,19 +29,12 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from envs.particle.goals import N_GOALS
+from evaluation.figures import save_figure
 
 Series = Mapping[str, Mapping[str, list[float]]]  # belief label -> measure -> per-k values
 COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b")
 VALUE_COLOURS = {"sl": "#7f7f7f", "aail": "#1f77b4", "aail-inferred": "#17becf"}
 VALUE_LABELS = {"sl": "SL", "aail": "AAIL, goal announced", "aail-inferred": "AAIL, goal inferred"}
-
-
-def _save(fig: Any, path: Path) -> Path:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
 
 
 def _top1(ax: Any, k: np.ndarray, s: Mapping[str, list[float]], colour: str, label: str) -> None:
@@ -76,7 +69,7 @@ def plot_accuracy(
     _finish(ax, episodes)
     ax.set_title("Belief's top goal = the partner's true goal (band: Wilson 95 %)", fontsize=10)
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # outside: no overlap
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def _floor(label: str) -> float:
@@ -101,7 +94,7 @@ def plot_cross_entropy(series: Series, path: Path) -> Path:
     ax.set_title("Cross-entropy of the belief (band: ± SE)", fontsize=10)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_switch(series: Series, episodes: int, switch_at: int, path: Path) -> Path:
@@ -113,7 +106,7 @@ def plot_switch(series: Series, episodes: int, switch_at: int, path: Path) -> Pa
     ax.text(switch_at + 0.5, 0.95, "partner changes its goal", fontsize=8, va="top")
     ax.set_title("Top goal = the partner's current goal, goal changed mid-episode", fontsize=10)
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_value(
@@ -136,4 +129,4 @@ def plot_value(
         ax.set_ylabel("accumulated reward")
         ax.set_title(label, fontsize=9)
     axes[0][0].legend(fontsize=7)
-    return _save(fig, path)
+    return save_figure(fig, path)

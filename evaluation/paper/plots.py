@@ -26,6 +26,7 @@ from matplotlib.patches import Rectangle
 from envs.particle.goals import INFLUENCE_BOXES_G4, TARGET_BOXES_G4, goal_index
 from envs.particle.render import render_frame
 from evaluation.config import METHOD_LABELS, Scenario
+from evaluation.figures import save_figure
 from evaluation.paper.directions import DirectionField
 from evaluation.paper.pairs import UnitGroup
 from evaluation.stats import MethodSummary
@@ -38,14 +39,6 @@ COLOURS = {
     "aail_bounded": "#9467bd",
     "jl": "#2ca02c",
 }
-
-
-def _save(fig: Any, path: Path) -> Path:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
 
 
 def _bars(
@@ -99,7 +92,7 @@ def plot_returns(
         ax.tick_params(axis="x", labelsize=8)
     axes[0][0].legend(fontsize=8)
     fig.suptitle(title)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_pairs(groups: Sequence[UnitGroup], path: Path) -> Path:
@@ -137,7 +130,7 @@ def plot_pairs(groups: Sequence[UnitGroup], path: Path) -> Path:
         bottom.tick_params(axis="x", labelsize=8)
     axes[0][0].set_ylabel("team return − SL's, per unit")
     axes[1][0].set_ylabel("stuck episodes (share; count on the bar)")
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def _box(ax: Any, box: np.ndarray, colour: str, filled: bool, label: str) -> None:
@@ -201,7 +194,7 @@ def plot_directions(
         ax.set_yticks([0, 0.2, 0.4, 0.6, 0.8, 1.0])
         ax.grid(alpha=0.3)
     axes[0][0].legend(fontsize=6, loc="lower left")
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_training(curves: Mapping[str, Sequence[Mapping[str, float]]], path: Path) -> Path:
@@ -225,7 +218,7 @@ def plot_training(curves: Mapping[str, Sequence[Mapping[str, float]]], path: Pat
         ax.set_title(f"{kind} ({len(rows)} networks)")
         ax.set_xlabel("batched training steps")
         ax.set_ylabel("mean episode return" if kind != "impact" else "mean impact return")
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_episode_strip(
@@ -254,4 +247,4 @@ def plot_episode_strip(
             va="center",
             ha="right",
         )
-    return _save(fig, path)
+    return save_figure(fig, path)
