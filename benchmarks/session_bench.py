@@ -356,7 +356,7 @@ def main() -> None:
         "cases": [asdict(c) | {"rps": c.rps} for c in cases], "in_process": in_process,
     }  # fmt: skip
     (args.out / "latency.json").write_text(json.dumps(record, indent=1))
-    from evaluation.inference_report import render_readme
+    from evaluation.inference.report import render_readme
 
     print(f"wrote {args.out / 'latency.json'}; README: {render_readme(args.out)}")
 

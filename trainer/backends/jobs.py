@@ -228,6 +228,6 @@ def train_batch(
         batch.config,
         batch.seed,
         batch.curves,
-        batch.gates,
+        list(batch.gates),
         [v.ref for v in registered],
     )
