@@ -45,19 +45,16 @@ The engine's default ε is `DEFAULT_EPSILON_PER_ALPHA` × the task network's tem
 action keeps the blend's say when the task policy rates it at least e^-1/2 ≈ 0.61 as likely as
 its best. Chosen by measurement (`reports/paper/blend_choice.md`): ε = α already lets the ego
 step out of its target where that costs it little, which in five-agent scenes moves the partners
-around; ε = α/4 helps less where goals align. Both shapes below give the same numbers to
-rounding (tested): `bound_rows` for batches (numpy), `bound_row` for the engine's single-row path
-(Python floats, where numpy's per-call cost would dominate).
+around; ε = α/4 helps less where goals align. `bound_rows` computes it for B rows (numpy).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 
 import numpy as np
 
-__all__ = ["DEFAULT_EPSILON_PER_ALPHA", "bound_row", "bound_rows", "check_regret_bound"]
+__all__ = ["DEFAULT_EPSILON_PER_ALPHA", "bound_rows", "check_regret_bound"]
 
 DEFAULT_EPSILON_PER_ALPHA = 0.5
 
@@ -89,23 +86,3 @@ def bound_rows(
     share_BA = blend_inside_BA / np.where(usable_B1, blend_mass_B1, 1.0)
     bounded_BA = np.where(inside_BA, task_mass_B1 * share_BA, probs_task_BA)
     return np.where(usable_B1, bounded_BA, probs_task_BA)
-
-
-def bound_row(
-    probs_blend_A: Sequence[float], q_task_A: Sequence[float], alpha: float, epsilon: float
-) -> list[float]:
-    """`bound_rows` of one row, π_t computed here from `q_task_A` at `alpha` (eq. 2)."""
-    q_max = max(q_task_A)
-    weights = [math.exp((q - q_max) / alpha) for q in q_task_A]
-    total = math.fsum(weights)
-    probs_task = [w / total for w in weights]
-    inside = [q >= q_max - epsilon for q in q_task_A]
-    blend_mass = math.fsum(p for p, keep in zip(probs_blend_A, inside, strict=True) if keep)
-    if blend_mass <= 0.0:
-        return probs_task
-    task_mass = math.fsum(p for p, keep in zip(probs_task, inside, strict=True) if keep)
-    scale = task_mass / blend_mass
-    return [
-        pb * scale if keep else pt
-        for pb, pt, keep in zip(probs_blend_A, probs_task, inside, strict=True)
-    ]

@@ -217,9 +217,7 @@ class ModelCache:
                     f"{domain.n_actions} (and obs_dim {domain.pair_obs_dim} for task/impact)",
                 )
             nets.append(net)
-        # one row of observations feeds the task net K <= max_agents - 1 views (fastpath)
-        repeats = 1 if members[0][0] == "joint" else max(1, domain.max_agents - 1)
-        group = build_group(nets, first_repeats=repeats)
+        group = build_group(nets)
         self._stacks.put(key, group)
         return group
 

@@ -8,9 +8,8 @@ import numpy as np
 import pytest
 
 from policy.blend import blend, blend_vectorised
-from policy.blend_fast import blend_row
 from policy.maths import boltzmann
-from policy.regret_bound import bound_row, bound_rows, check_regret_bound
+from policy.regret_bound import bound_rows, check_regret_bound
 
 ALPHA = 0.02
 
@@ -46,9 +45,9 @@ def test_blend_matches_the_direct_equation(eps: float) -> None:
     for b in range(len(q_task)):
         expected = direct(q_task[b].tolist(), aail[b].tolist(), ALPHA, eps)
         np.testing.assert_allclose(bounded.probs_BA[b], expected, rtol=0, atol=1e-12)
-        row = blend_row("aail_bounded", q_task[b].tolist(), q_impact[b].tolist(), ALPHA,
-                        regret_bound=eps)  # fmt: skip
-        np.testing.assert_allclose(row.probs_A, expected, rtol=0, atol=1e-12)
+        row = blend("aail_bounded", q_task[b : b + 1], q_impact[b : b + 1], ALPHA,
+                    regret_bound=eps)  # fmt: skip  # one row: the same code, B = 1
+        np.testing.assert_allclose(row.probs_BA[0], expected, rtol=0, atol=1e-12)
     np.testing.assert_allclose(reference.probs_BA, bounded.probs_BA, rtol=0, atol=1e-12)
     # the diagnostics are AAIL's
     np.testing.assert_allclose(
@@ -87,10 +86,10 @@ def test_outside_actions_keep_their_task_probability_by_hand() -> None:
 
 
 def test_no_blend_mass_inside_falls_back_to_the_task_policy() -> None:
-    q_task = [0.0, -1.0, -1.0]
-    assert bound_row([0.0, 0.5, 0.5], q_task, ALPHA, 0.1) == pytest.approx(
-        boltzmann(np.array(q_task), ALPHA).tolist()
-    )
+    q_task = np.array([[0.0, -1.0, -1.0]])
+    probs_task = boltzmann(q_task, ALPHA)
+    got = bound_rows(np.array([[0.0, 0.5, 0.5]]), q_task, probs_task, 0.1)
+    np.testing.assert_allclose(got, probs_task, rtol=0, atol=1e-15)
 
 
 @pytest.mark.parametrize("bad", [-0.1, float("nan"), float("inf"), "0.1", True, None])
