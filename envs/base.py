@@ -42,6 +42,10 @@ class Domain(Protocol):
     # how AAIL's eq. 8 treats the Q-vectors it blends (`policy.blend`): "standardise" each over
     # the actions first, or "none" (raw Q, for rewards on one scale)
     blend_normalisation: BlendNormalisation
+    # whether a reached goal stays reached whatever the ego does next (a served dish), so that its
+    # task Q is flat from there on (AAIL-B then blends with a flat task Q: `policy.regret_bound`,
+    # R3), or the ego must keep it (a target area it could leave)
+    goal_is_final: bool
 
     @property
     def n_actions(self) -> int: ...
@@ -70,6 +74,13 @@ class Domain(Protocol):
         """Per row, whether the ego's own `goal` is reached in its observation, (B,) bool; None
         where observations cannot tell. AAIL-B blends only where it is (`policy.regret_bound`,
         the progress guard): elsewhere the ego acts with its task policy."""
+        ...
+
+    def goal_kept(self, obs_BD: np.ndarray, n_agents: int, goal: str) -> np.ndarray | None:
+        """Per row and action, whether the ego's own `goal` is still reached after the action and
+        can be kept from there, (B, A) bool; None where the environment cannot tell or the goal
+        cannot be lost. AAIL-B takes no action that loses a reached goal where another keeps it
+        (`policy.regret_bound`, R4)."""
         ...
 
     def scene(self, env: Any) -> Scene:

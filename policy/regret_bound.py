@@ -38,8 +38,33 @@ Why: a per-step bound does not stop the ego from drifting to where the task netw
 preferences differ by less than ε and parking there, just outside its target, for the rest of
 the episode; measured, such task networks exist (`reports/paper/blend_choice.md`). With the
 guard, helping never delays the ego's own task: it blends only once its task is done, as the
-paper's kitchen cook hands the carrot over after cooking its own dish. Where observations cannot
-tell (the kitchen), ε applies everywhere.
+paper's kitchen cook hands the carrot over after cooking its own dish (the kitchen tells it by
+the cook's `served` feature). Where an environment's observations cannot tell, ε applies
+everywhere.
+
+A finished task (R3). Where the ego's goal is reached for good (`Domain.goal_is_final`: a served
+dish stays served, and no later step costs the cook anything), no action changes the ego's own
+return, so its exact task Q is the same for every action. A trained network is only close to
+that: in the kitchen its residual preferences after the dish (a few α) are approximation error,
+yet eq. 9 reads them as confidence and keeps the impact network out. There the engine blends
+with the row's task Q replaced by its mean over the actions (`services.engine.engine.
+finished_rows`): π_t is uniform, w_t = 0 (eq. 9), every action lies in S_ε, and π_B is the
+impact networks' blend. The ego's regret is exactly 0 there, so the bound still holds.
+
+Keeping the goal (R4). Where the goal is reached but can be lost (the particle world's target
+area) and ε > 0, let K be the actions after which the ego is still inside and can stay there by
+resting (`Domain.goal_kept`). If K holds some but not all actions,
+
+    π_K(a) = π_B(a) / π_B(K)   for a in K,   0 otherwise,                        (R4)
+
+else π_K = π_B (also when π_B(K) = 0). Why: the ego's own reward is 0 inside its target and
+negative outside, so under the exact task Q no action of K is worse than one outside it, and R4
+moves probability only towards better actions; the bound of R1 still holds. And it matters
+beyond the ego's own reward: an episode ends only when every agent is inside its target at the
+same step, so an ego that R1 lets drift to its target's edge and step out just as the last
+partner arrives keeps everybody paying for several more steps (measured in five-agent scenes:
+`reports/paper/blend_choice.md`). R4 applies where the blend does (ε > 0 on the row), so an
+explicit ε = 0 still gives the task policy itself.
 
 The engine's default ε is `DEFAULT_EPSILON_PER_ALPHA` × the task network's temperature α: an
 action keeps the blend's say when the task policy rates it at least e^-1/2 ≈ 0.61 as likely as
@@ -54,7 +79,7 @@ import math
 
 import numpy as np
 
-__all__ = ["DEFAULT_EPSILON_PER_ALPHA", "bound_rows", "check_regret_bound"]
+__all__ = ["DEFAULT_EPSILON_PER_ALPHA", "bound_rows", "check_regret_bound", "keep_goal_rows"]
 
 DEFAULT_EPSILON_PER_ALPHA = 0.5
 
@@ -86,3 +111,13 @@ def bound_rows(
     share_BA = blend_inside_BA / np.where(usable_B1, blend_mass_B1, 1.0)
     bounded_BA = np.where(inside_BA, task_mass_B1 * share_BA, probs_task_BA)
     return np.where(usable_B1, bounded_BA, probs_task_BA)
+
+
+def keep_goal_rows(probs_BA: np.ndarray, kept_BA: np.ndarray) -> np.ndarray:
+    """π_K of eq. R4 for each row, (B, A): `probs_BA` is π_B, `kept_BA` the actions that keep the
+    goal (a row of all True, or all False, is left as it is; so is a row with π_B(K) = 0)."""
+    kept_mass_B1 = np.where(kept_BA, probs_BA, 0.0).sum(axis=1, keepdims=True)
+    partial_B1 = kept_BA.any(axis=1, keepdims=True) & ~kept_BA.all(axis=1, keepdims=True)
+    usable_B1 = partial_B1 & (kept_mass_B1 > 0.0)
+    kept_BA_probs = np.where(kept_BA, probs_BA, 0.0) / np.where(usable_B1, kept_mass_B1, 1.0)
+    return np.where(usable_B1, kept_BA_probs, probs_BA)

@@ -134,7 +134,7 @@ class Kitchens:
         self.served_at_B[:] = -1
 
     def views(self, seat: int) -> np.ndarray:
-        """(E, 186) pair view of the cook at `seat` (with two agents: its own observation)."""
+        """(E, 188) pair view of the cook at `seat` (with two agents: its own observation)."""
         return COOKING.task_views(self.obs_BND[:, seat], 2)[:, 0]
 
     def scripted_other(self, random_prob: float) -> np.ndarray:

@@ -8,7 +8,7 @@ bookkeeping and a seeded generator for random starts. Same interface as `Batched
 |----------------|--------------|---------|-------------------------------------------------------|
 | `recipes_BN`   | (B, N)       | int     | recipe index (into `RECIPE_NAMES`) of every agent     |
 | `state`        | CookingState | int     | positions, holders, plates, states, deliveries        |
-| `obs_BND`      | (B, N, D)    | float32 | every agent's observation, D = 11 N + 164             |
+| `obs_BND`      | (B, N, D)    | float32 | every agent's observation, D = 12 N + 164             |
 | `rewards_BN`   | (B, N)       | float64 | +20 dish, -0.01 per step while undelivered, sub-goals |
 | `terminated_B` | (B,)         | bool    | every agent's dish delivered after this step          |
 | `truncated_B`  | (B,)         | bool    | step counter reached `max_steps`, not terminated      |

@@ -1,14 +1,14 @@
 """The cooking world as an `envs.base.Domain`: recipe catalogue, observation layout and views.
 
-Task and impact networks see *pair views*: the observation of a two-agent kitchen, 186 features
+Task and impact networks see *pair views*: the observation of a two-agent kitchen, 188 features
 (two agent blocks, then every object and station slot; `envs.cooking.observation`). From an
-N-agent observation (11 N + 164 features):
+N-agent observation (12 N + 164 features):
 
 | view          | built from the ego's observation                               | shape        |
 |---------------|----------------------------------------------------------------|--------------|
-| task views    | [ego, other_j] + shared blocks, j = 1..N-1                     | (B, N-1, 186)|
-| impact view   | [ego, other_k] + shared blocks                                 | (B, 186)     |
-| partner view  | [other_k, ego] + shared blocks, every rel_x/rel_y recomputed   | (B, 186)     |
+| task views    | [ego, other_j] + shared blocks, j = 1..N-1                     | (B, N-1, 188)|
+| impact view   | [ego, other_k] + shared blocks                                 | (B, 188)     |
+| partner view  | [other_k, ego] + shared blocks, every rel_x/rel_y recomputed   | (B, 188)     |
 |               | relative to other_k (exact: see `observation.perspective`)     |              |
 
 With two agents the impact view *is* the observation and the partner view is exactly the
@@ -30,7 +30,7 @@ import numpy as np
 from envs.base import BlendNormalisation
 from envs.cooking.env import CookingEnv
 from envs.cooking.layouts import MAX_AGENTS
-from envs.cooking.observation import AGENT_DIM, feature_names, obs_dim, select_agents
+from envs.cooking.observation import AGENT_DIM, SERVED, feature_names, obs_dim, select_agents
 from envs.cooking.recipes import RECIPE_NAMES
 from envs.cooking.scene import cooking_frame, cooking_scene
 from envs.cooking.world import ACTION_MEANINGS
@@ -48,6 +48,7 @@ class CookingDomain:
     # eq. 8 on the raw Q-vectors: task and impact Q are returns of the same dish rewards, and
     # standardising a nearly flat impact Q let it outvote the task (reports/cooking/README.md)
     blend_normalisation: BlendNormalisation = "none"
+    goal_is_final: bool = True  # a served dish stays served; no time penalty after it
 
     @property
     def n_actions(self) -> int:
@@ -99,9 +100,13 @@ class CookingDomain:
         self._check_partner(n_agents, partner)
         return select_agents(obs_BD, n_agents, [partner, 0])
 
-    def goal_reached(self, obs_BD: np.ndarray, n_agents: int, goal: str) -> None:
-        """None: a cook's observation holds neither its recipe nor its progress, so AAIL-B's
-        progress guard does not apply in the kitchen (`policy.regret_bound`)."""
+    def goal_reached(self, obs_BD: np.ndarray, n_agents: int, goal: str) -> np.ndarray:
+        """Whether the ego's dish has been served (its `served` feature), (B,) bool. Final: no
+        later action changes the cook's own return (`goal_is_final`)."""
+        return self._checked(obs_BD, n_agents)[:, SERVED] > 0.5
+
+    def goal_kept(self, obs_BD: np.ndarray, n_agents: int, goal: str) -> None:
+        """None: a served dish stays served whatever the cook does (`goal_is_final`)."""
         return None
 
     def scene(self, env: Any) -> Scene:

@@ -10,8 +10,9 @@ with `x = column / 16`, `y = row / 16` (absolute, 16 = the largest layout side) 
 
 | block (in order)                   | count | features after the common five      | size |
 |------------------------------------|-------|-------------------------------------|------|
-| `self`, `other1` .. `other{N-1}`   | N     | holds_tomato .. holds_banana,       | 11   |
-|   (agents; others in agent order)  |       | holds_plate (one-hot, 0 = nothing)  |      |
+| `self`, `other1` .. `other{N-1}`   | N     | holds_tomato .. holds_banana,       | 12   |
+|   (agents; others in agent order)  |       | holds_plate (one-hot, 0 = nothing), |      |
+|                                    |       | served (the agent's dish is done)   |      |
 | `tomato0`, `tomato1`, `lettuce0`,  | 10    | chopped, blended, held, on_plate    | 9    |
 |   .. `banana1` (ingredient slots)  |       |                                     |      |
 | `plate0` .. `plate3`               | 4     | held, n_tomato .. n_banana (counts  | 11   |
@@ -19,9 +20,12 @@ with `x = column / 16`, `y = row / 16` (absolute, 16 = the largest layout side) 
 | `cutting_board0/1`, `blender0/1`,  | 6     | (none)                              | 5    |
 |   `delivery0/1` (stations)         |       |                                     |      |
 
-Length: 11 N + 164 (186 for two agents). Slots are filled in the layout's reading order; a held or
+Length: 12 N + 164 (188 for two agents). Slots are filled in the layout's reading order; a held or
 plated object is at its holder's / plate's cell; delivered objects and missing slots are absent.
-The agent's own recipe and its progress are *not* observed (one network per goal).
+The agent's own recipe and its progress are *not* observed (one network per goal); whether its
+dish has been served is (`served`): after it, no action changes the cook's own return, which the
+task network must learn (its Q is flat there, eq. 9 then hands over to the impact network) and
+AAIL-B reads (`envs.cooking.domain.CookingDomain.goal_reached`).
 
 Perspective: absolute coordinates are multiples of 1/16, exact in float32, so agent j's view is
 computed exactly from the ego's: move j's block to the front and recompute every `rel` from the
@@ -48,11 +52,12 @@ from envs.cooking.world import CookingState
 
 COORD_SCALE = 16.0
 COMMON = ("present", "x", "y", "rel_x", "rel_y")
-AGENT_FEATURES = (*COMMON, *(f"holds_{k}" for k in OBJECT_KINDS))
+AGENT_FEATURES = (*COMMON, *(f"holds_{k}" for k in OBJECT_KINDS), "served")
 INGREDIENT_FEATURES = (*COMMON, "chopped", "blended", "held", "on_plate")
 PLATE_FEATURES = (*COMMON, "held", *(f"n_{k}" for k in INGREDIENTS))
 STATION_FEATURES = COMMON
 AGENT_DIM = len(AGENT_FEATURES)
+SERVED = AGENT_FEATURES.index("served")
 
 SHARED_BLOCKS: tuple[tuple[str, tuple[str, ...]], ...] = (
     *((f"{k}{i}", INGREDIENT_FEATURES) for k in INGREDIENTS for i in range(MAX_PER_INGREDIENT)),
@@ -144,7 +149,7 @@ def _xy(rc_X2: np.ndarray) -> np.ndarray:
 
 
 def observations(layout: Layout, state: CookingState) -> np.ndarray:
-    """Every agent's observation, shape (B, N, 11 N + 164), float32."""
+    """Every agent's observation, shape (B, N, 12 N + 164), float32."""
     plan = _plan(layout)
     n_envs, n_agents = state.delivered.shape
     present_BO = (~state.obj_gone).astype(np.float32)
@@ -179,6 +184,7 @@ def observations(layout: Layout, state: CookingState) -> np.ndarray:
     agents_BNF[..., 1:3] = _xy(state.agent_rc)
     held_b, held_o = np.nonzero(state.obj_holder >= 0)
     agents_BNF[held_b, state.obj_holder[held_b, held_o], 5 + plan.kinds[held_o]] = 1.0
+    agents_BNF[..., SERVED] = state.delivered
 
     ordered = agents_BNF[:, _observation_order(n_agents)].reshape(n_envs, n_agents, -1)
     obs_BND = np.concatenate(

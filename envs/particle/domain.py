@@ -41,10 +41,13 @@ from envs.particle.batched import MAX_AGENTS
 from envs.particle.env import ParticleCoexistenceEnv
 from envs.particle.goals import GOAL_IDS, TARGET_BOXES_G4
 from envs.particle.scene import particle_frame, particle_scene
-from envs.particle.world import ACTION_MEANINGS, N_ACTIONS, STATE_DIM, step_state
+from envs.particle.world import ACTION_MEANINGS, DAMPING, DT, N_ACTIONS, STATE_DIM, step_state
 from envs.scene import Scene, SceneFrame
 
 ALL_ACTIONS_A1 = np.arange(N_ACTIONS)[:, None]
+# how far a resting agent still travels, in units of DT × its velocity after a step:
+# Σ_k (1 - DAMPING)^k for k >= 1 (each rest keeps 1 - DAMPING of the velocity)
+COAST = (1.0 - DAMPING) / DAMPING
 SAME_PREDICTION_ATOL = 1e-9  # `recover_action`: predictions closer than this are one state
 PHANTOM_4 = np.array([0.5, 0.5, 0.0, 0.0], dtype=np.float32)
 _FEATURES = ("x", "y", "vx", "vy")
@@ -60,6 +63,7 @@ class ParticleDomain:
     pair_obs_dim = 2 * STATE_DIM
     # AAIL standardises each Q-vector before eq. 8 (policy.blend): the paper's evaluation here
     blend_normalisation: BlendNormalisation = "standardise"
+    goal_is_final: bool = False  # the ego pays its distance to its target on every step
 
     @property
     def n_actions(self) -> int:
@@ -120,6 +124,26 @@ class ParticleDomain:
         x_lo, x_hi, y_lo, y_hi = TARGET_BOXES_G4[check_goal(self, goal)]
         x, y = self._blocks(obs_BD, n_agents)[:, 0, :2].T
         return (x >= x_lo) & (x <= x_hi) & (y >= y_lo) & (y <= y_hi)
+
+    def goal_kept(self, obs_BD: np.ndarray, n_agents: int, goal: str) -> np.ndarray:
+        """(B, A) bool: whether after each action the ego is inside its target area and stays
+        inside if it rests from then on. Resting, it coasts along a straight segment of length
+        COAST × DT × |v| (walls only stop it), so each coordinate moves monotonically between
+        the position after the action and the coast's end clipped to the world: both inside the
+        box means the whole coast is."""
+        x_lo, x_hi, y_lo, y_hi = TARGET_BOXES_G4[check_goal(self, goal)]
+        ego_B4 = self._blocks(obs_BD, n_agents)[:, 0].astype(np.float64)
+        batch = ego_B4.shape[0]
+        states_BA14 = np.broadcast_to(ego_B4[:, None, None, :], (batch, N_ACTIONS, 1, STATE_DIM))
+        next_BA4 = step_state(states_BA14, np.broadcast_to(ALL_ACTIONS_A1, (batch, N_ACTIONS, 1)))[
+            :, :, 0
+        ]
+        rest_BA2 = np.clip(next_BA4[..., :2] + COAST * DT * next_BA4[..., 2:], 0.0, 1.0)
+        kept_BA = np.ones((batch, N_ACTIONS), dtype=bool)
+        for pos_BA2 in (next_BA4[..., :2], rest_BA2):
+            x, y = pos_BA2[..., 0], pos_BA2[..., 1]
+            kept_BA &= (x >= x_lo) & (x <= x_hi) & (y >= y_lo) & (y <= y_hi)
+        return kept_BA
 
     def recover_action(
         self, prev_obs_D: np.ndarray, obs_D: np.ndarray, n_agents: int, partner: int

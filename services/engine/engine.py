@@ -59,7 +59,7 @@ from model_store.errors import InvalidArgument, ModelStoreError
 from model_store.naming import joint_model_name
 from model_store.store import ModelStore
 from policy.blend import BlendMethod, blend_checked
-from policy.regret_bound import DEFAULT_EPSILON_PER_ALPHA
+from policy.regret_bound import DEFAULT_EPSILON_PER_ALPHA, keep_goal_rows
 from services.engine.environments import env_runtime
 from services.engine.errors import EngineError, InvalidRequest
 from services.engine.goal_inference import goal_log_likelihoods, recover_partner_actions
@@ -170,6 +170,7 @@ class InferenceEngine:
         if not (np.isfinite(q_task_BA).all() and np.isfinite(q_impact_BPA).all()):
             raise InvalidRequest("observations", "values so large that the Q-values overflow")
         temperature = request.temperature or group.nets[0].alpha or DEFAULT_TEMPERATURE
+        epsilon_B = regret_bound_of(request, group, checked)
         blended = blend_checked(
             blend_method,
             q_task_BA,
@@ -177,13 +178,16 @@ class InferenceEngine:
             np.ones(q_impact_BPA.shape[:2], dtype=bool),
             np.full(batch, float(temperature)),
             domain.blend_normalisation == "standardise",
-            regret_bound_of(request, group, checked),
+            epsilon_B,
         )
         partner_weights_BP = blended.partner_weights_BP
         if blend_method == "sl":  # no impact network was evaluated: every partner weighs 0
             partner_weights_BP = np.zeros((batch, len(checked.partners)))
         rng = self._rng if request.seed is None else np.random.default_rng(request.seed)
         probs_BA = blended.probs_BA
+        kept_BA = goal_kept_of(request, checked, epsilon_B)
+        if kept_BA is not None:  # R4: no action that loses the reached goal where one keeps it
+            probs_BA = keep_goal_rows(probs_BA, kept_BA)
         return ActColumns(
             method=method,
             models=list(layout.models),
@@ -518,3 +522,18 @@ def finished_rows(request: ActRequest, checked: CheckedRequest) -> np.ndarray | 
     if reached is None or not reached.any():
         return None
     return np.asarray(reached, dtype=bool)
+
+
+def goal_kept_of(
+    request: ActRequest, checked: CheckedRequest, epsilon_B: np.ndarray | None
+) -> np.ndarray | None:
+    """(B, A) bool for R4 of `policy.regret_bound`: the actions that keep the ego's reached goal,
+    on the rows where `aail_bounded` blends (ε > 0); every action elsewhere. None where nothing
+    is to keep (another method, no row blending, or a goal that cannot be lost)."""
+    if epsilon_B is None or not (epsilon_B > 0.0).any():
+        return None
+    domain = checked.runtime.domain
+    kept_BA = domain.goal_kept(checked.obs_BD, checked.n_agents, request.ego_goal)
+    if kept_BA is None:
+        return None
+    return np.where((epsilon_B > 0.0)[:, None], kept_BA, True)

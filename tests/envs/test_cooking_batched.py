@@ -16,7 +16,7 @@ RECIPES = ("TomatoLettuceSalad", "CarrotBanana")
 def test_shapes_and_names_or_indices() -> None:
     world = BatchedCookingWorld("open", np.array([RECIPES] * 4), seed=0)
     obs = world.reset()
-    assert obs.shape == (4, 2, 186) and obs.dtype == np.float32
+    assert obs.shape == (4, 2, 188) and obs.dtype == np.float32
     assert world.recipes.tolist() == [[1, 2]] * 4 and world.recipe_names(3) == RECIPES
     result = world.step(np.zeros((4, 2), dtype=np.int64))
     assert result.rewards_BN.shape == (4, 2) and result.terminated_B.shape == (4,)

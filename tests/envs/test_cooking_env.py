@@ -34,7 +34,7 @@ def test_spaces_infos_and_start_state_option() -> None:
     env = CookingEnv()
     obs, infos = env.reset(seed=0)
     assert env.possible_agents == ["agent_0", "agent_1"]
-    assert env.observation_space("agent_1").shape == (186,) and env.action_space("agent_0").n == 5
+    assert env.observation_space("agent_1").shape == (188,) and env.action_space("agent_0").n == 5
     assert infos == {
         "agent_0": {"recipe": "TomatoLettuceSalad", "delivered": False},
         "agent_1": {"recipe": "CarrotBanana", "delivered": False},
@@ -98,7 +98,7 @@ def test_gymnasium_single_agent_wrapper() -> None:
     )
     check_env(helped)
     obs, info = helped.reset(seed=0)
-    assert obs.shape == (186,) and info == {"recipe": "CarrotBanana", "delivered": False}
+    assert obs.shape == (188,) and info == {"recipe": "CarrotBanana", "delivered": False}
     for _ in range(30):  # the controlled right cook stands still; the scripted left cook works
         obs, reward, terminated, truncated, _ = helped.step(0)
     assert reward == pytest.approx(-0.01) and not terminated and not truncated

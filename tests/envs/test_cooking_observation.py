@@ -36,12 +36,12 @@ def _obs_after(layout: str, recipes: list[str], actions_TN: np.ndarray) -> np.nd
 
 
 def test_same_length_for_every_layout() -> None:
-    assert COOKING.obs_dim(2) == COOKING.pair_obs_dim == 186
-    assert [COOKING.obs_dim(n) for n in (1, 3, 4)] == [175, 197, 208]
+    assert COOKING.obs_dim(2) == COOKING.pair_obs_dim == 188
+    assert [COOKING.obs_dim(n) for n in (1, 3, 4)] == [176, 200, 212]
     for name in BUILTIN_LAYOUTS:
         obs = _obs_after(name, ["ChoppedTomato"] * 2, np.zeros((0, 2), dtype=np.int64))
-        assert obs.shape == (2, 186) and obs.dtype == np.float32
-    assert len(COOKING.observation_layout(3)) == 197 and len(set(feature_names(3))) == 197
+        assert obs.shape == (2, 188) and obs.dtype == np.float32
+    assert len(COOKING.observation_layout(3)) == 200 and len(set(feature_names(3))) == 200
 
 
 def test_hand_computed_features() -> None:
@@ -95,29 +95,29 @@ def test_domain_views() -> None:
     three = _obs_after(THREE_COOKS, ["ChoppedTomato"] * 3, rng.integers(0, 5, size=(40, 3)))
     ego = three[:1]
     views = COOKING.task_views(ego, 3)
-    assert views.shape == (1, 2, 186)
+    assert views.shape == (1, 2, 188)
     # the (ego, other2) pair: both agents' blocks, every object, rel features relative to the ego
     pair = views[0, 1]
-    np.testing.assert_array_equal(pair[:11], ego[0, :11])
-    np.testing.assert_array_equal(pair[11:22], ego[0, 22:33])
-    np.testing.assert_array_equal(pair[22:], ego[0, 33:])
+    np.testing.assert_array_equal(pair[:12], ego[0, :12])
+    np.testing.assert_array_equal(pair[12:24], ego[0, 24:36])
+    np.testing.assert_array_equal(pair[24:], ego[0, 36:])
     partner = COOKING.partner_view(ego, 3, 2)[0]
-    np.testing.assert_array_equal(partner[:11], three[2, :11])  # agent 2's own block
-    np.testing.assert_array_equal(partner[22:], three[2, 33:])  # objects relative to agent 2
+    np.testing.assert_array_equal(partner[:12], three[2, :12])  # agent 2's own block
+    np.testing.assert_array_equal(partner[24:], three[2, 36:])  # objects relative to agent 2
 
     one = np.zeros((2, COOKING.obs_dim(1)), dtype=np.float32)
-    assert COOKING.task_views(one, 1).shape == (2, 1, 186)
+    assert COOKING.task_views(one, 1).shape == (2, 1, 188)
 
 
 @pytest.mark.parametrize(
     ("call", "match"),
     [
-        (lambda: COOKING.task_views(np.zeros((1, 185)), 2), "obs_BD"),
-        (lambda: COOKING.impact_view(np.zeros((1, 186)), 2, 2), "partner"),
-        (lambda: COOKING.partner_view(np.zeros((1, 197)), 3, 0), "partner"),
+        (lambda: COOKING.task_views(np.zeros((1, 187)), 2), "obs_BD"),
+        (lambda: COOKING.impact_view(np.zeros((1, 188)), 2, 2), "partner"),
+        (lambda: COOKING.partner_view(np.zeros((1, 200)), 3, 0), "partner"),
         (lambda: COOKING.obs_dim(5), "n_agents"),
-        (lambda: perspective(np.zeros(186), 2, 2), "agent"),
-        (lambda: perspective(np.zeros(187), 2, 1), "obs"),
+        (lambda: perspective(np.zeros(188), 2, 2), "agent"),
+        (lambda: perspective(np.zeros(189), 2, 1), "obs"),
     ],
 )
 def test_bad_views(call: Callable[[], object], match: str) -> None:
@@ -127,3 +127,23 @@ def test_bad_views(call: Callable[[], object], match: str) -> None:
 
 def test_parse_three_cooks() -> None:
     assert parse_layout(THREE_COOKS).n_agents == 3
+
+
+def test_served_feature_and_goal_reached() -> None:
+    """A cook's `served` feature turns on with its dish (in its own block and, as `other1`, in
+    the other cook's) and stays on; the domain reads it as the ego's final goal."""
+    from envs.cooking.scripted import ScriptedCook, scripted_actions
+
+    at = {n: i for i, n in enumerate(feature_names(2))}
+    world = BatchedCookingWorld("coexistence", np.array([["TomatoLettuceSalad", "CarrotBanana"]]))
+    obs = world.reset()
+    cooks = [ScriptedCook("TomatoLettuceSalad"), None]
+    seen: list[tuple[bool, float, float]] = []
+    for _ in range(80):
+        obs = world.step(scripted_actions(world.layout, world.state, cooks)).next_obs_BND
+        served = bool(world.state.delivered[0, 0])
+        seen.append((served, obs[0, 0, at["self.served"]], obs[0, 1, at["other1.served"]]))
+        assert COOKING.goal_reached(obs[0], 2, "TomatoLettuceSalad").tolist() == [served, False]
+    assert any(s for s, _, _ in seen) and not seen[0][0]  # served once, part-way
+    assert all(own == other == float(s) for s, own, other in seen)
+    assert COOKING.goal_is_final

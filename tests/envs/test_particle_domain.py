@@ -6,7 +6,8 @@ import pytest
 from envs.base import Domain, check_goal
 from envs.particle.domain import PARTICLE
 from envs.particle.env import ParticleCoexistenceEnv
-from envs.particle.world import observations, perspective
+from envs.particle.goals import GOAL_IDS, TARGET_BOXES_G4
+from envs.particle.world import in_target, observations, perspective, step_state
 from envs.registry import get_domain, make_env
 
 
@@ -81,3 +82,35 @@ def test_registry() -> None:
         get_domain("cooking-zoo")
     with pytest.raises(ValueError, match="unknown environment"):
         make_env("nope", ["a2"])
+
+
+def _kept_by_simulation(ego_B4: np.ndarray, goal: str, rests: int = 60) -> np.ndarray:
+    """(B, A): each action, then `rests` rests, stepped with the world's own dynamics: is the
+    ego inside its target area after every one of those steps?"""
+    goals_BA = np.full((len(ego_B4), 5), GOAL_IDS.index(goal))
+    state_BA4 = step_state(
+        np.repeat(ego_B4[:, None, :], 5, axis=1), np.tile(np.arange(5), (len(ego_B4), 1))
+    )
+    inside_BA = in_target(state_BA4, goals_BA)
+    for _ in range(rests):
+        state_BA4 = step_state(state_BA4, np.zeros_like(goals_BA))
+        inside_BA &= in_target(state_BA4, goals_BA)
+    return inside_BA
+
+
+def test_goal_kept_matches_the_simulated_coast() -> None:
+    rng = np.random.default_rng(12)
+    partial = 0
+    for goal in ["a2", "c2", "e4", "0", "c", "a0"]:
+        x_lo, x_hi, y_lo, y_hi = TARGET_BOXES_G4[GOAL_IDS.index(goal)]
+        # states in and near the target area (its edges), moving at up to full speed
+        pos = rng.uniform([x_lo - 0.03, y_lo - 0.03], [x_hi + 0.03, y_hi + 0.03], size=(300, 2))
+        vel = rng.uniform(-0.5, 0.5, size=(300, 2)) * rng.choice([0.0, 0.3, 1.0], size=(300, 1))
+        ego_B4 = np.concatenate([np.clip(pos, 0, 1), vel], axis=1)
+        obs = np.concatenate([ego_B4, np.full((300, 4), 0.5)], axis=1).astype(np.float32)
+        kept = PARTICLE.goal_kept(obs, 2, goal)
+        assert kept.shape == (300, 5) and kept.dtype == bool
+        want = _kept_by_simulation(obs[:, :4].astype(np.float64), goal)
+        np.testing.assert_array_equal(kept, want)
+        partial += int((kept.any(axis=1) & ~kept.all(axis=1)).sum())
+    assert partial > 50  # many rows where some actions keep the goal and others lose it

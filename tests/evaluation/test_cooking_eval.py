@@ -73,7 +73,12 @@ def test_paired_episodes_through_the_engine(store: SqlModelStore, tmp_path: Path
     assert all((a == b).all() for a, b in zip(first, again, strict=True))
 
     text = results.to_markdown()
-    assert "| AAIL |" in text and "| SL |" in text and "McNemar" in text and "Paper (AAIL - SL):" in text
+    assert (
+        "| AAIL |" in text
+        and "| SL |" in text
+        and "McNemar" in text
+        and "Paper (AAIL - SL):" in text
+    )
     png = plot_cooking(results, tmp_path / "fig9.png")
     assert png.stat().st_size > 1000
     gif = save_cooking_gif(results, tmp_path / "episode.gif")

@@ -9,7 +9,7 @@ import pytest
 
 from policy.blend import blend, blend_vectorised
 from policy.maths import boltzmann
-from policy.regret_bound import bound_rows, check_regret_bound
+from policy.regret_bound import bound_rows, check_regret_bound, keep_goal_rows
 
 ALPHA = 0.02
 
@@ -121,3 +121,29 @@ def test_one_bound_per_row() -> None:
         blend("aail_bounded", q_task, q_impact, ALPHA, regret_bound=eps_B[:3])
     with pytest.raises(ValueError, match="regret_bound"):
         blend("aail_bounded", q_task, q_impact, ALPHA, regret_bound=-eps_B)
+
+
+def keep_direct(probs: list[float], kept: list[bool]) -> list[float]:
+    """Eq. R4 written out action by action."""
+    mass = sum(p for p, k in zip(probs, kept, strict=True) if k)
+    if all(kept) or not any(kept) or mass == 0:
+        return probs
+    return [p / mass if k else 0.0 for p, k in zip(probs, kept, strict=True)]
+
+
+def test_keep_goal_matches_the_direct_equation() -> None:
+    rng = np.random.default_rng(9)
+    probs = rng.dirichlet(np.ones(5), size=300)
+    probs[:20, :2] = 0.0  # rows whose kept actions may carry no probability
+    probs[:20] /= probs[:20].sum(axis=1, keepdims=True)
+    kept = rng.random((300, 5)) < rng.choice([0.0, 0.4, 0.8, 1.0], size=(300, 1))
+    kept[:20] = [True, True, False, False, False]
+    rows = keep_goal_rows(probs, kept)
+    for p, k, got in zip(probs, kept, rows, strict=True):
+        want = keep_direct(p.tolist(), k.tolist())
+        np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-15)
+        one = keep_goal_rows(p[None], k[None])[0]  # one row: the same code, B = 1
+        np.testing.assert_allclose(one, want, rtol=1e-12)
+        assert got.sum() == pytest.approx(1.0)
+    one = keep_goal_rows(np.array([[0.2, 0.3, 0.5]]), np.array([[True, False, True]]))
+    np.testing.assert_allclose(one, [[0.2 / 0.7, 0.0, 0.5 / 0.7]], rtol=1e-15)

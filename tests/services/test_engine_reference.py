@@ -13,6 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from envs.particle.goals import TARGET_BOXES_G4, goal_index
+from envs.particle.world import in_target, step_state
 from model_store.sql import SqlModelStore
 from policy.blend import BlendMethod, blend
 from policy.maths import boltzmann
@@ -78,7 +79,23 @@ def reference(
             regret_bound = 0.0
     out = blend(cast(BlendMethod, method), q_task[None], q_impact, alpha, regret_bound=regret_bound)
     weights = out.partner_weights_BP[0] if method != "sl" else np.zeros(len(partners))
-    return out.probs_BA[0], out.task_entropy_B[0], out.task_weight_B[0], weights
+    probs = out.probs_BA[0]
+    if method == "aail_bounded" and regret_bound:  # R4: no action that loses the target area
+        kept = np.array([_stays_inside(ego.astype(np.float32), a, ego_goal) for a in range(5)])
+        if kept.any() and not kept.all() and probs[kept].sum() > 0:
+            probs = np.where(kept, probs, 0.0) / probs[kept].sum()
+    return probs, out.task_entropy_B[0], out.task_weight_B[0], weights
+
+
+def _stays_inside(ego_4: np.ndarray, action: int, goal: str, rests: int = 60) -> bool:
+    """The ego inside its target area after `action` and after each of `rests` rests."""
+    goal_1 = np.array([goal_index(goal)])
+    state = step_state(np.asarray(ego_4, dtype=np.float64)[None], np.array([action]))
+    inside = bool(in_target(state, goal_1)[0])
+    for _ in range(rests):
+        state = step_state(state, np.array([0]))
+        inside &= bool(in_target(state, goal_1)[0])
+    return inside
 
 
 def _specs(partners: list[tuple[int, dict[str, float]]]) -> tuple[PartnerSpec, ...]:
@@ -137,6 +154,38 @@ def test_the_progress_guard_blends_only_inside_the_target(tiny_zoo) -> None:
     [single] = engine.act(ActRequest("particle", "a2", obs_BD[1:], partners,
                                      method="aail_bounded", regret_bound=1e6))  # fmt: skip
     np.testing.assert_allclose(single.probs, bounded[1], atol=1e-12)  # the single-row path too
+
+
+def test_the_blend_keeps_the_reached_target(tiny_zoo) -> None:
+    """R4: inside its target area, AAIL-B gives no probability to an action after which the ego
+    would leave it (or coast out resting) while another action keeps it; ε = 0 is still SL."""
+    from envs.particle.domain import PARTICLE
+
+    engine = InferenceEngine(tiny_zoo.store)
+    # a2 is x in [0, 0.2], y in [0.4, 0.6]: the ego at its right edge, moving right
+    obs_BD = np.array([[0.17, 0.5, 0.3, 0.0, 0.7, 0.6, 0, 0], [0.1, 0.5, 0.0, 0.0, 0.7, 0.6, 0, 0]])
+    kept = PARTICLE.goal_kept(obs_BD, 2, "a2")
+    assert kept[0].any() and not kept[0].all() and kept[1].all()
+    partners = (PartnerSpec(1, goal="b3"),)
+
+    def act(rows: np.ndarray, **kw: float) -> np.ndarray:
+        request = ActRequest("particle", "a2", rows, partners, method="aail_bounded", **kw)  # type: ignore[arg-type]
+        return np.array([r.probs for r in engine.act(request)])
+
+    bounded = act(obs_BD, regret_bound=1e6)
+    aail = np.array(
+        [r.probs for r in engine.act(ActRequest("particle", "a2", obs_BD, partners, method="aail"))]
+    )
+    assert np.all(bounded[0][~kept[0]] == 0.0) and aail[0][~kept[0]].sum() > 1e-3
+    np.testing.assert_allclose(
+        bounded[0][kept[0]], aail[0][kept[0]] / aail[0][kept[0]].sum(), rtol=1e-9
+    )
+    np.testing.assert_allclose(bounded[1], aail[1], atol=1e-12)  # nothing to lose there
+    np.testing.assert_allclose(act(obs_BD[:1], regret_bound=1e6)[0], bounded[0], atol=1e-12)
+    sl = np.array(
+        [r.probs for r in engine.act(ActRequest("particle", "a2", obs_BD, partners, method="sl"))]
+    )
+    np.testing.assert_allclose(act(obs_BD, regret_bound=0.0), sl, atol=1e-12)
 
 
 def test_engine_single_agent_uses_the_phantom(tiny_zoo) -> None:

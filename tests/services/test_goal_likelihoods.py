@@ -331,14 +331,14 @@ def test_recover_partner_actions_errors(engine: InferenceEngine) -> None:
         (("particle", obs8, obs12, [1]), "observation"),
         (("particle", np.zeros(5), obs8, [1]), "previous"),
         (("particle", obs8, obs8, [2]), "partners[0].index"),
-        (("cooking", np.zeros(186), np.zeros(186), [1]), "observed"),
+        (("cooking", np.zeros(188), np.zeros(188), [1]), "observed"),
     ]
     for args, field in cases:
         with pytest.raises(InvalidRequest) as err:
             engine.recover_partner_actions(*args)
         assert err.value.field == field, (args, err.value)
     with pytest.raises(InvalidRequest, match="send each partner's action"):
-        engine.recover_partner_actions("cooking", np.zeros(186), np.zeros(186), [1])
+        engine.recover_partner_actions("cooking", np.zeros(188), np.zeros(188), [1])
 
 
 # --- wiring smoke: the belief finds the goal the partner acts by ------------------------------

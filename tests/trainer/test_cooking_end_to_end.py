@@ -59,7 +59,7 @@ def test_cooking_pipeline_registers_networks_the_engine_serves(tmp_path: Path) -
               gate_retries=0, **common)  # fmt: skip
 
     task_v = store.resolve("cooking/task/TomatoLettuceSalad@latest")
-    assert task_v.spec["obs_dim"] == 186 and task_v.spec["n_actions"] == 5
+    assert task_v.spec["obs_dim"] == 188 and task_v.spec["n_actions"] == 5
     assert task_v.lineage.config["gamma"] == 0.98 and task_v.lineage.config["kind"] == "task"
     gate = task_v.lineage.metrics["gate"]
     assert {"completion_rate", "scripted_completion_rate", "passed"} <= set(gate)
@@ -124,7 +124,7 @@ def test_task_gate_compares_with_the_scripted_cook() -> None:
 
 def _always(action: int) -> StackedQNet:
     """A one-member network that prefers `action` by 9 in every state."""
-    net = StackedQNet(QNetSpec(obs_dim=186, n_actions=5, hidden=(4,)), 1)
+    net = StackedQNet(QNetSpec(obs_dim=188, n_actions=5, hidden=(4,)), 1)
     with torch.no_grad():
         for w, b in zip(net.weights, net.biases, strict=True):
             w.zero_()

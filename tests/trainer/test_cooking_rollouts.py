@@ -48,7 +48,7 @@ def test_a_served_dish_pays_20_minus_the_step_then_the_kitchen_lingers_and_resta
     k = Kitchens("TomatoLettuceSalad", 2, cfg, seed=0)
     k.start_from(_dish_ready(2))
     out = k.step(np.array([[DOWN, STAY], [STAY, STAY]]))
-    assert out.next_obs_BND.shape == (2, 2, 186) and out.next_obs_BND.dtype == np.float32
+    assert out.next_obs_BND.shape == (2, 2, 188) and out.next_obs_BND.dtype == np.float32
     np.testing.assert_allclose(out.unshaped_BN[:, 0], [19.99, -0.01])
     np.testing.assert_allclose(out.rewards_BN[:, 0], [19.99, -0.01])  # no sub-goal left to earn
     assert not out.done_B.any()
@@ -68,21 +68,21 @@ def test_task_rollout_shapes_and_reward_of_the_learner_seat() -> None:
     cfg = replace(CookingTaskConfig(), **SMALL)  # type: ignore[arg-type]
     rollout = CookingTaskRollout(["TomatoLettuceSalad", "CarrotBanana"], cfg, seed=1)
     views = rollout.observe()
-    assert views.shape == (2, 2, 186) and views.dtype == np.float32
+    assert views.shape == (2, 2, 188) and views.dtype == np.float32
     for k in rollout.kitchens:
         k.start_from(_dish_ready(2))
     # the CarrotBanana learner sits on the right (seat 1): its view starts with its own block
     right = rollout.observe()[1]
     np.testing.assert_array_equal(right, rollout.kitchens[1].obs_BND[:, 1])
     reward_GE, next_GED = rollout.step(np.array([[DOWN, STAY], [DOWN, STAY]]))
-    assert reward_GE.shape == (2, 2) and next_GED.shape == (2, 2, 186)
+    assert reward_GE.shape == (2, 2) and next_GED.shape == (2, 2, 188)
     np.testing.assert_allclose(reward_GE[:, 0], [19.99, 19.99], atol=1e-6)
     np.testing.assert_allclose(reward_GE[:, 1], [-0.01, -0.01], atol=1e-6)
 
 
 def _bias_net(bias_A: list[float]) -> StackedQNet:
     """A one-member network whose Q-values are `bias_A` whatever the view."""
-    net = StackedQNet(QNetSpec(obs_dim=186, n_actions=5, hidden=(4,)), 1)
+    net = StackedQNet(QNetSpec(obs_dim=188, n_actions=5, hidden=(4,)), 1)
     with torch.no_grad():
         for w, b in zip(net.weights, net.biases, strict=True):
             w.zero_()
@@ -105,7 +105,7 @@ def test_impact_reward_adds_the_partner_reward_only_when_asked(variant: str) -> 
 
 def test_impact_reward_is_the_change_of_the_partners_soft_value_on_its_own_view() -> None:
     cfg = replace(CookingImpactConfig(), **SMALL, impact_reward="value_change")  # type: ignore[arg-type]
-    partner = StackedQNet(QNetSpec(obs_dim=186, n_actions=5, hidden=(8,)), 1,
+    partner = StackedQNet(QNetSpec(obs_dim=188, n_actions=5, hidden=(8,)), 1,
                           generator=torch.Generator().manual_seed(0))  # fmt: skip
     rollout = CookingImpactRollout(["CarrotBanana"], partner, cfg, seed=3)
     k = rollout.kitchens[0]
