@@ -12,11 +12,17 @@ from typing import Any
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, given, note, settings
 from hypothesis import strategies as st
 
 import services.engine.engine as engine_module
-from services.engine import ActRequest, InferenceEngine, InvalidRequest, PartnerSpec
+from services.engine import (
+    DEFAULT_TEMPERATURE,
+    ActRequest,
+    InferenceEngine,
+    InvalidRequest,
+    PartnerSpec,
+)
 
 sys.path.insert(0, str(Path(__file__).parent))
 from test_engine_reference import ATOL, _check_row, reference  # noqa: E402
@@ -55,12 +61,15 @@ def requests(draw) -> ActRequest:
 )
 @given(request=requests())
 def test_every_layout_matches_the_reference(tiny_zoo, request: ActRequest) -> None:
+    note(repr(vars(request)))
     [result] = InferenceEngine(tiny_zoo.store).act(request)
     partners = [
         (p.index, {p.goal: 1.0} if p.goal else {g: q for g, q in p.goal_probs.items() if q > 0})
         for p in request.partners
     ]
-    alpha = request.temperature or tiny_zoo.alpha
+    # the request's temperature, else the task net's training α (none in the lineage: default)
+    lineage_alpha = DEFAULT_TEMPERATURE if request.ego_goal == tiny_zoo.no_alpha_task else None
+    alpha = request.temperature or lineage_alpha or tiny_zoo.alpha
     ref = reference(tiny_zoo.store, request.observations[0], request.ego_goal, partners,
                     request.method, alpha)  # fmt: skip
     _check_row(result, ref)
