@@ -16,11 +16,9 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
-
-from typing import Any
 
 MAX_TOP = 64  # top goals the compiled views list at most (policy/_belief_row.c)
 
@@ -34,11 +32,15 @@ class BeliefView(NamedTuple):
     entropy: float  # and entropy
 
 
-_EXTENSION: Any = None
-try:  # policy/_belief_row.c, built by setup.py where a C compiler exists
-    from policy import _belief_row as _EXTENSION
-except ImportError:  # pragma: no cover - an install without a C compiler
-    pass
+def _load_kernel() -> Any:
+    try:  # policy/_belief_row.c, built by setup.py where a C compiler exists
+        from policy import _belief_row
+    except ImportError:  # pragma: no cover - an install without a C compiler
+        return None
+    return _belief_row
+
+
+_EXTENSION: Any = _load_kernel()
 COMPILED = _EXTENSION is not None
 
 

@@ -70,11 +70,16 @@ from policy._validate import (
 from policy.maths import boltzmann, js_distance, normalized_entropy, task_weight
 from policy.regret_bound import bound_rows, check_regret_bound
 
-_kernel: Any = None
-try:  # policy/_blend_row.c, built by setup.py where a C compiler exists
-    from policy import _blend_row as _kernel
-except ImportError:  # pragma: no cover - an install without a C compiler
-    pass
+
+def _load_kernel() -> Any:
+    try:  # policy/_blend_row.c, built by setup.py where a C compiler exists
+        from policy import _blend_row
+    except ImportError:  # pragma: no cover - an install without a C compiler
+        return None
+    return _blend_row
+
+
+_kernel: Any = _load_kernel()
 
 COMPILED: bool = _kernel is not None
 

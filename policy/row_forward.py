@@ -28,11 +28,16 @@ Layers = Sequence[tuple[np.ndarray, np.ndarray]]
 
 __all__ = ["COMPILED", "numpy_row_forward", "row_forward"]
 
-_extension: Any = None
-try:  # policy/_row_forward.c, built by setup.py where a C compiler exists
-    from policy import _row_forward as _extension
-except ImportError:  # pragma: no cover - an install without a C compiler
-    pass
+
+def _load_kernel() -> Any:
+    try:  # policy/_row_forward.c, built by setup.py where a C compiler exists
+        from policy import _row_forward
+    except ImportError:  # pragma: no cover - an install without a C compiler
+        return None
+    return _row_forward
+
+
+_extension: Any = _load_kernel()
 
 COMPILED: bool = _extension is not None and bool(_extension.AVAILABLE)
 

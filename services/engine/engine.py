@@ -480,7 +480,7 @@ def _impact_q(
             q_BPA = np.einsum("pg,bpga->bpa", probs_PG, q_BPGA)
             for i, position in enumerate(positions):
                 per_partner[position] = q_BPA[:, i]
-    return np.stack(per_partner, axis=1, dtype=np.float64)  # type: ignore[call-overload]
+    return np.stack(per_partner, axis=1, dtype=np.float64)  # type: ignore[arg-type]  # all set
 
 
 def sample_actions(probs_BA: np.ndarray, rng: np.random.Generator) -> np.ndarray:

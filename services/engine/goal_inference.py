@@ -152,7 +152,7 @@ def _scaled(
     """z = (Q - max Q) / α as float64 (G, P, A) and log Σ_a exp z (G, P): the two parts of
     log softmax(Q / α). The Q-values are finite (checked by the caller), so the division by α
     is the only step that can overflow (to -inf, meant), and only when an α is `tiny` (<
-    `TINY_ALPHA`): errstate (~1 µs) only then."""
+    `TINY_ALPHA`): errstate (a cost on every call) only then."""
     z = q_GPA.astype(np.float64)
     z -= z.max(axis=2, keepdims=True)  # <= 0, the arg-max exactly 0
     if tiny:
@@ -166,10 +166,11 @@ def _scaled(
 def _log_likelihoods(
     q_GPA: np.ndarray, actions_P: np.ndarray, alpha: np.ndarray | float, tiny: bool
 ) -> np.ndarray:
-    """`boltzmann_log_likelihoods(q_GPA.transpose(1, 0, 2), actions_P, α, validate=False)`: the
-    same arithmetic and numbers, bit for bit (tests/services/test_goal_likelihoods.py), in the
-    forward's (G, P, A) layout with fewer numpy calls (`_scaled`)."""
-    table = compiled_log_softmax(q_GPA, alpha)  # z - log_norm, the same bits, compiled
+    """`boltzmann_log_likelihoods(q_GPA.transpose(1, 0, 2), actions_P, α, validate=False)` in
+    the forward's (G, P, A) layout: compiled (`policy.belief_compiled.compiled_log_softmax`),
+    else the same arithmetic in numpy with fewer calls (`_scaled`); equal within the tolerance
+    of tests/services/test_goal_likelihoods.py."""
+    table = compiled_log_softmax(q_GPA, alpha)  # z - log_norm, compiled
     if table is not None:
         if len(actions_P) == 1:
             return table[:, 0, int(actions_P[0])][None]

@@ -1,9 +1,9 @@
 """`LeanJsonRoute`: `FastJsonRoute` with a direct path for a valid JSON body (the act
 and session routers).
 
-FastAPI's request handler spends ~30 µs per request on this machine before the endpoint runs
-(dependency solving, query, header and cookie parsing, exit stacks): more than half of a session
-step's route overhead. For an endpoint taking only plain `str` path parameters, one pydantic
+FastAPI's request handler does work on every request before the endpoint runs (dependency
+solving, query, header and cookie parsing, exit stacks): more than half of a session step's
+route overhead (docs/performance.md). For an endpoint taking only plain `str` path parameters, one pydantic
 body model and the `Request`, a request whose `content-type` is `application/json` and whose body
 parses (orjson, as `FastJsonRequest`) and validates against the model calls the endpoint
 directly, with the arguments FastAPI would pass. Anything else (another content type, an empty,

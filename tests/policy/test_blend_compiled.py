@@ -102,7 +102,10 @@ def test_ill_conditioned_rows_stay_valid(case, method: str) -> None:
 def test_many_actions(n_actions: int) -> None:
     rng = np.random.default_rng(n_actions)
     for slots in (0, 1, 3):
-        q_task, q_impact = rng.normal(size=(2, n_actions)) * 3, rng.normal(size=(2, slots, n_actions))
+        q_task, q_impact = (
+            rng.normal(size=(2, n_actions)) * 3,
+            rng.normal(size=(2, slots, n_actions)),
+        )
         for method in ("sl", "nail", "aail"):
             want = blend_vectorised(method, q_task, q_impact, 0.5)
             _assert_close(blend(method, q_task, q_impact, 0.5), want)

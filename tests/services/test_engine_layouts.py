@@ -25,7 +25,7 @@ from services.engine import (
 )
 
 sys.path.insert(0, str(Path(__file__).parent))
-from test_engine_reference import ATOL, _check_row, reference  # noqa: E402
+from test_engine_reference import _check_row, reference
 
 GOALS = ("b3", "c1", "d4", "e0", "c")
 
@@ -64,7 +64,7 @@ def test_every_layout_matches_the_reference(tiny_zoo, request: ActRequest) -> No
     note(repr(vars(request)))
     [result] = InferenceEngine(tiny_zoo.store).act(request)
     partners = [
-        (p.index, {p.goal: 1.0} if p.goal else {g: q for g, q in p.goal_probs.items() if q > 0})
+        (p.index, {p.goal: 1.0} if p.goal else {g: q for g, q in (p.goal_probs or {}).items() if q})
         for p in request.partners
     ]
     # the request's temperature, else the task net's training α (none in the lineage: default)
