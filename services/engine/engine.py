@@ -376,7 +376,8 @@ class Layout(NamedTuple):
 def _layout(checked: CheckedRequest, members: Sequence[Member], group: StackedGroup) -> Layout:
     """The layout of this request's partners over the group's members, remembered on the
     group (with a belief over 35 goals and 4 partners: 140 slots and 141 models)."""
-    key = ("layout", tuple(members), tuple((p.index, p.goals) for p in checked.partners))
+    partners = tuple((p.index, p.goals, p.probs is None) for p in checked.partners)
+    key = ("layout", tuple(members), partners)  # an announced goal is not a distribution over it
     layout: Layout | None = group.memo.get(key)
     if layout is not None:
         return layout
