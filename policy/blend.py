@@ -17,7 +17,9 @@ Methods (`METHODS`):
 - **AAIL-bounded** (`aail_bounded`, ours): AAIL's policy with a bound ε on the ego's own
   regret, `regret_bound` (eq. R1 of `policy.regret_bound`): actions within ε of the task's best
   share the task policy's probability on them as AAIL says; every other action keeps its task
-  probability. Diagnostics (entropy, weights) are AAIL's.
+  probability. Diagnostics (entropy, weights) are AAIL's. The engine adds what needs the
+  environment (R2-R4 of `policy.regret_bound`: blend only once the ego's goal is reached, with a
+  flat task Q once it is reached for good, never losing a reached goal that can be kept).
 - **AAIL** (eqs. 8-10): π_t = Boltzmann(Q_t, α), π_i = Boltzmann(Q_i, α);
   w_t = 1 - |A|^H(π_t) / |A| (eq. 9); w_i = JSD(π_t ‖ π_i), the Jensen-Shannon distance
   (eq. 10); ŵ_i = w_i / Σ_j w_j, or equal ŵ_i = 1 / P_active when Σ_j w_j = 0 (every impact

@@ -41,7 +41,16 @@ from envs.particle.batched import MAX_AGENTS
 from envs.particle.env import ParticleCoexistenceEnv
 from envs.particle.goals import GOAL_IDS, TARGET_BOXES_G4
 from envs.particle.scene import particle_frame, particle_scene
-from envs.particle.world import ACTION_MEANINGS, DAMPING, DT, N_ACTIONS, STATE_DIM, step_state
+from envs.particle.world import (
+    ACTION_DIRECTIONS_A2,
+    ACTION_MEANINGS,
+    DAMPING,
+    DT,
+    N_ACTIONS,
+    STATE_DIM,
+    integrate,
+    step_state,
+)
 from envs.scene import Scene, SceneFrame
 
 ALL_ACTIONS_A1 = np.arange(N_ACTIONS)[:, None]
@@ -131,19 +140,13 @@ class ParticleDomain:
         COAST × DT × |v| (walls only stop it), so each coordinate moves monotonically between
         the position after the action and the coast's end clipped to the world: both inside the
         box means the whole coast is."""
-        x_lo, x_hi, y_lo, y_hi = TARGET_BOXES_G4[check_goal(self, goal)]
-        ego_B4 = self._blocks(obs_BD, n_agents)[:, 0].astype(np.float64)
-        batch = ego_B4.shape[0]
-        states_BA14 = np.broadcast_to(ego_B4[:, None, None, :], (batch, N_ACTIONS, 1, STATE_DIM))
-        next_BA4 = step_state(states_BA14, np.broadcast_to(ALL_ACTIONS_A1, (batch, N_ACTIONS, 1)))[
-            :, :, 0
-        ]
-        rest_BA2 = np.clip(next_BA4[..., :2] + COAST * DT * next_BA4[..., 2:], 0.0, 1.0)
-        kept_BA = np.ones((batch, N_ACTIONS), dtype=bool)
-        for pos_BA2 in (next_BA4[..., :2], rest_BA2):
-            x, y = pos_BA2[..., 0], pos_BA2[..., 1]
-            kept_BA &= (x >= x_lo) & (x <= x_hi) & (y >= y_lo) & (y <= y_hi)
-        return kept_BA
+        box_4 = TARGET_BOXES_G4[check_goal(self, goal)]
+        ego_B14 = self._blocks(obs_BD, n_agents)[:, :1].astype(np.float64)
+        next_BA4 = integrate(ego_B14, ACTION_DIRECTIONS_A2)  # each action from each row
+        coast_BA2 = np.clip(next_BA4[..., :2] + (COAST * DT) * next_BA4[..., 2:], 0.0, 1.0)
+        ends_BAE2 = np.stack([next_BA4[..., :2], coast_BA2], axis=2)
+        inside_BAE2 = (ends_BAE2 >= box_4[[0, 2]]) & (ends_BAE2 <= box_4[[1, 3]])
+        return inside_BAE2.all(axis=(2, 3))
 
     def recover_action(
         self, prev_obs_D: np.ndarray, obs_D: np.ndarray, n_agents: int, partner: int

@@ -76,12 +76,16 @@ def step_state(state_BN4: np.ndarray, actions_BN: np.ndarray) -> np.ndarray:
     actions_BN = np.asarray(actions_BN)
     _check_state(state_BN4)
     _check_per_agent("actions", actions_BN, state_BN4, N_ACTIONS)
-    vel = state_BN4[..., 2:] * (1.0 - DAMPING) + ACTION_DIRECTIONS_A2[actions_BN] * (
-        ACCELERATION * DT
-    )
+    return integrate(state_BN4, ACTION_DIRECTIONS_A2[actions_BN])
+
+
+def integrate(state_X4: np.ndarray, direction_X2: np.ndarray) -> np.ndarray:
+    """`step_state`'s arithmetic without its checks: float64 states (..., 4) pushed along unit
+    directions (..., 2) (zeros: rest); leading shapes broadcast."""
+    vel = state_X4[..., 2:] * (1.0 - DAMPING) + direction_X2 * (ACCELERATION * DT)
     speed = np.sqrt(np.sum(vel * vel, axis=-1, keepdims=True))
     vel = vel * np.minimum(1.0, MAX_SPEED / np.maximum(speed, 1e-12))
-    pos = state_BN4[..., :2] + vel * DT
+    pos = state_X4[..., :2] + vel * DT
     outside = (pos < 0.0) | (pos > 1.0)
     pos = np.clip(pos, 0.0, 1.0)
     vel = np.where(outside, 0.0, vel)  # a position can only leave through the wall it moves into

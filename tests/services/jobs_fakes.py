@@ -63,8 +63,9 @@ def fake_jobs_app(tmp_path: Path) -> Iterator[FastAPI]:
             table.close()
 
 
-def wait_for(check: Callable[[], Any], what: str, timeout_s: float = 8.0) -> Any:
-    """Poll `check` until it returns something truthy; fail naming `what` after `timeout_s`."""
+def wait_for(check: Callable[[], Any], what: str, timeout_s: float = 30.0) -> Any:
+    """Poll `check` until it returns something truthy; fail naming `what` after `timeout_s`
+    (generous: a trainer subprocess starts in seconds, but a loaded 2-core machine is slower)."""
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
         if result := check():

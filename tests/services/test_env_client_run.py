@@ -19,6 +19,7 @@ from envs.particle.env import ParticleCoexistenceEnv
 from envs.particle.scenarios import start_states
 from model_store.sql import SqlModelStore
 from services.engine import ActRequest, InferenceEngine, PartnerSpec
+from services.engine.messages import DEFAULT_METHOD
 from services.env_client import EpisodeResult, agent_seed, mean_se, run_episodes, summarise
 from services.sdk import CoexistClient, GrpcCoexistClient
 
@@ -36,8 +37,8 @@ def servers(_tiny_zoo_template: Any) -> Iterator[tuple[LiveServer, str]]:
 
 
 def reference_episode(engine: InferenceEngine, episode: int, seed: int, steps: int) -> tuple:
-    """The documented protocol, written out naively: ego aail_bounded (the client's default)
-    with every partner announced,
+    """The documented protocol, written out naively: the ego with the server's default blend
+    (AAIL-B) and every partner announced,
     partner j its own task policy on its own observation, agent i's step t seeded s_i + t."""
     env = ParticleCoexistenceEnv(goals=GOALS, max_steps=steps)
     obs, infos = env.reset(options={"state": start_states(seed, 2, len(GOALS))[episode]})
@@ -48,7 +49,7 @@ def reference_episode(engine: InferenceEngine, episode: int, seed: int, steps: i
         for i, agent in enumerate(env.possible_agents):
             request = ActRequest(
                 "particle", GOALS[i], obs[agent][None], partners if i == 0 else (),
-                method="aail_bounded" if i == 0 else "sl", seed=agent_seed(seed, episode, i) + t,
+                method=DEFAULT_METHOD if i == 0 else "sl", seed=agent_seed(seed, episode, i) + t,
             )  # fmt: skip
             actions[agent] = engine.act(request)[0].action
         obs, rewards, _, _, infos = env.step(actions)
