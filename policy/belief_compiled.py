@@ -20,6 +20,8 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from policy._kernels import load_kernel
+
 MAX_TOP = 64  # top goals the compiled views list at most (policy/_belief_row.c)
 
 
@@ -32,15 +34,8 @@ class BeliefView(NamedTuple):
     entropy: float  # and entropy
 
 
-def _load_kernel() -> Any:
-    try:  # policy/_belief_row.c, built by setup.py where a C compiler exists
-        from policy import _belief_row
-    except ImportError:  # pragma: no cover - an install without a C compiler
-        return None
-    return _belief_row
-
-
-_EXTENSION: Any = _load_kernel()
+# policy/_belief_row.c, built by setup.py where a C compiler exists
+_EXTENSION: Any = load_kernel("_belief_row")
 COMPILED = _EXTENSION is not None
 
 

@@ -62,6 +62,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import ArrayLike
 
+from policy._kernels import load_kernel
 from policy._validate import (
     PROB_SUM_TOL,
     alpha_array,
@@ -72,16 +73,8 @@ from policy._validate import (
 from policy.maths import boltzmann, js_distance, normalized_entropy, task_weight
 from policy.regret_bound import bound_rows, check_regret_bound
 
-
-def _load_kernel() -> Any:
-    try:  # policy/_blend_row.c, built by setup.py where a C compiler exists
-        from policy import _blend_row
-    except ImportError:  # pragma: no cover - an install without a C compiler
-        return None
-    return _blend_row
-
-
-_kernel: Any = _load_kernel()
+# policy/_blend_row.c, built by setup.py where a C compiler exists
+_kernel: Any = load_kernel("_blend_row")
 
 COMPILED: bool = _kernel is not None
 

@@ -24,20 +24,15 @@ from typing import Any
 
 import numpy as np
 
+from policy._kernels import load_kernel
+
 Layers = Sequence[tuple[np.ndarray, np.ndarray]]
 
 __all__ = ["COMPILED", "numpy_row_forward", "row_forward"]
 
 
-def _load_kernel() -> Any:
-    try:  # policy/_row_forward.c, built by setup.py where a C compiler exists
-        from policy import _row_forward
-    except ImportError:  # pragma: no cover - an install without a C compiler
-        return None
-    return _row_forward
-
-
-_extension: Any = _load_kernel()
+# policy/_row_forward.c, built by setup.py where a C compiler exists
+_extension: Any = load_kernel("_row_forward")
 
 COMPILED: bool = _extension is not None and bool(_extension.AVAILABLE)
 
