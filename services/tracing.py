@@ -16,7 +16,7 @@ interceptor hold `tracer=None` and only test it.
 The engine's and the store's spans are children of the request's span when the request made
 them (a cache miss loads weights inside `engine.act`); a load by the hot-reload thread is a
 trace of its own. They come from wrappers `instrument` puts on the engine and store objects
-(`act_checked`, which `act` and the sessions call, `act_columns`, `load_weights`), so the engine
+(`act`, `act_checked`, which the sessions call, `act_columns`, `load_weights`), so the engine
 and the store know nothing of tracing. Spans go to the global tracer provider, which the operator
 configures (exporter, sampling: the SDK's `TracerProvider`, or `opentelemetry-instrument`), or
 to the provider `create_app(..., tracer_provider=...)` is given (the tests: an in-memory exporter).
@@ -96,8 +96,8 @@ class Tracer:
 
     def instrument(self, engine: Any, store: Any) -> None:
         """Wrap the engine's acts and the store's weight loads of these two objects in spans."""
-        for name in ("act_checked", "act_columns"):
-            span_name = "engine.act" if name == "act_checked" else "engine.act_columns"
+        for name in ("act", "act_checked", "act_columns"):  # none calls another (one path)
+            span_name = "engine.act_columns" if name == "act_columns" else "engine.act"
             setattr(engine, name, self._traced(getattr(engine, name), span_name, _act_attributes))
         store.load_weights = self._traced(
             store.load_weights, "store.load_weights", _load_attributes

@@ -14,57 +14,13 @@ job backends need no environment-specific code.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any
 
 from envs.registry import get_domain
-from policy.qnet import QNetSpec, StackedQNet
+from policy.qnet import StackedQNet
 from trainer.config import SoftQConfig
-from trainer.domain import Gate, env_trainer
-from trainer.loop import ProgressFn, TrainingCurves
-
-Kind = Literal["task", "impact", "joint"]
-
-
-@dataclass
-class TrainedBatch:
-    """G networks trained together; member g belongs to `goals[g]` (a combination for joint)."""
-
-    kind: Kind
-    goals: list[tuple[str, ...]]
-    nets: StackedQNet
-    spec: QNetSpec
-    config: SoftQConfig
-    seed: int
-    curves: TrainingCurves
-    gates: Sequence[Gate | None] = field(default_factory=list)
-
-    def gate_passed(self, g: int) -> bool | None:
-        gate = self.gates[g] if self.gates else None
-        return None if gate is None else gate.passed
-
-    def curve_summary(self, g: int) -> dict[str, Any]:
-        """Start, best and final mean episode return of member g (the full curve goes to plots)."""
-        series = [row[g] for row in self.curves.returns_G]
-        if not series:
-            return {}
-        return {
-            "first": series[0],
-            "best": max(series),
-            "final": series[-1],
-            "points": len(series),
-            "steps": self.curves.steps[-1],
-        }
-
-    def curve_series(self, g: int) -> dict[str, list[int] | list[float]]:
-        """Member g's whole training curve (registered with its version, drawn by the web
-        console): the training step of each point, the mean return of the episodes that ended
-        since the point before, and the mean loss of the updates since then."""
-        return {
-            "steps": list(self.curves.steps),
-            "mean_return": [row[g] for row in self.curves.returns_G],
-            "loss": [row[g] for row in self.curves.losses_G],
-        }
+from trainer.domain import TrainedBatch, env_trainer
+from trainer.loop import ProgressFn
 
 
 def train_tasks(

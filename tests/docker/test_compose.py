@@ -118,7 +118,7 @@ def test_the_images_default_commands_are_cli_commands(target: str) -> None:
     with pytest.raises(AssertionError, match="no sub-command 'trian'"):  # the check can fail
         parse_coexist(["coexist", "trian", "zoo"])
     with pytest.raises(Exception, match="No such option"):
-        parse_coexist(["coexist", "train", "zoo", "--backend", "ray", "--workers", "2"])
+        parse_coexist(["coexist", "train", "zoo", "--backend", "ray", "--no-such-option", "2"])
 
 
 def test_the_dockerfile_builds_small_non_root_images() -> None:
