@@ -1,12 +1,13 @@
-"""The compiled parts, all optional (without a C compiler the install goes on):
+"""The compiled kernels, all optional (without a C compiler the install goes on and the numpy
+reference of each runs instead):
 
-- `policy._blend_row`, the row blend in C (policy/_blend_row.c); without it `policy.blend_fast`
-  uses its Python row blend (the same numbers);
-- `policy._belief_row`, a session's belief update and views (policy/_belief_row.c); without it
-  `policy.belief` uses numpy (the same numbers);
-- `policy._row_forward`, a stack of small MLPs on one observation (policy/_row_forward.c);
-  without it (or without AVX2 and FMA) `policy.row_forward` uses numpy.
+- `policy._blend_row`, the blend of eqs. 8-10 (policy/_blend_row.c; `policy.blend`);
+- `policy._belief_row`, a session's belief update and views and the goal likelihoods' table
+  (policy/_belief_row.c; `policy.belief_compiled`);
+- `policy._row_forward`, a stack of small MLPs on a few rows, AVX2 and FMA chosen at run time
+  (policy/_row_forward.c; `policy.row_forward`).
 
+Each is checked against its numpy reference within a stated tolerance (tests/policy/).
 Everything else is in pyproject.toml.
 """
 
@@ -16,30 +17,13 @@ from setuptools import Extension, setup
 setup(
     ext_modules=[
         Extension(
-            "policy._blend_row",
-            ["policy/_blend_row.c"],
+            f"policy.{name}",
+            [f"policy/{name}.c"],
             include_dirs=[numpy.get_include()],
-            depends=["policy/_numpy_order.h"],
-            # no fused multiply-add: Python rounds a * b + c twice, and so must this
-            extra_compile_args=["-O2", "-ffp-contract=off"],
+            extra_compile_args=["-O2"],
+            libraries=["m"],
             optional=True,
-        ),
-        Extension(
-            "policy._belief_row",
-            ["policy/_belief_row.c"],
-            include_dirs=[numpy.get_include()],
-            depends=["policy/_numpy_order.h"],
-            extra_compile_args=["-O2", "-ffp-contract=off"],  # numpy's bits: as _blend_row
-            optional=True,
-        ),
-        Extension(
-            "policy._row_forward",
-            ["policy/_row_forward.c"],
-            include_dirs=[numpy.get_include()],
-            # the vector code is intrinsics, compiled per CPU variant (target attributes) and
-            # chosen at import; no contraction of the plain C either
-            extra_compile_args=["-O2", "-ffp-contract=off"],
-            optional=True,
-        ),
+        )
+        for name in ("_blend_row", "_belief_row", "_row_forward")
     ]
 )

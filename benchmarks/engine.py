@@ -10,10 +10,8 @@ Run: `OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/engine.py [--repeats 5]
 | aail, batch 1     | the same with AAIL: task net + 4 impact nets (`b3`, `c1`, `d4`, `e0`)    |
 | aail unseeded     | the same without a seed (no generator to build per request)             |
 | blend alone       | `policy.blend.blend("aail", ...)` on the batch-1 shapes (the checked    |
-|                   | entry point: the compiled rows, or the Python ones without them)        |
-| blend vectorised  | `policy.blend.blend_vectorised`, the numpy path, same shapes            |
-| blend_row         | `policy.blend_fast.blend_row`, the unchecked row kernel the engine uses |
-|                   | (compiled where `policy/_blend_row.c` was built)                        |
+|                   | entry point: the compiled kernel where it is built, else numpy)         |
+| blend vectorised  | `policy.blend.blend_vectorised`, the numpy reference, same shapes       |
 | * batch 256       | 256 observations in one call; figure = actions (rows) per second        |
 
 BLAS threads: run with `OPENBLAS_NUM_THREADS=1` to measure what one server worker per core sees;
@@ -102,12 +100,8 @@ def blend_cases() -> dict[str, Callable[[], object]]:
         "blend alone": lambda: policy_blend.blend("aail", q_task, q_impact, 0.02)
     }
     if hasattr(policy_blend, "blend_vectorised"):
-        from policy.blend_fast import blend_row
-
-        row_task, row_impact = q_task[0].tolist(), q_impact[0].tolist()
         vectorised = policy_blend.blend_vectorised
         cases["blend vectorised"] = lambda: vectorised("aail", q_task, q_impact, 0.02)
-        cases["blend_row"] = lambda: blend_row("aail", row_task, row_impact, 0.02)
     return cases
 
 

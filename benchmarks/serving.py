@@ -1,4 +1,5 @@
-"""Serving load test: REST (wrk) and gRPC (h2load) against the server's own no-op floor.
+"""Serving load test: REST (wrk) and gRPC (h2load) against the server's own no-op and against
+bare servers that do nothing else (the floors).
 
 Run: `.venv/bin/python benchmarks/serving.py [--duration 5] [--rounds 1] [--log-level warning]
 [--json OUT]` (needs `wrk` and `h2load`: `apt-get install wrk nghttp2-client`).
@@ -8,6 +9,13 @@ in the same process on grpcio's sync server with 8 threads), pinned to CPU 0; th
 generators are C programs pinned to CPU 1: `wrk` for HTTP/1.1 and `h2load` for gRPC (gRPC is
 HTTP/2: h2load posts the length-prefixed protobuf with `content-type: application/grpc`). Each
 case warms up for 1 s, then runs for `--duration` seconds on persistent connections.
+
+The floors (`floor_servers.py`), started by this run on the same CPU: a bare FastAPI app whose
+only route is the same `GET /healthz` on the same uvicorn settings (uvloop, httptools, one
+worker), and a bare grpcio server (same thread pool) with the standard health servicer. Only
+one server runs at a time: each round starts coexist, measures its cases and stops it, then
+does the same for each floor (odd rounds the floors first), so a round's ratios come from
+servers measured minutes apart at most, each alone on its CPU.
 
 | case       | REST                         | gRPC                                  | per call       |
 |------------|------------------------------|---------------------------------------|----------------|
@@ -21,6 +29,9 @@ case warms up for 1 s, then runs for `--duration` seconds on persistent connecti
 Targets (issue 5), per transport: act p50 at c=1 <= 2x the no-op p50; act throughput at c=32
 >= 40 % of the no-op's; batch actions/s >= 30x the single-request rate (both at c=1), with the
 columnar batch ("batch rows" is informational: the default format, one result per row).
+Against the floors (issue 22), at c=1 unless said: REST no-op p50 <= 1.15x the bare FastAPI
+no-op's, act p50 <= 1.8x it, act req/s at c=32 >= 40 % of its req/s at c=32; gRPC health p50
+<= 1.15x the bare grpcio health server's, act p50 <= 1.5x it.
 With `--rounds N` the whole plan runs N times one after the other; the table shows each case's
 median p50 and req/s over the rounds, and each target is the median of its per-round ratios
 (a ratio's two cases run minutes apart at most, so a burst of load from a neighbour on a shared
@@ -43,6 +54,7 @@ import statistics
 import subprocess
 import sys
 import tempfile
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -53,7 +65,15 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from wrk_server import LOAD_CPU, SERVER_CPU, UNIT_MS, free_port, start_server  # noqa: E402
+from wrk_server import (  # noqa: E402
+    LOAD_CPU,
+    SERVER_CPU,
+    UNIT_MS,
+    free_port,
+    start_floor,
+    start_server,
+    stop,
+)
 
 from envs.particle.scenarios import FIVE_AGENTS  # noqa: E402
 
@@ -62,6 +82,8 @@ BATCH = 256
 ACT = "/coexist.v1.PolicyService/Act"
 ACT_BATCH = "/coexist.v1.PolicyService/ActBatch"
 HEALTH = "/grpc.health.v1.Health/Check"
+# (transport, case, rows per request, concurrencies, runner(concurrency, tmp) -> Case)
+Planned = tuple[str, str, int, tuple[int, ...], Callable[[int, Path], "Case"]]
 
 
 def build_store(url: str) -> None:
@@ -244,11 +266,11 @@ def parse_h2load(out: str, log_text: str) -> tuple[int, float, float, int]:
     return int(status.group(2)), seconds, statistics.median(micros) / 1000.0, failed
 
 
-def measure(http_port: int, grpc_port: int, duration: float) -> list[Case]:
+def coexist_plan(http_port: int, grpc_port: int, duration: float) -> list[Planned]:
     rest, grpc_b = rest_bodies(), grpc_bodies()
     http, h2 = f"http://127.0.0.1:{http_port}", f"http://127.0.0.1:{grpc_port}"
     both, one = (1, 32), (1,)
-    plan = [  # (transport, case, rows, concurrencies, runner)
+    return [
         ("REST", "no-op", 1, both, lambda c, t: run_wrk(http + "/healthz", None, c, duration, t)),
         ("REST", "act", 1, both,
          lambda c, t: run_wrk(http + "/v1/act", rest["act"], c, duration, t)),
@@ -264,16 +286,58 @@ def measure(http_port: int, grpc_port: int, duration: float) -> list[Case]:
         ("gRPC", "batch rows", BATCH, one,
          lambda c, t: run_h2load(h2 + ACT_BATCH, grpc_b["batch rows"], c, duration, t)),
     ]  # fmt: skip
+
+
+def floor_plan(kind: str, port: int, duration: float) -> list[Planned]:
+    """The bare server's no-op (`floor_servers.py`), at the concurrencies of coexist's no-op."""
+    if kind == "rest":
+        url = f"http://127.0.0.1:{port}/healthz"
+        return [("REST", "floor no-op", 1, (1, 32),
+                 lambda c, t: run_wrk(url, None, c, duration, t))]  # fmt: skip
+    url, noop = f"http://127.0.0.1:{port}{HEALTH}", grpc_bodies()["noop"]
+    return [("gRPC", "floor no-op", 1, (1, 32),
+             lambda c, t: run_h2load(url, noop, c, duration, t))]  # fmt: skip
+
+
+def measure(plan: list[Planned]) -> list[Case]:
     cases = []
     with tempfile.TemporaryDirectory() as tmp:
         for transport, case, rows, concurrencies, runner in plan:
             for concurrency in concurrencies:
                 result = runner(concurrency, Path(tmp))
                 result.transport, result.case, result.rows = transport, case, rows
-                print(f"  {transport:4} {case:10} c={concurrency:<2} p50 {result.p50_ms:7.3f} ms "
+                print(f"  {transport:4} {case:11} c={concurrency:<2} p50 {result.p50_ms:7.3f} ms "
                       f"{result.rps:9,.0f} req/s  failed {result.failed}", flush=True)  # fmt: skip
                 cases.append(result)
     return cases
+
+
+def measure_round(url: str, duration: float, log_level: str, floors_first: bool) -> list[Case]:
+    """One round: coexist's cases with only coexist running, then each floor alone (the other
+    order with `floors_first`); the cases come back in one fixed order whatever the order."""
+
+    def coexist() -> list[Case]:
+        http_port, grpc_port = free_port(), free_port()
+        server = start_server(url, http_port, grpc_port=grpc_port, log_level=log_level)
+        try:
+            check_payloads(http_port, grpc_port, rest_bodies())
+            return measure(coexist_plan(http_port, grpc_port, duration))
+        finally:
+            stop(server)
+
+    def floor(kind: str) -> list[Case]:
+        port = free_port()
+        server = start_floor(kind, port)
+        try:
+            return measure(floor_plan(kind, port, duration))
+        finally:
+            stop(server)
+
+    if floors_first:
+        floors = floor("rest") + floor("grpc")
+        return coexist() + floors
+    ours = coexist()
+    return ours + floor("rest") + floor("grpc")
 
 
 def verdicts(cases: list[Case]) -> list[tuple[str, float, float, bool]]:
@@ -287,6 +351,27 @@ def verdicts(cases: list[Case]) -> list[tuple[str, float, float, bool]]:
         rows.append((f"{t}: act req/s / no-op req/s (c=32)", share, 0.4, share >= 0.4))
         batch = get[t, "batch", 1].actions_per_s / get[t, "act", 1].rps
         rows.append((f"{t}: batch actions/s / act req/s (c=1)", batch, 30.0, batch >= 30.0))
+    if ("REST", "floor no-op", 1) in get and ("gRPC", "floor no-op", 1) in get:
+        rows += floor_verdicts(get)
+    return rows
+
+
+def floor_verdicts(get: dict[tuple[str, str, int], Case]) -> list[tuple[str, float, float, bool]]:
+    """Issue 22's targets: coexist against the bare servers (what coexist adds to a request)."""
+    rows = []
+    floor_rest, floor_grpc = get["REST", "floor no-op", 1], get["gRPC", "floor no-op", 1]
+    against = [
+        ("REST: no-op p50 / bare FastAPI no-op p50 (c=1)", get["REST", "no-op", 1], floor_rest, 1.15),
+        ("REST: act p50 / bare FastAPI no-op p50 (c=1)", get["REST", "act", 1], floor_rest, 1.8),
+        ("gRPC: health p50 / bare grpcio health p50 (c=1)", get["gRPC", "no-op", 1], floor_grpc,
+         1.15),
+        ("gRPC: act p50 / bare grpcio health p50 (c=1)", get["gRPC", "act", 1], floor_grpc, 1.5),
+    ]  # fmt: skip
+    for name, ours, floor, required in against:
+        ratio = ours.p50_ms / floor.p50_ms
+        rows.append((name, ratio, required, ratio <= required))
+    share = get["REST", "act", 32].rps / get["REST", "floor no-op", 32].rps
+    rows.append(("REST: act req/s / bare FastAPI no-op req/s (c=32)", share, 0.4, share >= 0.4))
     return rows
 
 
@@ -329,20 +414,13 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         url = f"sqlite:///{tmp}/models.db"
         build_store(url)
-        http_port, grpc_port = free_port(), free_port()
-        server = start_server(url, http_port, grpc_port=grpc_port, log_level=args.log_level)
-        try:
-            check_payloads(http_port, grpc_port, rest_bodies())
-            print(f"server on CPU {SERVER_CPU}, load generators on CPU {LOAD_CPU}, "
-                  f"{args.duration:g} s per case, log level {args.log_level}")  # fmt: skip
-            rounds = []
-            for r in range(args.rounds):
-                if args.rounds > 1:
-                    print(f"round {r + 1} of {args.rounds}", flush=True)
-                rounds.append(measure(http_port, grpc_port, args.duration))
-        finally:
-            server.terminate()
-            server.wait(timeout=30)
+        print(f"servers on CPU {SERVER_CPU} (one at a time), load generators on CPU {LOAD_CPU}, "
+              f"{args.duration:g} s per case, log level {args.log_level}")  # fmt: skip
+        rounds = []
+        for r in range(args.rounds):
+            if args.rounds > 1:
+                print(f"round {r + 1} of {args.rounds}", flush=True)
+            rounds.append(measure_round(url, args.duration, args.log_level, r % 2 == 1))
     cases = median_cases(rounds)
     what = f" (medians of {args.rounds} rounds)" if args.rounds > 1 else ""
     print(f"\n| transport | case | c | p50 ms | req/s | actions/s | failed |{what}")

@@ -138,12 +138,12 @@ def breakdown(url: str, obs_TD: np.ndarray, actions_TP: np.ndarray, calls: int) 
 def _rest_in_process(
     engine: object, obs_TD: np.ndarray, actions_TP: np.ndarray, calls: int
 ) -> dict[str, float]:
-    """The REST rows of the module docstring: `session_bench`'s bodies, through the ASGI app."""
+    """The REST rows of the module docstring: `session_scene`'s bodies, through the ASGI app."""
     import asyncio
     import json
 
     from fastapi import FastAPI
-    from session_bench import act_bodies, step_bodies
+    from session_scene import act_bodies, step_bodies
 
     from services.rest import install_error_handlers, router, sessions_router
 
@@ -192,7 +192,7 @@ def _rest_in_process(
 
 
 def main() -> None:
-    from session_bench import episode
+    from session_scene import episode
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--store", required=True, help="a store with every particle network")

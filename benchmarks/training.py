@@ -1,10 +1,13 @@
-"""Trainer throughput: stacked (batched) soft-Q updates vs one network at a time, env steps per
-second during training, and (with --zoo) the wall time of the whole particle zoo.
+"""Trainer throughput: stacked (batched) soft-Q updates vs one network at a time, with the
+float32 GFLOP/s they reach beside this core's measured matmul peak, env steps per second during
+training, and (with --zoo) the wall time of the whole particle zoo.
 
     .venv/bin/python benchmarks/training.py            # updates/s and training steps/s (~1 min)
     .venv/bin/python benchmarks/training.py --zoo      # + 35 task + 35 impact networks (minutes)
 
-Timings are medians of repeats; the batched/sequential ratio is measured in the same run.
+Timings are medians of repeats; the batched/sequential ratio is measured in the same run. The
+peak is a square float32 matmul (1024 x 1024) on the same number of torch threads; an update's
+FLOPs are counted from its matmuls (`update_flops`), the element-wise work is not counted.
 """
 
 from __future__ import annotations
@@ -32,6 +35,25 @@ def _batch(n_nets: int, size: int, gen: torch.Generator) -> Batch:
         rew_GB=-torch.rand(n_nets, size, generator=gen),
         next_obs_GBD=torch.rand(n_nets, size, 8, generator=gen),
     )
+
+
+def update_flops(spec: QNetSpec, batch_size: int) -> int:
+    """Multiply-adds x 2 of one network's soft-Q update on `batch_size` samples: the target
+    network's forward on s', the online forward on s, and the backward's weight gradients of
+    every layer and input gradients of every layer but the first (`trainer.soft_q`)."""
+    per_layer = [n_in * n_out for n_in, n_out in spec.layer_sizes]
+    return 2 * batch_size * (3 * sum(per_layer) + sum(per_layer[1:]))
+
+
+def matmul_peak_gflops(seconds: float, size: int = 1024) -> float:
+    """float32 GFLOP/s of a square matmul on this process's torch threads."""
+    a, b = torch.rand(size, size), torch.rand(size, size)
+    a @ b  # warm-up
+    rounds, start = 0, time.perf_counter()
+    while time.perf_counter() - start < seconds:
+        a @ b
+        rounds += 1
+    return rounds * 2 * size**3 / (time.perf_counter() - start) / 1e9
 
 
 def updates_per_second(n_nets: int, stacked: bool, seconds: float, cfg: TaskConfig) -> float:
@@ -62,20 +84,33 @@ def main() -> None:
     torch.set_num_threads(args.threads)
     cfg = TaskConfig()
     console = Console()
+    spec = QNetSpec(obs_dim=8, n_actions=5, hidden=cfg.hidden)
+    gflop = update_flops(spec, cfg.batch_size) / 1e9
+    peak = statistics.median(matmul_peak_gflops(args.seconds) for _ in range(args.repeats))
     table = Table(title=f"soft-Q updates (MLP {cfg.hidden}, batch {cfg.batch_size} per network)")
-    for col in ("networks", "how", "network-updates/s (median)", "speed-up"):
+    for col in ("networks", "how", "network-updates/s (median)", "speed-up", "GFLOP/s", "of peak"):
         table.add_column(col, justify="right")
+
+    def row(n_nets: int, how: str, rate: float, base: float) -> None:
+        achieved = rate * gflop
+        speed_up, share = f"{rate / base:.1f}x", f"{achieved / peak:.0%}"
+        table.add_row(str(n_nets), how, f"{rate:,.0f}", speed_up, f"{achieved:.1f}", share)
+
     for n_nets in (1, 35):
         seq = statistics.median(
             updates_per_second(n_nets, False, args.seconds, cfg) for _ in range(args.repeats)
         )
-        table.add_row(str(n_nets), "one at a time", f"{seq:,.0f}", "1.0x")
+        row(n_nets, "one at a time", seq, seq)
         if n_nets > 1:
             stk = statistics.median(
                 updates_per_second(n_nets, True, args.seconds, cfg) for _ in range(args.repeats)
             )
-            table.add_row(str(n_nets), "stacked", f"{stk:,.0f}", f"{stk / seq:.1f}x")
+            row(n_nets, "stacked", stk, seq)
     console.print(table)
+    console.print(
+        f"float32 matmul peak ({args.threads} torch thread(s), 1024 x 1024): {peak:.1f} GFLOP/s; "
+        f"one network-update = {gflop * 1e3:.2f} MFLOP"
+    )
 
     steps = 300
     short = replace(cfg, total_steps=steps, warmup_steps=50)

@@ -5,6 +5,8 @@ pinned to one CPU, and `wrk` on the other posting a list of JSON bodies in turn 
 |----------------|-----------------------------------------------------------------------|
 | `start_server` | `coexist serve --no-bootstrap` (REST only) on `taskset -c SERVER_CPU`, |
 |                | waits for `/readyz`                                                   |
+| `start_floor`  | a bare REST or gRPC server (`floor_servers.py`) on the same CPU, ready |
+| `stop`         | ends a server started here and waits for it                           |
 | `lua_script`   | a wrk script POSTing the bodies in turn (one wrk thread: a counter)   |
 | `run_wrk`      | 1 s of warm-up, then the timed run, c = 1, on `taskset -c LOAD_CPU`   |
 | `parse_wrk`    | requests, seconds, p50/p90/p99 and failures from `wrk --latency`      |
@@ -107,3 +109,47 @@ def start_server(
         time.sleep(0.3)
     server.kill()
     raise SystemExit("the server did not become ready within 120 s")
+
+
+def start_floor(kind: str, port: int) -> subprocess.Popen[bytes]:
+    """`floor_servers.py kind port` on CPU `SERVER_CPU`, once it answers its health check."""
+    command = ["taskset", "-c", SERVER_CPU, str(ROOT / ".venv/bin/python"),
+               str(ROOT / "benchmarks/floor_servers.py"), kind, str(port)]  # fmt: skip
+    server = subprocess.Popen(command, stdout=subprocess.DEVNULL)
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        if server.poll() is not None:
+            raise SystemExit(f"the {kind} floor exited with {server.returncode}")
+        if _floor_answers(kind, port):
+            return server
+        time.sleep(0.2)
+    server.kill()
+    raise SystemExit(f"the {kind} floor did not answer within 60 s")
+
+
+def _floor_answers(kind: str, port: int) -> bool:
+    if kind == "rest":
+        try:
+            return httpx.get(f"http://127.0.0.1:{port}/healthz", timeout=1).status_code == 200
+        except httpx.HTTPError:
+            return False
+    import grpc
+    from grpc_health.v1 import health_pb2, health_pb2_grpc
+
+    with grpc.insecure_channel(f"127.0.0.1:{port}") as channel:
+        try:
+            stub = health_pb2_grpc.HealthStub(channel)
+            answer = stub.Check(health_pb2.HealthCheckRequest(), timeout=1)
+        except grpc.RpcError:
+            return False
+    return bool(answer.status == health_pb2.HealthCheckResponse.SERVING)
+
+
+def stop(server: subprocess.Popen[bytes]) -> None:
+    """SIGTERM, then wait (SIGKILL after 30 s)."""
+    server.terminate()
+    try:
+        server.wait(timeout=30)
+    except subprocess.TimeoutExpired:
+        server.kill()
+        server.wait()

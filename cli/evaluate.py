@@ -186,8 +186,8 @@ def evaluate(
 
     from evaluation.backend import EngineBackend, server_backend
     from evaluation.config import SuiteConfig, fast_config
-    from evaluation.report import write_report
-    from evaluation.suite import run_suite
+    from evaluation.paper.report import write_report
+    from evaluation.paper.suite import run_suite
     from model_store.defaults import open_store
     from services.engine import InferenceEngine
 

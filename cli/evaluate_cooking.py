@@ -12,7 +12,7 @@ impact network of CarrotBanana at `--alias`) and, for a learned right cook, a Ca
 network at `--partner-alias` (without one the scripted cook takes its place, and the results
 say so). Writes `results.md`, `results.json`, `fig9_cooking.png` and `aail_episode.gif` into
 `--out` and refreshes the cooking section of the paper report beside it
-(`evaluation.cooking_report`).
+(`evaluation.cooking.report`).
 """
 
 from __future__ import annotations
@@ -58,7 +58,7 @@ def evaluate_cooking_suite(
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
 
     from evaluation.backend import EngineBackend, server_backend
-    from evaluation.cooking_report import run_cooking_suite
+    from evaluation.cooking.report import run_cooking_suite
     from model_store.defaults import open_store
     from services.engine import InferenceEngine
 

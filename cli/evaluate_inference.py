@@ -67,8 +67,8 @@ def evaluate_inference(
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
 
-    from evaluation.inference_report import render_readme
-    from evaluation.inference_suite import (
+    from evaluation.inference.report import render_readme
+    from evaluation.inference.suite import (
         InferenceSuiteConfig,
         fast_inference_config,
         run_inference_suite,

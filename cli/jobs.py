@@ -29,7 +29,7 @@ from rich.console import Console
 from rich.table import Table
 
 if TYPE_CHECKING:
-    from services.sdk.jobs import JobInfo, JobsClient
+    from coexist_client.jobs import JobInfo, JobsClient
 
 app = typer.Typer(
     help="Submit, watch and cancel training jobs on a running server.", no_args_is_help=True
@@ -76,8 +76,8 @@ def _fail(message: str, code: int = 1) -> typer.Exit:
 @contextmanager
 def _client(server: str, token: str | None) -> Iterator[JobsClient]:
     """A client of the server; SDK errors become one line and an exit code."""
-    from services.sdk import CoexistError, InvalidArgument
-    from services.sdk.jobs import JobsClient
+    from coexist_client import CoexistError, InvalidArgument
+    from coexist_client.jobs import JobsClient
 
     try:
         with JobsClient(server, token=token) as client:

@@ -9,7 +9,9 @@
     coexist models migrate                                    # upgrade the database schema
 
 Every command takes `--store-url` (default: `COEXIST_STORE_URL`, else the SQLite file in
-`COEXIST_DATA_DIR`). An export directory holds `spec.json`, `lineage.json`, `model.json`,
+`COEXIST_DATA_DIR`), or, all but `migrate`, `--server URL` to work through a running server's
+registry API instead (`cli.registry_remote`; token from `COEXIST_ADMIN_TOKEN`, else
+`COEXIST_READ_TOKEN`): an operator needs no access to the database. An export directory holds `spec.json`, `lineage.json`, `model.json`,
 `weights.safetensors` and `sha256` (in `sha256sum` format); `import` checks the sha256 before
 registering, creates the model from `model.json` (env, kind, goals, sizes) when it does not
 exist yet, and points `latest` (plus any `--alias`) at the new version.
@@ -53,19 +55,43 @@ StoreUrl = Annotated[
 ]
 
 
+Server = Annotated[
+    str | None,
+    typer.Option(
+        "--server",
+        help="A server's URL: use its registry API instead of the database "
+        "(token: COEXIST_ADMIN_TOKEN, else COEXIST_READ_TOKEN).",
+    ),
+]
+
+
 @contextmanager
-def _store(url: str | None) -> Iterator[SqlModelStore]:
-    """Open the store; domain errors become a one-line message and an exit code."""
+def _store(url: str | None, server: str | None = None) -> Iterator[SqlModelStore]:
+    """Open the store (or, with `server`, the server's registry behind the same methods);
+    domain errors become a one-line message and an exit code."""
+    from coexist_client import CoexistError
+    from coexist_client import InvalidArgument as RemoteInvalid
+
+    from cli.registry_remote import RemoteRegistry
     from model_store.defaults import open_store
     from model_store.errors import InvalidArgument, ModelStoreError
 
+    if url is not None and server is not None:
+        raise _fail("--server: give either --server or --store-url")
     try:
-        with open_store(url) as store:
-            yield store
-    except InvalidArgument as exc:
+        if server is not None:
+            remote = RemoteRegistry(server)
+            try:
+                yield remote  # type: ignore[misc]  # the store's methods, over HTTP
+            finally:
+                remote.close()
+        else:
+            with open_store(url) as store:
+                yield store
+    except (InvalidArgument, RemoteInvalid) as exc:
         _console(stderr=True).print(f"[red]error:[/red] {exc}", highlight=False)
         raise typer.Exit(2) from None
-    except ModelStoreError as exc:
+    except (ModelStoreError, CoexistError) as exc:
         _console(stderr=True).print(f"[red]error:[/red] {exc}", highlight=False)
         raise typer.Exit(1) from None
 
@@ -86,9 +112,10 @@ def list_models(
     goal: Annotated[str | None, typer.Option(help="Only models with this goal.")] = None,
     tag: Annotated[str | None, typer.Option(help="'key' or 'key=value'.")] = None,
     store_url: StoreUrl = None,
+    server: Server = None,
 ) -> None:
     """List registered models (all pages) in a table."""
-    with _store(store_url) as store:
+    with _store(store_url, server) as store:
         models: list[RegisteredModel] = []
         token: str | None = None
         while True:
@@ -122,9 +149,10 @@ def show(
     name: Annotated[str, typer.Argument(help="Model name, e.g. particle/task/a3.")],
     version: Annotated[int | None, typer.Option(help="Print this version's full lineage.")] = None,
     store_url: StoreUrl = None,
+    server: Server = None,
 ) -> None:
     """A model, its versions and aliases, and lineage."""
-    with _store(store_url) as store:
+    with _store(store_url, server) as store:
         model = store.get_model(name)
         versions = store.list_versions(name)
         detail = store.get_version(name, version) if version is not None else None
@@ -168,9 +196,10 @@ def promote(
     version: Annotated[int, typer.Argument(help="Version to point the alias at.")],
     alias: Annotated[str, typer.Option(help="Alias to set or move.")] = "production",
     store_url: StoreUrl = None,
+    server: Server = None,
 ) -> None:
     """Point an alias (default: production) at a version, atomically."""
-    with _store(store_url) as store:
+    with _store(store_url, server) as store:
         before = store.get_model(name).aliases.get(alias)
         store.set_alias(name, alias, version)
     moved = f"from {before} " if before is not None else ""
@@ -182,9 +211,10 @@ def archive(
     name: Annotated[str, typer.Argument(help="Model name.")],
     version: Annotated[int, typer.Argument(help="Version to archive (its data is kept).")],
     store_url: StoreUrl = None,
+    server: Server = None,
 ) -> None:
     """Archive a version (refused while an alias points at it)."""
-    with _store(store_url) as store:
+    with _store(store_url, server) as store:
         store.archive_version(name, version)
     _console().print(f"{name}/{version}: archived")
 
@@ -194,9 +224,10 @@ def export(
     ref: Annotated[str, typer.Argument(help="name@alias, name/version or name (= @production).")],
     out_dir: Annotated[Path, typer.Option("--out", help="Directory to write into.")],
     store_url: StoreUrl = None,
+    server: Server = None,
 ) -> None:
     """Write a version's spec, lineage, model metadata, weights and sha256 to a directory."""
-    with _store(store_url) as store:
+    with _store(store_url, server) as store:
         mv = store.resolve(ref)
         model = store.get_model(mv.name)
         weights = store.load_weights(mv.name, mv.version)  # sha256 verified
@@ -233,8 +264,11 @@ def import_(
         list[str] | None, typer.Option(help="Aliases to set (default: latest).")
     ] = None,
     store_url: StoreUrl = None,
+    server: Server = None,
 ) -> None:
     """Register an exported version (checksum checked) under NAME, creating the model if needed."""
+    from coexist_client import NotFound as RemoteNotFound
+
     from model_store.artifacts import sha256_hex
     from model_store.entities import Lineage
     from model_store.errors import NotFound
@@ -252,10 +286,10 @@ def import_(
     target = name or meta.get("name")
     if not target:
         raise _fail("--name: required (the directory has no model.json)")
-    with _store(store_url) as store:
+    with _store(store_url, server) as store:
         try:
             store.get_model(target)
-        except NotFound:
+        except (NotFound, RemoteNotFound):
             if not meta:
                 raise _fail(
                     f"model {target!r} does not exist and {src} has no model.json"

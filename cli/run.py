@@ -1,12 +1,17 @@
-"""`coexist run`: particle episodes against a running policy server (the environment client).
+"""`coexist run`: episodes of any registered env against a running policy server (the
+environment client).
 
     coexist run --server http://127.0.0.1:8000 --ego a2 --partners b3 --episodes 20
     coexist run --server grpc://127.0.0.1:50051 --ego a2 --partners a0,b2,c4,e1 --gif run.gif
+    coexist run --server http://127.0.0.1:8000 --env cooking --ego TomatoLettuceSalad \
+        --partners CarrotBanana --episodes 5 --max-steps 400
 
 The ego (agent 0) acts through the server with `--method`; each partner follows its own task
 policy, also served (method `sl`, the partner as the ego of its own request), so no model is
-needed locally. Prints per-agent and team returns (mean ± standard error over episodes), success
-(inside its own target area at the end) and episode length. `services.env_client` runs the loop.
+needed locally; `--infer` tells the ego no partner goal (the server infers them). Prints
+per-agent and team returns (mean ± standard error over episodes), success (its own goal reached
+at the end: in its target area, its dish served) and episode length. `services.env_client` runs
+the loop on `coexist_client.RemotePolicy`.
 """
 
 from __future__ import annotations
@@ -18,24 +23,24 @@ import typer
 
 
 def _client(server: str, transport: str | None) -> Any:
-    from services.sdk import CoexistClient, GrpcCoexistClient
+    from coexist_client import Client
 
     use_grpc = transport == "grpc" or (transport is None and server.startswith("grpc://"))
     if use_grpc:
         target = server.removeprefix("grpc://").removeprefix("http://").removeprefix("https://")
-        return GrpcCoexistClient(target)
+        return Client(target, protocol="grpc")
     if server.startswith("grpc://"):
         raise typer.BadParameter(
             "a grpc:// URL needs --transport grpc (or none)", param_hint="--server"
         )
-    return CoexistClient(server)
+    return Client(server, protocol="http")
 
 
 def run(
     server: Annotated[
         str, typer.Option(help="Server URL: http://host:port (REST) or grpc://host:port.")
     ] = "http://127.0.0.1:8000",
-    env: Annotated[str, typer.Option(help="Environment.")] = "particle",
+    env: Annotated[str, typer.Option(help="Environment: particle or cooking.")] = "particle",
     ego: Annotated[str, typer.Option(help="The ego agent's goal (agent 0).")] = "a2",
     partners: Annotated[
         str, typer.Option(help="Comma-separated partner goals (agents 1..N-1).")
@@ -49,6 +54,9 @@ def run(
             min=0.0, help="aail_bounded's ε (default: half the task network's training α)."
         ),
     ] = None,
+    infer: Annotated[
+        bool, typer.Option(help="Announce no partner goal: the server infers them.")
+    ] = False,
     episodes: Annotated[int, typer.Option(min=1, help="Number of episodes.")] = 20,
     seed: Annotated[int, typer.Option(min=0, help="Seed of start states and sampling.")] = 0,
     max_steps: Annotated[int, typer.Option(min=1, help="Steps before truncation.")] = 200,
@@ -60,13 +68,13 @@ def run(
     alias: Annotated[str, typer.Option(help="Model alias to serve from.")] = "production",
 ) -> None:
     """Run episodes where the ego acts through the server and partners follow their task policy."""
+    from coexist_client import CoexistError
     from rich.console import Console
     from rich.progress import Progress
     from rich.table import Table
 
     from envs.particle.render import save_gif
     from services.env_client import run_episodes, summarise
-    from services.sdk import CoexistError
 
     if transport not in (None, "http", "grpc"):
         raise typer.BadParameter("expected http or grpc", param_hint="--transport")
@@ -78,7 +86,7 @@ def run(
             task = progress.add_task(f"{episodes} episodes", total=episodes)
             results = run_episodes(
                 client, env=env, ego_goal=ego, partner_goals=partner_goals, method=method,
-                regret_bound=regret_bound, episodes=episodes, seed=seed, max_steps=max_steps, alias=alias, greedy=greedy,
+                regret_bound=regret_bound, infer=infer, episodes=episodes, seed=seed, max_steps=max_steps, alias=alias, greedy=greedy,
                 record_first=gif is not None, on_episode=lambda _: progress.advance(task),
             )  # fmt: skip
     except (CoexistError, ValueError) as err:
@@ -94,7 +102,7 @@ def run(
                             ("return (mean ± se)", "right"), ("success", "right")):  # fmt: skip
         table.add_column(column, justify=justify)  # type: ignore[arg-type]
     for i, goal in enumerate(goals):
-        policy = method if i == 0 else "sl (own task)"
+        policy = (method + (", goals inferred" if infer else "")) if i == 0 else "sl (own task)"
         name = f"agent_{i}" + (" (ego)" if i == 0 else "")
         rate = f"{summary.success_rate[i]:.0%}"
         table.add_row(name, goal, policy, str(summary.returns[i]), rate)

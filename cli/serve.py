@@ -64,6 +64,10 @@ def serve(
         raise typer.Exit(2) from None
     if bootstrap:
         _bootstrap(settings.resolved_store_url(), settings.data_dir, bootstrap_steps)
+    if workers > 1:  # one /metrics for all workers: prometheus_client's multiprocess mode
+        from services.metrics import prepare_multiprocess_dir
+
+        prepare_multiprocess_dir(settings.data_dir / "prometheus")
     scheme, grpc_kind = ("https", "gRPC with TLS") if settings.tls else ("http", "gRPC")
     typer.echo(
         f"serving REST on {scheme}://{host}:{http_port} (docs at /docs)"
@@ -114,8 +118,12 @@ def _bootstrap(store_url: str, data_dir: Path, steps: int | None) -> None:
             task_cfg = replace(task_cfg, total_steps=steps)
             impact_cfg = replace(impact_cfg, total_steps=steps)
         run = RunState.open(data_dir / "runs" / "bootstrap", "bootstrap", resume=True)
+        # Two batches of goals, each in its own process on its own core (`trainer.parallel`):
+        # the networks depend on the batches (18 + 17 goals), never on the number of workers.
+        workers = max(1, min(2, os.cpu_count() or 1))
         with progress_bars() as progress:
-            common = {"seed": 0, "run": run, "progress": progress, "goals_per_batch": 35}
+            common = {"seed": 0, "run": run, "progress": progress}
+            common.update(goals_per_batch=18, workers=workers)
             batches = run_tasks(store, tasks, task_cfg, **common) if tasks else []
             if impacts:
                 batches += run_impacts(store, impacts, impact_cfg, **common)

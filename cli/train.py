@@ -37,6 +37,10 @@ StepsOpt = Annotated[
     int | None, typer.Option(help="Batched env steps per batch (default: config).")
 ]
 BatchOpt = Annotated[int, typer.Option(help="Goals trained together in one batch.")]
+WorkersOpt = Annotated[
+    int,
+    typer.Option(min=1, help="Batches trained at once, one process each (the same networks as 1)."),
+]
 StoreOpt = Annotated[str | None, typer.Option(help="Model store URL (default: embedded SQLite).")]
 RunDirOpt = Annotated[Path, typer.Option(help="Where the run's record and plots go.")]
 ResumeOpt = Annotated[bool, typer.Option(help="Skip batches this run directory already finished.")]
@@ -83,11 +87,11 @@ def _goals(env: str, goals: str) -> list[str]:
 
 
 def _combos(env: str, combos: str) -> list[list[str]]:
-    if env == "cooking":
-        raise typer.BadParameter(
-            "the joint-learner baseline is trained for the particle world only",
-            param_hint="--combos",
-        )
+    from trainer.domain import env_trainer
+
+    no_joint = env_trainer(env).no_joint_reason
+    if no_joint:
+        raise typer.BadParameter(no_joint, param_hint="--combos")
     out = [_goals(env, ",".join(c.split("+"))) for c in combos.split(",") if c.strip()]
     for combo in out:
         if not 2 <= len(combo) <= 5:
@@ -214,22 +218,20 @@ def _on_ray(
     )
 
 
-def _print_cooking_gates(batches: list[Any]) -> None:
-    from trainer.cooking_gates import print_cooking_gates
+def _print_gates(env: str, batches: list[Any]) -> None:
+    """The environment's gate details beyond the summary table (the kitchen's dish table)."""
+    from trainer.domain import env_trainer
 
-    print_cooking_gates(batches)  # the summary table shows the particle gates' numbers only
+    env_trainer(env).print_gates(batches)
 
 
 def _configs(steps: int | None, env: str = "particle") -> tuple[Any, Any, Any]:
     """Task, impact and joint configurations of `env` (the kitchen has its own: sparse dishes)."""
-    from trainer.config import ImpactConfig, JointConfig, TaskConfig
-    from trainer.cooking_config import CookingImpactConfig, CookingTaskConfig
+    from trainer.config import JointConfig
+    from trainer.domain import env_trainer
 
-    task: TaskConfig | CookingTaskConfig = TaskConfig()
-    impact: ImpactConfig | CookingImpactConfig = ImpactConfig()
+    task, impact = env_trainer(env).default_configs()
     joint = JointConfig()
-    if env == "cooking":
-        task, impact = CookingTaskConfig(), CookingImpactConfig()
     if steps is not None:
         task = replace(task, total_steps=steps)
         impact = replace(impact, total_steps=steps)
@@ -244,6 +246,7 @@ def task(
     seed: SeedOpt = 0,
     steps: StepsOpt = None,
     goals_per_batch: BatchOpt = 35,
+    workers: WorkersOpt = 1,
     store_url: StoreOpt = None,
     run_dir: RunDirOpt = Path("runs/task"),
     resume: ResumeOpt = False,
@@ -286,9 +289,10 @@ def task(
                 progress=progress,
                 env=env,
                 serve_alias=alias,
+                workers=workers,
             )
     print_summary(batches)
-    _print_cooking_gates(batches)
+    _print_gates(env, batches)
     write_curves(batches, run_dir)
 
 
@@ -299,6 +303,7 @@ def impact(
     seed: SeedOpt = 0,
     steps: StepsOpt = None,
     goals_per_batch: BatchOpt = 35,
+    workers: WorkersOpt = 1,
     store_url: StoreOpt = None,
     run_dir: RunDirOpt = Path("runs/impact"),
     resume: ResumeOpt = False,
@@ -330,9 +335,10 @@ def impact(
                 run=run,
                 progress=progress,
                 env=env,
+                workers=workers,
             )
     print_summary(batches)
-    _print_cooking_gates(batches)
+    _print_gates(env, batches)
     write_curves(batches, run_dir)
 
 
@@ -368,7 +374,7 @@ def joint(
                 store, combo_ids, config, seed=seed, run=run, progress=progress, env=env
             )
     print_summary(batches)
-    _print_cooking_gates(batches)
+    _print_gates(env, batches)
     write_curves(batches, run_dir)
 
 
@@ -380,6 +386,7 @@ def zoo(
     seed: SeedOpt = 0,
     steps: StepsOpt = None,
     goals_per_batch: BatchOpt = 35,
+    workers: WorkersOpt = 1,
     store_url: StoreOpt = None,
     run_dir: RunDirOpt = Path("runs/zoo"),
     resume: ResumeOpt = False,
@@ -415,14 +422,11 @@ def zoo(
                               env=env, address=ray_address)  # fmt: skip
         else:
             common = dict(seed=seed, run=run, progress=progress, env=env)
-            batches = run_tasks(
-                store, goal_ids, task_cfg, goals_per_batch=goals_per_batch, **common
-            )
-            batches += run_impacts(
-                store, goal_ids, impact_cfg, goals_per_batch=goals_per_batch, **common
-            )
+            sizes: dict[str, Any] = dict(goals_per_batch=goals_per_batch, workers=workers)
+            batches = run_tasks(store, goal_ids, task_cfg, **sizes, **common)
+            batches += run_impacts(store, goal_ids, impact_cfg, **sizes, **common)
             if combo_ids:
                 batches += run_joint(store, combo_ids, joint_cfg, **common)
     print_summary(batches)
-    _print_cooking_gates(batches)
+    _print_gates(env, batches)
     write_curves(batches, run_dir)

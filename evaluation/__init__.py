@@ -1,4 +1,7 @@
-"""The paper's experiments, their statistics, plots and report (`coexist eval --suite paper`).
+"""The experiments: their statistics, plots and reports (`coexist eval --suite ...`).
+
+One folder per suite (`paper/`: the particle experiments, §4.2; `inference/`: online goal
+inference; `cooking/`: the kitchen, §4.4), over the parts they share:
 
 | module       | what                                                                       |
 |--------------|----------------------------------------------------------------------------|
@@ -6,16 +9,7 @@
 | `backend`    | action distributions from the in-process engine or a server (SDK)          |
 | `rollout`    | paired, vectorised episodes in one batched world (common random numbers)   |
 | `stats`      | mean ± SE, Wilcoxon signed-rank, exact McNemar, per-method summaries        |
-| `pairs`      | the random sample of goal pairs, tested over pairs                         |
-| `claims`     | the paper's claims 1-4 as checks with fixed thresholds                     |
-| `scaling`    | networks each method needs; training cost from lineage and the timing log  |
+| `targets`    | the report's numeric targets and their verdicts                            |
 | `timing`     | `python -m evaluation.timing --log F -- cmd`: wall time of training runs   |
-| `directions` | Fig. 6: expected acceleration over a grid of ego positions                 |
-| `plots`      | the figures (matplotlib)                                                   |
-| `tables`     | markdown tables                                                            |
-| `report`     | REPORT.md, results.json and the figures                                    |
-| `suite`      | everything in order                                                        |
 | `prepare`    | a tiny zoo trained on the fly for `--fast`                                 |
-| `cooking`    | the cooking experiment (§4.4)                                              |
-| `inference*` | online goal inference (issue 9): accuracy vs k, value, report              |
 """

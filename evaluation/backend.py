@@ -136,7 +136,7 @@ class ServerBackend:
         return probs_BA, models
 
     def has_models(self, request: ActRequest) -> bool:
-        from services.sdk import NotFound
+        from coexist_client import NotFound
 
         try:
             self._call(_first_row(request))
@@ -148,9 +148,9 @@ class ServerBackend:
 def server_backend(url: str) -> ServerBackend:
     """An SDK client for `url`: `grpc://host:port` speaks gRPC, anything else HTTP."""
     if url.startswith("grpc://"):
-        from services.sdk import GrpcCoexistClient
+        from coexist_client import GrpcCoexistClient
 
         return ServerBackend(GrpcCoexistClient(url, timeout=120.0), f"gRPC server {url}")
-    from services.sdk import CoexistClient
+    from coexist_client import CoexistClient
 
     return ServerBackend(CoexistClient(url, timeout=120.0), f"HTTP server {url}")

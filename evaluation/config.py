@@ -12,7 +12,7 @@ Goal pairs nobody tuned on. Each of `replicates` replicates r = 0, 1, ... has it
 `seed + r`, and with it draws its own pairs from each strict class (`aligned_pairs`,
 `non_aligned_pairs`, `mixed_pairs`; a count at least the class's size takes the whole class),
 its own five-agent goal sets (`five_agent_sets`) and its own start states. The analysis pools a
-pair's episodes over the replicates that drew it (`evaluation.pairs`).
+pair's episodes over the replicates that drew it (`evaluation.paper.pairs`).
 
 Choices the paper leaves open (or that the 2-core budget forces):
 

@@ -72,7 +72,7 @@ class RunOutput:
 
 class EpisodeTally:
     """The per-row bookkeeping of a batched rollout (the arrays of the module docstring), shared
-    by `run_cells` and the inferred-goal rollout of `evaluation.inference_value`."""
+    by `run_cells` and the inferred-goal rollout of `evaluation.inference.value`."""
 
     def __init__(self, starts_BN4: np.ndarray, record_rows: Sequence[int]) -> None:
         n_rows, n_agents = starts_BN4.shape[:2]

@@ -1,7 +1,7 @@
 """What the product promises on goal pairs nobody tuned on, as checks with fixed thresholds.
 
-The paper's claims (`evaluation.claims`) are judged on its hand-picked scenarios. These targets
-are judged on the strict pair classes and random five-agent goal sets (`evaluation.pairs`), for
+The paper's claims (`evaluation.paper.claims`) are judged on its hand-picked scenarios. These targets
+are judged on the strict pair classes and random five-agent goal sets (`evaluation.paper.pairs`), for
 the blend the server uses by default (AAIL-B, `policy.regret_bound`) and, beside it with the same
 thresholds, for the paper-exact AAIL. They were fixed before the run they judge.
 
@@ -24,9 +24,9 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from evaluation.claims import Check
 from evaluation.config import METHOD_LABELS
-from evaluation.pairs import UnitGroup
+from evaluation.paper.claims import Check
+from evaluation.paper.pairs import UnitGroup
 
 MIN_SUCCESS = 0.99
 MAX_MEDIAN_REGRET = 0.10

@@ -1,24 +1,17 @@
-/* policy._belief_row: a session's belief step in C, with numpy's bits: the update of
+/* policy._belief_row: a session's belief step in C: the update of
  * `policy.belief.PreparedUpdate` (its all-finite case) and `policy.belief_views.belief_views`
- * (its whole-belief, all-positive case), for E rows of G goals; the goal likelihoods' log
- * softmax table (services.engine.goal_inference) and the expected impact Q of a goal
- * distribution (services.engine.fastpath).
+ * (its whole-belief, all-positive case), for E rows of G goals, and the goal likelihoods' log
+ * softmax table (services.engine.goal_inference).
  *
- * Why C: with G = 35 the update and the views are ~25 small numpy calls and a few Python loops
- * over 35 floats, ~45 µs of a REST session step; here they are 4 numpy calls and C loops.
+ * Why C: with G = 35 goals and a few partners the update and the views are ~25 small numpy
+ * calls and Python loops over 35 floats; here they are C loops over the rows.
  *
- * How the bits stay numpy's (tests/policy/test_belief_row_compiled.py compares them):
- * - + - * and max are IEEE operations in numpy and C alike; the build turns off contraction
- *   into fused multiply-adds (-ffp-contract=off, setup.py);
- * - exp, log and logaddexp are numpy's ufuncs, called on C buffers (numpy's SIMD versions can
- *   differ from libm's in the last bit); a ufunc's result for one element does not depend on
- *   the others, so each is called once for all rows;
- * - sums over goals are numpy's pairwise sums (_numpy_order.h); the blend's normaliser is
- *   Python's math.fsum, called as belief_views calls it;
- * - the top goals are numpy's stable argsort of -log b: descending, ties by goal index.
- * Rows outside those cases (a non-finite likelihood or update, a zero probability) are the
- * Python code's: `update_rows` answers None, `view_rows` None for such a row, and the Python
- * wrappers (policy.belief, policy.belief_views) then take their numpy paths.
+ * The numpy code (policy.belief, policy.belief_views, goal_inference) is the reference; the
+ * steps below follow it, with plain sums and libm's exp, log and log1p, so the results differ
+ * by rounding: tests/policy/test_belief_compiled.py holds them to it within 1e-12. Rows outside
+ * the cases above (a non-finite likelihood or update, a zero probability) are the numpy
+ * code's: `update_rows` answers None, `view_rows` None for such a row, and the Python wrappers
+ * (policy.belief, policy.belief_views) then take their numpy paths.
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -26,11 +19,20 @@
 #define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
 #include <numpy/arrayobject.h>
 
-#include "_numpy_order.h"
-
 #define MAX_TOP 64 /* top goals a view lists at most (the sessions list 3) */
 
-static PyObject *np_exp, *np_log, *np_logaddexp, *math_fsum;
+static double sum(const double *x, Py_ssize_t n) {
+    double total = 0.0;
+    for (Py_ssize_t i = 0; i < n; i++) total += x[i];
+    return total;
+}
+
+/* numpy's logaddexp(x, c): log(exp(x) + exp(c)) without overflow */
+static double logaddexp(double x, double c) {
+    if (x == c) return x + M_LN2;
+    double top = x > c ? x : c, gap = x > c ? c - x : x - c;
+    return top + log1p(exp(gap));
+}
 
 /* a C-contiguous float64 (E, G) array, or NULL with an exception naming `what` */
 static PyArrayObject *rows_array(PyObject *obj, const char *what) {
@@ -42,20 +44,6 @@ static PyArrayObject *rows_array(PyObject *obj, const char *what) {
         return NULL;
     }
     return (PyArrayObject *)obj;
-}
-
-/* np.logaddexp(x, c, out=x) on a C buffer */
-static int logaddexp_inplace(double *data, Py_ssize_t n, double c) {
-    npy_intp dims[1] = {(npy_intp)n};
-    PyObject *array = PyArray_SimpleNewFromData(1, dims, NPY_DOUBLE, data);
-    PyObject *scalar = array ? PyFloat_FromDouble(c) : NULL;
-    PyObject *out = scalar ? PyObject_CallFunctionObjArgs(np_logaddexp, array, scalar, array, NULL)
-                           : NULL;
-    Py_XDECREF(array);
-    Py_XDECREF(scalar);
-    if (out == NULL) return -1;
-    Py_DECREF(out);
-    return 0;
 }
 
 /* update_rows(log_b, lik, pull, lam, floor_scale, floor_log) -> (E, G) float64, or None
@@ -115,29 +103,23 @@ static PyObject *update_rows(PyObject *self, PyObject *args) {
         top_of[e] = top;
         for (Py_ssize_t g = 0; g < G; g++) shifted[e * G + g] = row[g] - top;
     }
-    if (ufunc_inplace(np_exp, shifted, E * G) < 0) goto fail;
-    for (Py_ssize_t e = 0; e < E; e++) sums[e] = pairwise_sum(shifted + e * G, G);
-    if (ufunc_inplace(np_log, sums, E) < 0) goto fail;
+    for (Py_ssize_t i = 0; i < E * G; i++) shifted[i] = exp(shifted[i]);
+    for (Py_ssize_t e = 0; e < E; e++) sums[e] = log(sum(shifted + e * G, G));
     for (Py_ssize_t e = 0; e < E; e++) {
         double n = top_of[e] + sums[e];
         for (Py_ssize_t g = 0; g < G; g++) {
             double z = x[e * G + g] - n;
-            x[e * G + g] = floored ? floor_scale + z : z;
+            x[e * G + g] = floored ? logaddexp(floor_scale + z, floor_log) : z;
         }
     }
-    if (floored && logaddexp_inplace(x, E * G, floor_log) < 0) goto fail;
     PyMem_Free(work);
     return out;
-fail:
-    PyMem_Free(work);
-    Py_DECREF(out);
-    return NULL;
 }
 
 /* view_rows(log_b, k) -> [(probs, blend_probs, top_indices, entropy), ...]
  *
  * belief_views' numbers for rows whose probabilities are all > 0, blended whole: b = exp(log_b)
- * (probs, a list), blend_probs = [q / fsum(probs)], the k most probable goals (stable order of
+ * (probs, a list), blend_probs = [q / sum(probs)], the k most probable goals (stable order of
  * -log b), entropy = max(0, -sum(b log b)). Rows with a zero probability: None in their place
  * (the caller takes the Python path for them). */
 static PyObject *view_rows(PyObject *self, PyObject *args) {
@@ -160,7 +142,7 @@ static PyObject *view_rows(PyObject *self, PyObject *args) {
     }
     double *terms = probs + E * G;
     memcpy(probs, lb, (size_t)E * G * sizeof(double));
-    if (ufunc_inplace(np_exp, probs, E * G) < 0) goto fail;
+    for (Py_ssize_t i = 0; i < E * G; i++) probs[i] = exp(probs[i]);
     for (Py_ssize_t e = 0; e < E; e++) {
         const double *p = probs + e * G, *row = lb + e * G;
         int positive = 1;
@@ -172,7 +154,7 @@ static PyObject *view_rows(PyObject *self, PyObject *args) {
             PyList_SET_ITEM(result, e, Py_NewRef(Py_None));
             continue;
         }
-        double h = -pairwise_sum(terms + e * G, G);
+        double h = -sum(terms + e * G, G);
         PyObject *plist = PyList_New(G), *top = PyList_New(top_k), *item = NULL;
         if (plist == NULL || top == NULL) goto row_fail;
         for (Py_ssize_t g = 0; g < G; g++) {
@@ -195,10 +177,7 @@ static PyObject *view_rows(PyObject *self, PyObject *args) {
             if (index == NULL) goto row_fail;
             PyList_SET_ITEM(top, j, index);
         }
-        PyObject *total_obj = PyObject_CallOneArg(math_fsum, plist);
-        if (total_obj == NULL) goto row_fail;
-        double total = PyFloat_AsDouble(total_obj);
-        Py_DECREF(total_obj);
+        double total = sum(p, G);
         PyObject *blend = PyList_New(G);
         if (blend == NULL) goto row_fail;
         for (Py_ssize_t g = 0; g < G; g++) {
@@ -230,7 +209,7 @@ fail:
  *
  * log softmax(Q / alpha_g) of every row, as services.engine.goal_inference computes its
  * likelihood table (`_scaled`, then z - log_norm): z = (float64(q) - max q) / alpha_g, then
- * z - log(sum(exp(z))) with numpy's exp and log and the pairwise sum over A. `alpha` a float
+ * z - log(sum(exp(z))). `alpha` a float
  * or G float64 values; q finite (the caller checks). */
 static PyObject *log_softmax_table(PyObject *self, PyObject *args) {
     PyObject *q_obj, *alpha_obj;
@@ -274,75 +253,17 @@ static PyObject *log_softmax_table(PyObject *self, PyObject *args) {
             for (Py_ssize_t i = 0; i < A; i++) z[at + i] = e[at + i] = ((double)qd[at + i] - top) / a;
         }
     }
-    if (ufunc_inplace(np_exp, e, G * P * A) < 0) goto fail;
-    for (Py_ssize_t r = 0; r < G * P; r++) norm[r] = pairwise_sum(e + r * A, A);
-    if (ufunc_inplace(np_log, norm, G * P) < 0) goto fail;
+    for (Py_ssize_t i = 0; i < G * P * A; i++) e[i] = exp(e[i]);
+    for (Py_ssize_t r = 0; r < G * P; r++) norm[r] = log(sum(e + r * A, A));
     for (Py_ssize_t r = 0; r < G * P; r++)
         for (Py_ssize_t i = 0; i < A; i++) z[r * A + i] -= norm[r];
     PyMem_Free(work);
     return out;
-fail:
-    PyMem_Free(work);
-    Py_DECREF(out);
-    return NULL;
-}
-
-/* mix_rows(probs, q_RA, rows) -> list of A floats
- *
- * A goal distribution's expected Q (the engine's single-row mix, services.engine.fastpath):
- * sum over j of probs[j] * float64(q[rows[j]]), added in order (np.add.accumulate's order). */
-static PyObject *mix_rows(PyObject *self, PyObject *args) {
-    PyObject *probs_obj, *q_obj, *rows_obj;
-    if (!PyArg_ParseTuple(args, "OOO", &probs_obj, &q_obj, &rows_obj)) return NULL;
-    if (!PyArray_Check(q_obj) || PyArray_TYPE((PyArrayObject *)q_obj) != NPY_FLOAT32 ||
-        !PyArray_IS_C_CONTIGUOUS((PyArrayObject *)q_obj) || PyArray_NDIM((PyArrayObject *)q_obj) != 2) {
-        PyErr_SetString(PyExc_ValueError, "q_RA: expected a C-contiguous float32 array (R, A)");
-        return NULL;
-    }
-    PyArrayObject *q = (PyArrayObject *)q_obj;
-    Py_ssize_t R = PyArray_DIM(q, 0), A = PyArray_DIM(q, 1);
-    PyObject *probs = PySequence_Fast(probs_obj, "probs: expected a sequence of floats");
-    PyObject *rows = probs ? PySequence_Fast(rows_obj, "rows: expected a sequence of ints") : NULL;
-    double *acc = rows ? PyMem_Calloc((size_t)A + 1, sizeof(double)) : NULL;
-    PyObject *result = NULL;
-    if (acc == NULL) goto done;
-    Py_ssize_t n = PySequence_Fast_GET_SIZE(probs);
-    if (n < 1 || PySequence_Fast_GET_SIZE(rows) != n) {
-        PyErr_SetString(PyExc_ValueError, "probs, rows: expected one row per probability (>= 1)");
-        goto done;
-    }
-    const float *qd = PyArray_DATA(q);
-    for (Py_ssize_t j = 0; j < n; j++) {
-        double p = PyFloat_AsDouble(PySequence_Fast_GET_ITEM(probs, j));
-        Py_ssize_t row = PyLong_AsSsize_t(PySequence_Fast_GET_ITEM(rows, j));
-        if (PyErr_Occurred()) goto done;
-        if (row < 0 || row >= R) {
-            PyErr_Format(PyExc_ValueError, "rows[%zd]: %zd is not a row of q_RA", j, row);
-            goto done;
-        }
-        for (Py_ssize_t i = 0; i < A; i++) {
-            double term = p * (double)qd[row * A + i];
-            acc[i] = j == 0 ? term : acc[i] + term;
-        }
-    }
-    result = PyList_New(A);
-    for (Py_ssize_t i = 0; result != NULL && i < A; i++) {
-        PyObject *v = PyFloat_FromDouble(acc[i]);
-        if (v == NULL) Py_CLEAR(result);
-        else PyList_SET_ITEM(result, i, v);
-    }
-done:
-    PyMem_Free(acc);
-    Py_XDECREF(probs);
-    Py_XDECREF(rows);
-    return result;
 }
 
 static PyMethodDef methods[] = {
     {"log_softmax_table", log_softmax_table, METH_VARARGS,
      "log_softmax_table(q_GPA, alpha) -> (G, P, A) float64 log softmax(q / alpha_g)"},
-    {"mix_rows", mix_rows, METH_VARARGS,
-     "mix_rows(probs, q_RA, rows) -> sum_j probs[j] q[rows[j]] as A floats"},
     {"update_rows", update_rows, METH_VARARGS,
      "update_rows(log_b, lik, pull, lam, floor_scale, floor_log) -> (E, G) array or None"},
     {"view_rows", view_rows, METH_VARARGS,
@@ -354,18 +275,5 @@ static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_belief_row", NULL, 
 
 PyMODINIT_FUNC PyInit__belief_row(void) {
     import_array();
-    PyObject *numpy = PyImport_ImportModule("numpy"), *math = PyImport_ImportModule("math");
-    if (numpy == NULL || math == NULL) {
-        Py_XDECREF(numpy);
-        Py_XDECREF(math);
-        return NULL;
-    }
-    np_exp = PyObject_GetAttrString(numpy, "exp");
-    np_log = PyObject_GetAttrString(numpy, "log");
-    np_logaddexp = PyObject_GetAttrString(numpy, "logaddexp");
-    math_fsum = PyObject_GetAttrString(math, "fsum");
-    Py_DECREF(numpy);
-    Py_DECREF(math);
-    if (!np_exp || !np_log || !np_logaddexp || !math_fsum) return NULL;
     return PyModule_Create(&module);
 }

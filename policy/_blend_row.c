@@ -1,23 +1,19 @@
-/* policy._blend_row: `policy.blend_fast.blend_row_python` (SL / NAIL / AAIL of one row, paper
- * §3.3, eqs. 8-10) compiled, with the same bits.
+/* policy._blend_row: SL / NAIL / AAIL (paper §3.3, eqs. 8-10) of B rows in one call, compiled:
+ * `policy.blend.blend`'s kernel.
  *
- * Why C: at batch 1 the row blend is ~20 µs of Python float arithmetic when the interpreter's
- * caches are warm, and 60-100 µs when the networks' weights have just streamed through the CPU
- * caches (a server between requests): most of a single act's engine time. Here the arithmetic
- * is a few hundred double operations, and the transcendental functions are still numpy's.
+ * Why C: the blend of one row is a few hundred double operations over vectors of a handful of
+ * actions; numpy spends ~40 calls on them, and its per-call overhead, not the arithmetic, then
+ * sets a single act's latency. Here every row is plain loops over doubles and libm.
  *
- * How the bits stay those of `policy.blend_fast` (and so of `policy.blend`'s vectorised path):
- * - + - * / and sqrt are IEEE operations in Python floats and C doubles alike; the build turns
- *   off contraction into fused multiply-adds (-ffp-contract=off, setup.py), which would round
- *   once where Python rounds twice.
- * - exp, log, log2 and power are numpy's ufuncs, called on float64 arrays as blend_fast calls
- *   them (numpy's SIMD versions can differ from libm in the last bit).
- * - Sums are in the order blend_fast documents: sequential below 8 terms, numpy's pairwise
- *   order from 8 on (`vsum`); Python's max/min keep the first of equal values (`first_max`).
- * The Python module stays the reference: tests compare both on random and ill-conditioned rows.
+ * The semantics (standardisation and scale rule, the Σw = 0 fallback, rows without partners,
+ * one action) are `policy.blend`'s vectorised numpy path, the reference, documented there; the
+ * steps below follow it function by function. The sums run in plain order and exp, log, log2
+ * and pow are libm's, so the results differ from numpy's by rounding:
+ * tests/policy/test_blend_compiled.py holds them to the reference within 1e-9 on random rows
+ * and rows near the corner cases (flat Q-vectors, equal policies, underflowing probabilities).
  *
- * Inputs are trusted as blend_fast's are (finite, alpha > 0, vectors of one length A >= 1);
- * anything that is not a sequence of floats raises TypeError.
+ * Inputs are trusted (`policy.blend` checks them: finite, alpha > 0, A >= 1); masked partner
+ * slots are never read.
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -26,18 +22,20 @@
 #define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
 #include <numpy/arrayobject.h>
 
-#include "_numpy_order.h"
+#define FLAT_STD_RTOL 1e-12 /* policy.blend.FLAT_STD_RTOL */
 
-#define FLAT_STD_RTOL 1e-12 /* blend_fast.FLAT_STD_RTOL */
-
-static PyObject *np_exp, *np_log, *np_log2, *np_power, *row_blend_type;
-
-/* the sum over actions: blend_fast's `vsum` */
-static double vsum(const double *x, Py_ssize_t n, Py_ssize_t n_act) {
-    return n_act < 8 ? sequential_sum(x, n) : pairwise_sum(x, n);
+static double sum(const double *x, Py_ssize_t n) {
+    double total = 0.0;
+    for (Py_ssize_t i = 0; i < n; i++) total += x[i];
+    return total;
 }
 
-static double first_max(const double *x, Py_ssize_t n) { /* Python's max(): first of equals */
+/* x[i] = f(x[i]) for a libm function f */
+static void apply(double (*f)(double), double *x, Py_ssize_t n) {
+    for (Py_ssize_t i = 0; i < n; i++) x[i] = f(x[i]);
+}
+
+static double first_max(const double *x, Py_ssize_t n) {
     double best = x[0];
     for (Py_ssize_t i = 1; i < n; i++)
         if (x[i] > best) best = x[i];
@@ -54,31 +52,9 @@ static double first_min(const double *x, Py_ssize_t n) {
 static double py_max2(double a, double b) { return b > a ? b : a; } /* max(a, b) */
 static double py_min2(double a, double b) { return b < a ? b : a; } /* min(a, b) */
 
-/* float(np.log(n)) for an action count n, as blend_fast._log (cached: n is small) */
-#define LOG_CACHE 64
-static double log_cache[LOG_CACHE];
-
-static int log_of_count(Py_ssize_t n, double *out) {
-    if (n < LOG_CACHE && log_cache[n] != 0.0) {
-        *out = log_cache[n];
-        return 0;
-    }
-    PyObject *count = PyLong_FromSsize_t(n);
-    if (count == NULL) return -1;
-    PyObject *value = PyObject_CallOneArg(np_log, count);
-    Py_DECREF(count);
-    if (value == NULL) return -1;
-    *out = PyFloat_AsDouble(value);
-    Py_DECREF(value);
-    if (*out == -1.0 && PyErr_Occurred()) return -1;
-    if (n < LOG_CACHE) log_cache[n] = *out;
-    return 0;
-}
-
-/* ---- the steps of blend_fast, B rows at a time --------------------------------------------
- * Each step runs over every row, then calls its ufunc once for all of them (a ufunc's result
- * for one element does not depend on the others): 5 numpy calls per batch, not per row. Per
- * row the operations and their order are those of blend_fast's functions named below. */
+/* ---- the steps of the blend, B rows at a time --------------------------------------------
+ * Each step runs over every row; per row the operations are those of `policy.blend`'s
+ * functions named below (and of `policy.maths`, which they call). */
 
 enum { SL, NAIL, AAIL };
 
@@ -101,7 +77,7 @@ typedef struct { /* working memory, one block */
     double *z, *scales;                       /* one row's z-scores ((P + 1) n) and scales (P) */
 } Work;
 
-/* _boltzmann's exp step: out[i] = exp((q - max q) / alpha) for `count` vectors of n */
+/* `maths.boltzmann` (eq. 2) before its exp: out = (q - max q) / alpha, `count` vectors of n */
 static void boltzmann_inputs(const double *q, Py_ssize_t count, Py_ssize_t n, double alpha,
                              double *out) {
     for (Py_ssize_t v = 0; v < count; v++) {
@@ -113,42 +89,35 @@ static void boltzmann_inputs(const double *q, Py_ssize_t count, Py_ssize_t n, do
 
 static void boltzmann_finish(double *e, Py_ssize_t count, Py_ssize_t n) {
     for (Py_ssize_t v = 0; v < count; v++, e += n) {
-        double total = vsum(e, n, n);
+        double total = sum(e, n);
         for (Py_ssize_t a = 0; a < n; a++) e[a] = e[a] / total;
     }
 }
 
-/* _renormalised, into `out` (p itself when its sum is exactly 1) */
+/* p divided by its sum, into `out` (as `maths` renormalises probabilities) */
 static void renormalised(const double *p, Py_ssize_t n, double *out) {
-    double total = vsum(p, n, n);
+    double total = sum(p, n);
     for (Py_ssize_t a = 0; a < n; a++) out[a] = total == 1.0 ? p[a] : p[a] / total;
 }
 
-/* _entropies, the step after numpy's log: logs[a] = log(p[a] > 0 ? p[a] : 1) */
+/* `maths.normalized_entropy` of p, given logs[a] = log(p[a] > 0 ? p[a] : 1) */
 static double entropy_finish(const double *p, const double *logs, Py_ssize_t n, double log_n) {
-    double terms[PAIRWISE_BLOCK];
-    double *t = n <= PAIRWISE_BLOCK ? terms : PyMem_Malloc(n * sizeof(double));
-    if (t == NULL) { /* out of memory: the caller checks PyErr_Occurred() */
-        PyErr_NoMemory();
-        return 0.0;
-    }
-    for (Py_ssize_t a = 0; a < n; a++) t[a] = p[a] > 0 ? p[a] * logs[a] : 0.0;
-    double h = -vsum(t, n, n) / log_n;
-    if (t != terms) PyMem_Free(t);
-    return py_min2(py_max2(h, 0.0), 1.0);
+    double h = 0.0;
+    for (Py_ssize_t a = 0; a < n; a++) h -= p[a] > 0 ? p[a] * logs[a] : 0.0;
+    return py_min2(py_max2(h / log_n, 0.0), 1.0);
 }
 
-/* _standardise: z into `z`, the scale returned; z = 0 and scale 0 when flat */
+/* `blend.standardise`: z into `z`, the scale returned; z = 0 and scale 0 when flat */
 static double standardise(const double *q, Py_ssize_t n, double *z, double *squares) {
     double magnitude = py_max2(first_max(q, n), -first_min(q, n));
     double divisor = magnitude > 0 ? magnitude : 1.0;
     for (Py_ssize_t a = 0; a < n; a++) z[a] = q[a] / divisor;
-    double mean = vsum(z, n, n) / n;
+    double mean = sum(z, n) / n;
     for (Py_ssize_t a = 0; a < n; a++) {
         z[a] = z[a] - mean; /* the deviations */
         squares[a] = z[a] * z[a];
     }
-    double std = sqrt(vsum(squares, n, n) / n);
+    double std = sqrt(sum(squares, n) / n);
     if (std <= FLAT_STD_RTOL) {
         for (Py_ssize_t a = 0; a < n; a++) z[a] = 0.0;
         return 0.0;
@@ -157,7 +126,7 @@ static double standardise(const double *q, Py_ssize_t n, double *z, double *squa
     return std * magnitude;
 }
 
-/* step 1: the Boltzmann policies of the task and (aail) of each active impact (_boltzmann) */
+/* step 1: the Boltzmann policies of the task and (aail) of each active impact */
 static int policies_step(const Batch *t, Work *w) {
     Py_ssize_t n = t->n, at = 0;
     for (Py_ssize_t b = 0; b < t->B; b++) {
@@ -172,7 +141,7 @@ static int policies_step(const Batch *t, Work *w) {
                 at += n;
             }
     }
-    if (ufunc_inplace(np_exp, w->policies, at) < 0) return -1;
+    apply(exp, w->policies, at);
     boltzmann_finish(w->policies, at / n, n);
     return 0;
 }
@@ -180,8 +149,7 @@ static int policies_step(const Batch *t, Work *w) {
 /* step 2: the task policy's normalised entropy, and eq. 9's (aail) on it renormalised twice */
 static int entropy_step(const Batch *t, Work *w) {
     Py_ssize_t n = t->n;
-    double log_n = 0.0;
-    if (n > 1 && log_of_count(n, &log_n) < 0) return -1;
+    double log_n = log((double)n);
     for (Py_ssize_t b = 0; b < t->B; b++) {
         double *once = w->p_once + b * n, *twice = w->p_twice + b * n, *logs = w->logs + 2 * b * n;
         renormalised(w->policies + w->policy_at[b], n, once); /* as normalized_entropy sees it */
@@ -191,17 +159,17 @@ static int entropy_step(const Batch *t, Work *w) {
             logs[n + a] = twice[a] > 0 ? twice[a] : 1.0;
         }
     }
-    if (n > 1 && ufunc_inplace(np_log, w->logs, 2 * t->B * n) < 0) return -1;
+    apply(log, w->logs, 2 * t->B * n);
     for (Py_ssize_t b = 0; b < t->B; b++) {
         const double *logs = w->logs + 2 * b * n;
         t->entropy[b] = n > 1 ? entropy_finish(w->p_once + b * n, logs, n, log_n) : 0.0;
         w->h_eq9[b] = n > 1 ? entropy_finish(w->p_twice + b * n, logs + n, n, log_n) : 0.0;
     }
-    return PyErr_Occurred() ? -1 : 0;
+    return 0;
 }
 
 /* step 3 (aail): eq. 10, the JS distance of the task policy to each active impact policy
- * (_js_distances), into partner_weights' active slots; then the weights ŵ (_aail) */
+ * (`maths.js_distance`), into partner_weights' active slots; then the weights ŵ */
 static int js_step(const Batch *t, Work *w) {
     Py_ssize_t n = t->n, P = t->P, at = 0;
     for (Py_ssize_t b = 0; b < t->B; b++) {
@@ -224,7 +192,7 @@ static int js_step(const Batch *t, Work *w) {
         }
         at += 2 * half;
     }
-    if (at > 0 && ufunc_inplace(np_log2, w->ratio, at) < 0) return -1;
+    apply(log2, w->ratio, at);
     for (Py_ssize_t b = 0; b < t->B; b++) {
         Py_ssize_t k = w->active[b], half = k * n, next = 0;
         double *terms = w->ratio + w->pair_at[b];
@@ -235,11 +203,11 @@ static int js_step(const Batch *t, Work *w) {
         for (Py_ssize_t s = 0; s < P; s++) {
             weights[s] = 0.0;
             if (!t->mask[b * P + s]) continue;
-            double kl_p = vsum(terms + next * n, n, n), kl_q = vsum(terms + half + next * n, n, n);
+            double kl_p = sum(terms + next * n, n), kl_q = sum(terms + half + next * n, n);
             weights[s] = sqrt(py_min2(py_max2(0.5 * kl_p + 0.5 * kl_q, 0.0), 1.0));
             next++;
         }
-        double total = pairwise_sum(weights, P);
+        double total = sum(weights, P);
         for (Py_ssize_t s = 0; s < P; s++) {
             if (total > 0)
                 weights[s] = weights[s] / total;
@@ -250,8 +218,8 @@ static int js_step(const Batch *t, Work *w) {
     return 0;
 }
 
-/* step 4: the blended Q of each row: sl the task's, nail the raw mean (_nail), aail eq. 8
- * standardised (_aail) or raw (_aail_raw) */
+/* step 4: the blended Q of each row: sl the task's,  nail the raw mean, aail eq. 8
+ * on standardised (`blend._aail`) or raw Q-vectors */
 static void blend_step(const Batch *t, Work *w, const double *power) {
     Py_ssize_t n = t->n, P = t->P;
     for (Py_ssize_t b = 0; b < t->B; b++) {
@@ -268,7 +236,7 @@ static void blend_step(const Batch *t, Work *w, const double *power) {
         if (t->method == NAIL) {
             if (n == 1) { /* numpy then sums over the contiguous partner axis: pairwise */
                 for (Py_ssize_t s = 0; s < P; s++) w->scales[s] = mask[s] ? q_impact[s * n] : 0.0;
-                q[0] = pairwise_sum(w->scales, P);
+                q[0] = sum(w->scales, P);
             } else { /* numpy adds the partners' vectors one after the other */
                 memset(q, 0, n * sizeof(double));
                 for (Py_ssize_t s = 0; s < P; s++)
@@ -285,7 +253,7 @@ static void blend_step(const Batch *t, Work *w, const double *power) {
         t->weight[b] = w_t;
         if (!t->normalise) { /* Q_C = w_t Q_t + (1 - w_t) Σ_i ŵ_i Q_i */
             for (Py_ssize_t a = 0; a < n; a++) {
-                double mixed = 0.0; /* partners in order (numpy's einsum order) */
+                double mixed = 0.0; /* Σ_i ŵ_i Q_i */
                 for (Py_ssize_t s = 0; s < P; s++)
                     if (mask[s]) mixed += weights[s] * q_impact[s * n + a];
                 q[a] = w_t * q_task[a] + (1.0 - w_t) * mixed;
@@ -298,7 +266,7 @@ static void blend_step(const Batch *t, Work *w, const double *power) {
             w->scales[s] = mask[s] ? weights[s] * standardise(q_impact + s * n, n,
                                                               z_impact + s * n, squares)
                                    : weights[s] * 0.0;
-        double s_blend = w_t * s_task + (1.0 - w_t) * pairwise_sum(w->scales, P);
+        double s_blend = w_t * s_task + (1.0 - w_t) * sum(w->scales, P);
         for (Py_ssize_t a = 0; a < n; a++) {
             double mixed = 0.0; /* Σ_i ŵ_i z_i, partners in order */
             for (Py_ssize_t s = 0; s < P; s++)
@@ -318,29 +286,9 @@ static int probs_step(const Batch *t, Work *w) {
             boltzmann_inputs(t->q + b * n, 1, n, t->alpha[b], t->probs + b * n);
     }
     if (t->method == SL) return 0;
-    if (ufunc_inplace(np_exp, t->probs, t->B * n) < 0) return -1;
+    apply(exp, t->probs, t->B * n);
     boltzmann_finish(t->probs, t->B, n);
     return 0;
-}
-
-/* float(np.power(float(n), h)) for every row's h, one call (eq. 9's |A|^H) */
-static int power_step(Py_ssize_t n, const double *h, Py_ssize_t B, double *out) {
-    PyObject *base = PyFloat_FromDouble((double)n);
-    if (base == NULL) return -1;
-    npy_intp dims[1] = {(npy_intp)B};
-    PyObject *exponent = PyArray_SimpleNewFromData(1, dims, NPY_DOUBLE, (void *)h);
-    PyObject *result = exponent ? PyObject_CallFunctionObjArgs(np_power, base, exponent, NULL)
-                                : NULL;
-    Py_DECREF(base);
-    Py_XDECREF(exponent);
-    if (result == NULL) return -1;
-    int ok = PyArray_Check(result) && PyArray_SIZE((PyArrayObject *)result) == B &&
-             PyArray_TYPE((PyArrayObject *)result) == NPY_DOUBLE &&
-             PyArray_IS_C_CONTIGUOUS((PyArrayObject *)result);
-    if (ok) memcpy(out, PyArray_DATA((PyArrayObject *)result), B * sizeof(double));
-    Py_DECREF(result);
-    if (!ok) PyErr_SetString(PyExc_RuntimeError, "np.power: expected float64 values");
-    return ok ? 0 : -1;
 }
 
 /* the whole blend of a batch; 0, or -1 with a Python error set */
@@ -380,8 +328,10 @@ static int blend_batch(const Batch *t) {
     w.z = w.ratio + 2 * pairs * n;
     w.scales = w.z + (P + 1) * n;
     if (policies_step(t, &w) < 0 || entropy_step(t, &w) < 0) goto done;
-    if (t->method == AAIL && (power_step(n, w.h_eq9, B, power) < 0 || js_step(t, &w) < 0))
-        goto done;
+    if (t->method == AAIL) {
+        for (Py_ssize_t b = 0; b < B; b++) power[b] = pow((double)n, w.h_eq9[b]); /* |A|^H */
+        if (js_step(t, &w) < 0) goto done;
+    }
     blend_step(t, &w, power);
     status = probs_step(t, &w);
 done:
@@ -392,103 +342,12 @@ done:
 
 /* ---- Python objects in and out ------------------------------------------------------------ */
 
-static int read_vector(PyObject *obj, Py_ssize_t n, double *out, const char *what) {
-    PyObject *seq = PySequence_Fast(obj, what);
-    if (seq == NULL) return -1;
-    if (PySequence_Fast_GET_SIZE(seq) != n) {
-        PyErr_Format(PyExc_ValueError, "%s: expected %zd values", what, n);
-        Py_DECREF(seq);
-        return -1;
-    }
-    PyObject **items = PySequence_Fast_ITEMS(seq);
-    for (Py_ssize_t i = 0; i < n; i++) {
-        out[i] = PyFloat_AsDouble(items[i]);
-        if (out[i] == -1.0 && PyErr_Occurred()) {
-            Py_DECREF(seq);
-            return -1;
-        }
-    }
-    Py_DECREF(seq);
-    return 0;
-}
-
-static PyObject *float_list(const double *x, Py_ssize_t n) {
-    PyObject *list = PyList_New(n);
-    if (list == NULL) return NULL;
-    for (Py_ssize_t i = 0; i < n; i++) {
-        PyObject *value = PyFloat_FromDouble(x[i]);
-        if (value == NULL) {
-            Py_DECREF(list);
-            return NULL;
-        }
-        PyList_SET_ITEM(list, i, value);
-    }
-    return list;
-}
-
 static int method_code(const char *method) {
     if (strcmp(method, "sl") == 0) return SL;
     if (strcmp(method, "nail") == 0) return NAIL;
     if (strcmp(method, "aail") == 0) return AAIL;
     PyErr_Format(PyExc_ValueError, "method: expected sl, nail or aail, got %s", method);
     return -1;
-}
-
-/* blend_row(method, q_task_A, q_impact_PA, alpha, mask_P, normalise) -> RowBlend of lists */
-static PyObject *blend_row(PyObject *self, PyObject *args) {
-    const char *method_name;
-    PyObject *q_task_obj, *q_impact_obj, *mask_obj;
-    double alpha;
-    int normalise;
-    if (!PyArg_ParseTuple(args, "sOOdOp", &method_name, &q_task_obj, &q_impact_obj, &alpha,
-                          &mask_obj, &normalise))
-        return NULL;
-    int method = method_code(method_name);
-    Py_ssize_t n = PySequence_Size(q_task_obj), P = PySequence_Size(q_impact_obj);
-    if (method < 0 || n < 0 || P < 0) return NULL;
-    if (n < 1) {
-        PyErr_SetString(PyExc_ValueError, "q_task_A: expected at least one action");
-        return NULL;
-    }
-    /* inputs n + P n, outputs 3 n + P + 2, the mask P bytes */
-    double *memory = PyMem_Malloc((n + P * n + 3 * n + P + 2) * sizeof(double) + P + 1);
-    if (memory == NULL) return PyErr_NoMemory();
-    double *q_impact = memory + n, *q = q_impact + P * n, *probs = q + n;
-    double *partner_weights = probs + n, *entropy = partner_weights + P, *weight = entropy + 1;
-    char *mask = (char *)(weight + 1);
-    Batch t = {1, P, n, method, normalise, memory, q_impact, &alpha, mask,
-               q, probs, entropy, weight, partner_weights};
-    PyObject *result = NULL;
-    if (read_vector(q_task_obj, n, memory, "q_task_A") < 0) goto done;
-    for (Py_ssize_t s = 0; s < P; s++) {
-        mask[s] = 1;
-        if (mask_obj != Py_None) {
-            PyObject *flag = PySequence_GetItem(mask_obj, s);
-            if (flag == NULL) goto done;
-            int on = PyObject_IsTrue(flag);
-            Py_DECREF(flag);
-            if (on < 0) goto done;
-            mask[s] = (char)on;
-        }
-        if (!mask[s]) continue; /* masked slots are never read */
-        PyObject *vector = PySequence_GetItem(q_impact_obj, s);
-        if (vector == NULL) goto done;
-        int failed = read_vector(vector, n, q_impact + s * n, "q_impact_PA[i]");
-        Py_DECREF(vector);
-        if (failed < 0) goto done;
-    }
-    if (blend_batch(&t) < 0) goto done;
-    PyObject *q_list = float_list(q, n), *p_list = float_list(probs, n);
-    PyObject *w_list = float_list(partner_weights, P);
-    if (q_list && p_list && w_list)
-        result = PyObject_CallFunction(row_blend_type, "OOddO", q_list, p_list, entropy[0],
-                                       weight[0], w_list);
-    Py_XDECREF(q_list);
-    Py_XDECREF(p_list);
-    Py_XDECREF(w_list);
-done:
-    PyMem_Free(memory);
-    return result;
 }
 
 static PyArrayObject *float64_array(PyObject *obj, int ndim, const char *what) {
@@ -545,17 +404,9 @@ done:
     return result;
 }
 
-static PyObject *set_result_type(PyObject *self, PyObject *type) {
-    Py_XSETREF(row_blend_type, Py_NewRef(type));
-    Py_RETURN_NONE;
-}
-
 static PyMethodDef methods[] = {
-    {"blend_row", blend_row, METH_VARARGS,
-     "blend_row(method, q_task_A, q_impact_PA, alpha, mask_P, normalise) -> RowBlend"},
     {"blend_rows", blend_rows, METH_VARARGS,
      "blend_rows(method, q_task_BA, q_impact_BPA, alpha_B, mask_BP, normalise) -> 5 arrays"},
-    {"set_result_type", set_result_type, METH_O, "the RowBlend class results are made with"},
     {NULL, NULL, 0, NULL},
 };
 
@@ -563,14 +414,5 @@ static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_blend_row", NULL, -
 
 PyMODINIT_FUNC PyInit__blend_row(void) {
     import_array();
-    PyObject *numpy = PyImport_ImportModule("numpy");
-    if (numpy == NULL) return NULL;
-    np_exp = PyObject_GetAttrString(numpy, "exp");
-    np_log = PyObject_GetAttrString(numpy, "log");
-    np_log2 = PyObject_GetAttrString(numpy, "log2");
-    np_power = PyObject_GetAttrString(numpy, "power");
-    Py_DECREF(numpy);
-    if (!np_exp || !np_log || !np_log2 || !np_power) return NULL;
-    row_blend_type = Py_NewRef((PyObject *)&PyTuple_Type);
     return PyModule_Create(&module);
 }

@@ -4,7 +4,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-VARIANT: str  # "avx512", "avx2" or "none" (no compiled forward on this machine)
+AVAILABLE: bool  # whether this CPU has AVX2 and FMA (otherwise `forward` raises)
 
 def forward(
     x_XPF: np.ndarray,
@@ -14,5 +14,3 @@ def forward(
     activation: str,
     /,
 ) -> np.ndarray: ...
-def set_variant(name: str, /) -> str: ...
-def all_finite(a: np.ndarray, /) -> bool: ...

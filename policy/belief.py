@@ -209,7 +209,7 @@ def boltzmann_log_likelihoods(
     `q_PGA` (P, G, A): goal g's task Q-values on partner p's view; `actions_P` (P,) ints in
     0..A-1; `alpha_G` (G,) or a scalar, positive and finite. Non-finite Q-values give a
     non-finite entry, which `update_log_belief` treats as no evidence for that row.
-    `validate=False` skips the argument checks (~6 µs) for a caller that made them already."""
+    `validate=False` skips the argument checks for a caller that made them already."""
     q = np.asarray(q_PGA, dtype=np.float64)
     actions = np.asarray(actions_P)
     alpha = np.asarray(alpha_G, dtype=np.float64)
@@ -280,7 +280,8 @@ def update_log_belief(
 class PreparedUpdate:
     """`update_log_belief` for fixed priors and settings (a session's): the arguments are checked
     and the prior's forgetting term computed once, so a step costs a dozen numpy operations
-    (~10 µs for G = 35 instead of ~30) and gives the same numbers, bit for bit.
+    (or one compiled call, `policy.belief_compiled`) and gives the numbers of
+    `update_log_belief`.
 
         update = PreparedUpdate(log_prior_PG, config)
         new_EG = update(log_belief_PG[rows], log_lik_EG, rows)  # rows: which partners acted
@@ -323,7 +324,7 @@ def _updated(
     """The update's arithmetic (`update_log_belief`). When every entry is finite (every row is
     evidence and normalisable: the usual case) the masks are skipped; the operations, hence the
     bits, are those of the general path. That case runs compiled where it can
-    (`policy.belief_compiled`: the same bits)."""
+    (`policy.belief_compiled`, equal within 1e-12)."""
     n_goals = log_b.shape[-1]
     fast = compiled_update(log_b, lik, pull, lam, eps)
     if fast is not None:

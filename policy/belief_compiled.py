@@ -1,36 +1,26 @@
 """The compiled belief step (policy/_belief_row.c) behind `policy.belief`'s update and
-`policy.belief_views.belief_views`: the same numbers, bit for bit, with 4 numpy calls and C
-loops instead of ~25 numpy calls and Python loops over the goals (~45 µs of a REST session step
-with 35 goals). Each function answers None where the compiled code does not apply, and the
-caller then runs its numpy path:
+`policy.belief_views.belief_views`, and the goal likelihoods' table of
+`services.engine.goal_inference`: C loops over the rows instead of ~25 small numpy calls. The
+numpy code is the reference; the compiled results agree with it within 1e-12
+(tests/policy/test_belief_compiled.py). Each function answers None where the compiled code
+does not apply (or is not built), and the caller then runs its numpy path:
 
-| function           | compiled when                                       | else  |
-|--------------------|-----------------------------------------------------|-------|
-| `compiled_update`  | every likelihood and every updated entry is finite  | None  |
-| `compiled_views`   | the blend keeps every goal and every probability > 0| None  |
-| `compiled_log_softmax` | always (finite Q-values: the caller checks)     | None  |
-| `compiled_mix`     | always                                              | None  |
-
-The last two serve the engine: the goal likelihoods' table log softmax(Q / α_g)
-(`services.engine.goal_inference`) and a goal distribution's expected impact Q on one row
-(`services.engine.fastpath`), each the numpy code's bits.
-
-Why the bits match (the C file says how): IEEE + - * in both, no fused multiply-adds; numpy's
-own exp, log and logaddexp called on the C buffers; numpy's pairwise sums; Python's math.fsum
-for the blend's normaliser; the stable order of argsort for the top goals.
-tests/policy/test_belief_compiled.py compares both paths on random and extreme beliefs.
-COEXIST_PYTHON_BELIEF=1 (read at import), or a build without a C compiler, keeps numpy.
+| function               | compiled when                                       | else  |
+|------------------------|-----------------------------------------------------|-------|
+| `compiled_update`      | every likelihood and every updated entry is finite  | None  |
+| `compiled_views`       | the blend keeps every goal and every probability > 0| None  |
+| `compiled_log_softmax` | always (finite Q-values: the caller checks)         | None  |
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
-from policy._extensions import load
+from policy._kernels import load_kernel
 
 MAX_TOP = 64  # top goals the compiled views list at most (policy/_belief_row.c)
 
@@ -44,7 +34,8 @@ class BeliefView(NamedTuple):
     entropy: float  # and entropy
 
 
-_EXTENSION = load("_belief_row", "COEXIST_PYTHON_BELIEF")
+# policy/_belief_row.c, built by setup.py where a C compiler exists
+_EXTENSION: Any = load_kernel("_belief_row")
 COMPILED = _EXTENSION is not None
 
 
@@ -96,14 +87,3 @@ def compiled_log_softmax(q_GPA: np.ndarray, alpha: np.ndarray | float) -> np.nda
         alpha = np.ascontiguousarray(alpha, dtype=np.float64).reshape(-1)
     result: np.ndarray = _EXTENSION.log_softmax_table(q_GPA, alpha)
     return result
-
-
-def compiled_mix(
-    probs: Sequence[float], q_RA: np.ndarray, rows: Sequence[int]
-) -> list[float] | None:
-    """Σ_j probs[j] · float64(q_RA[rows[j]]), added in order (`np.add.accumulate`'s bits), or
-    None without the extension or for a non-contiguous float32 `q_RA`."""
-    if _EXTENSION is None or q_RA.dtype != np.float32 or not q_RA.flags.c_contiguous:
-        return None
-    mixed: list[float] = _EXTENSION.mix_rows(probs, q_RA, rows)
-    return mixed

@@ -119,8 +119,8 @@ def blend_goal_probs(
     the engine reuses one stacked group and one row layout. `mass` < 1 or `max_goals` < G keep
     the most probable goals until they cover `mass` (at most `max_goals`): fewer networks per
     forward pass, but the set changes as the belief moves, and every new set costs the engine a
-    new stacked group (a copy of the networks' weights) and row layout, ~1 ms at 8-128-128-5,
-    where an impact network's forward costs ~1.5 µs. The order of `goals` (not by probability)
+    new stacked group (a copy of the networks' weights) and row layout, which costs far more
+    than the forward of the networks it saves (docs/performance.md). The order of `goals` (not by probability)
     keeps a request's shape, and the engine's cached plans, fixed while the set is."""
     log_b = _belief_vector(log_belief_G)
     if len(goals) != log_b.size:
@@ -182,7 +182,8 @@ def belief_views(
     `belief_summary(row, goals, k)`, the same numbers bit for bit, with one exp, one sort and
     one sum for all rows instead of two exps and a sort per row (elementwise operations and
     the last-axis sum give every row what they give it alone; a division of arrays rounds as
-    Python's does)."""
+    Python's does). Compiled where the whole belief is blended (`policy.belief_compiled`, equal
+    within 1e-12)."""
     log_b = np.asarray(log_belief_PG, dtype=np.float64)
     if log_b.ndim != 2 or log_b.shape[1] == 0:
         raise ValueError(f"log_belief_PG: expected shape (P, G) with G >= 1, got {log_b.shape}")
@@ -194,7 +195,7 @@ def belief_views(
     _check_blend(mass, max_goals)
     if log_b.shape[0] == 0:
         return []
-    if _whole(mass, max_goals, n_goals):  # compiled where it can (the same bits)
+    if _whole(mass, max_goals, n_goals):  # compiled where it can
         views = compiled_views(log_b, goals, k)
         if views is not None:
             return views

@@ -46,26 +46,23 @@ under the goal probabilities. Soft Q is linear in the reward for a fixed policy,
 Q of the expected impact reward; it is our choice (the paper only says the framework "allows to
 probabilistically combine policies").
 
-Three implementations of the same maths, which give the same bits. Where `policy._blend_row` is
-built (`policy.blend_fast.COMPILED`), `blend` takes its `blend_rows` for any batch: blend_fast's
-row steps in C, each ufunc called once per batch (4 partners, 5 actions: ~100 µs for 256 rows
-against ~525 vectorised, ~2.6 µs for one row against ~170). Without it, `blend` sends small
-inputs to the plain-Python rows of `policy.blend_fast`, where numpy's per-call overhead would
-dominate, and the rest to the vectorised numpy path (`blend_vectorised` always takes it, the
-reference). Measured with 5 actions, the Python rows cost ~10 + 9 P µs each for AAIL (P
-partners) and ~10 µs for SL or NAIL, against ~200 µs (AAIL) or ~55 µs (SL, NAIL) vectorised
-for any small B; `_rows_are_faster` encodes that crossover.
+Two implementations of the same maths: `blend_vectorised`, numpy over the whole batch, is the
+reference; `policy/_blend_row.c` (built by setup.py) computes each row's steps in C loops, where
+numpy's per-call overhead would otherwise dominate the few numbers of a row. `blend` takes the
+compiled kernel where it is built (`COMPILED`), for any batch, else the reference; the two
+agree within 1e-9 (tests/policy/test_blend_compiled.py). `aail_bounded`'s bound (eq. R1) is
+numpy in both (`policy.regret_bound.bound_rows`).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from policy import blend_fast
+from policy._kernels import load_kernel
 from policy._validate import (
     PROB_SUM_TOL,
     alpha_array,
@@ -73,16 +70,22 @@ from policy._validate import (
     require_actions,
     require_finite,
 )
-from policy.blend_fast import FLAT_STD_RTOL, RowBlend, blend_row
 from policy.maths import boltzmann, js_distance, normalized_entropy, task_weight
 from policy.regret_bound import bound_rows, check_regret_bound
 
+# policy/_blend_row.c, built by setup.py where a C compiler exists
+_kernel: Any = load_kernel("_blend_row")
+
+COMPILED: bool = _kernel is not None
+
 __all__ = [
+    "COMPILED",
     "FLAT_STD_RTOL",
     "METHODS",
     "BlendMethod",
     "BlendResult",
     "blend",
+    "blend_checked",
     "blend_vectorised",
     "mix_goal_beliefs",
     "standardise",
@@ -90,9 +93,7 @@ __all__ = [
 
 BlendMethod = Literal["sl", "nail", "aail", "aail_bounded"]
 METHODS: tuple[BlendMethod, ...] = ("sl", "nail", "aail", "aail_bounded")
-# the row-by-row path takes AAIL inputs with B (2 + P) <= 12, SL and NAIL inputs with B <= 2,
-# and never more than 64 actions (module docstring)
-FAST_AAIL_WORK, FAST_MAX_ROWS, FAST_MAX_ACTIONS = 12, 2, 64
+FLAT_STD_RTOL = 1e-12  # a Q-vector whose std is below this fraction of max |Q| is "flat"
 
 
 @dataclass(frozen=True)
@@ -161,7 +162,7 @@ def _aail(
     from the caller, which needs it anyway)."""
     n_active_B = mask.sum(axis=1)
     pi_impact = boltzmann(q_impact, alpha_B1)
-    w_task = task_weight(pi_task)  # eq. 9 (from pi_task itself: blend_row's bits)
+    w_task = task_weight(pi_task)  # eq. 9
     w_task = np.where(n_active_B > 0, w_task, 1.0)  # nothing to blend in: the task alone
     w_partner = np.where(mask, js_distance(pi_task[:, None, :], pi_impact), 0.0)  # eq. 10
     total = w_partner.sum(axis=1, keepdims=True)
@@ -197,21 +198,33 @@ def blend(
         method, q_task_BA, q_impact_BPA, alpha, partner_mask_BP
     )
     epsilon = _epsilon(method, regret_bound, q_task.shape[0])
+    return blend_checked(method, q_task, q_impact, mask, alpha_B1[:, 0], normalise, epsilon)
+
+
+def blend_checked(
+    method: BlendMethod,
+    q_task_BA: np.ndarray,
+    q_impact_BPA: np.ndarray,
+    mask_BP: np.ndarray,
+    alpha_B: np.ndarray,
+    normalise: bool,
+    epsilon_B: np.ndarray | None,
+) -> BlendResult:
+    """`blend` on inputs it would accept, already in its working form: finite float64 Q-values
+    (B, A) and (B, P, A) (masked slots zero), a bool mask (B, P), positive temperatures (B,)
+    and, for `aail_bounded` only, ε >= 0 per row (B,). For a caller that checked them (the
+    inference engine validates each request once); compiled when `COMPILED`."""
     base: BlendMethod = "aail" if method == "aail_bounded" else method
-    if blend_fast.COMPILED:
-        arrays = blend_fast.compiled_rows(
-            base, q_task, q_impact, alpha_B1[:, 0], mask, normalise=normalise
+    if COMPILED:
+        result = BlendResult(
+            *_kernel.blend_rows(base, q_task_BA, q_impact_BPA, alpha_B, mask_BP, normalise)
         )
-        result = BlendResult(*arrays)
-    elif _rows_are_faster(base, q_impact.shape):
-        rows = zip(
-            q_task.tolist(), q_impact.tolist(), alpha_B1[:, 0].tolist(), mask.tolist(), strict=True
-        )
-        blended = [blend_row(base, *row, normalise=normalise) for row in rows]
-        result = _as_arrays(blended, q_impact.shape[1])
     else:
-        result = _vectorised(base, q_task, q_impact, mask, alpha_B1, normalise)
-    return result if epsilon is None else _bounded(result, q_task, alpha_B1, epsilon)
+        alpha_B1 = alpha_B[:, None]
+        result = _vectorised(base, q_task_BA, q_impact_BPA, mask_BP, alpha_B1, normalise)
+    if epsilon_B is None:
+        return result
+    return _bounded(result, q_task_BA, alpha_B[:, None], epsilon_B)
 
 
 def _epsilon(
@@ -242,15 +255,6 @@ def _bounded(
     probs_task = boltzmann(q_task, alpha_B1[:, 0])
     probs = bound_rows(np.asarray(result.probs_BA), q_task, probs_task, epsilon)
     return replace(result, probs_BA=probs)
-
-
-def _rows_are_faster(method: BlendMethod, shape_BPA: tuple[int, ...]) -> bool:
-    n_rows, n_slots, n_actions = shape_BPA
-    if n_rows == 0 or n_actions > FAST_MAX_ACTIONS:
-        return False
-    if method == "aail":
-        return n_rows * (2 + n_slots) <= FAST_AAIL_WORK
-    return n_rows <= FAST_MAX_ROWS
 
 
 def blend_vectorised(
@@ -284,18 +288,6 @@ def _checked(
         raise ValueError(f"method: unknown blending method {method!r} (expected one of {METHODS})")
     q_task, q_impact, mask = _check_blend_inputs(q_task_BA, q_impact_BPA, partner_mask_BP)
     return q_task, q_impact, mask, alpha_array(alpha, q_task.shape[:1])
-
-
-def _as_arrays(rows: list[RowBlend], n_slots: int) -> BlendResult:
-    return BlendResult(
-        q_BA=np.array([r.q_A for r in rows], dtype=np.float64),
-        probs_BA=np.array([r.probs_A for r in rows], dtype=np.float64),
-        task_entropy_B=np.array([r.task_entropy for r in rows], dtype=np.float64),
-        task_weight_B=np.array([r.task_weight for r in rows], dtype=np.float64),
-        partner_weights_BP=np.array([r.partner_weights_P for r in rows], dtype=np.float64).reshape(
-            len(rows), n_slots
-        ),
-    )
 
 
 def _vectorised(

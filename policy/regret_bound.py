@@ -47,7 +47,7 @@ dish stays served, and no later step costs the cook anything), no action changes
 return, so its exact task Q is the same for every action. A trained network is only close to
 that: in the kitchen its residual preferences after the dish (a few α) are approximation error,
 yet eq. 9 reads them as confidence and keeps the impact network out. There the engine blends
-with the row's task Q replaced by its mean over the actions (`services.engine.assembly.
+with the row's task Q replaced by its mean over the actions (`services.engine.engine.
 finished_rows`): π_t is uniform, w_t = 0 (eq. 9), every action lies in S_ε, and π_B is the
 impact networks' blend. The ego's regret is exactly 0 there, so the bound still holds.
 
@@ -70,26 +70,16 @@ The engine's default ε is `DEFAULT_EPSILON_PER_ALPHA` × the task network's tem
 action keeps the blend's say when the task policy rates it at least e^-1/2 ≈ 0.61 as likely as
 its best. Chosen by measurement (`reports/paper/blend_choice.md`): ε = α already lets the ego
 step out of its target where that costs it little, which in five-agent scenes moves the partners
-around; ε = α/4 helps less where goals align. Both shapes below give the same numbers to
-rounding (tested): `bound_rows` for batches (numpy), `bound_row` for the engine's single-row path
-(Python floats, where numpy's per-call cost would dominate).
+around; ε = α/4 helps less where goals align. `bound_rows` computes it for B rows (numpy).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 
 import numpy as np
 
-__all__ = [
-    "DEFAULT_EPSILON_PER_ALPHA",
-    "bound_row",
-    "bound_rows",
-    "check_regret_bound",
-    "keep_goal_row",
-    "keep_goal_rows",
-]
+__all__ = ["DEFAULT_EPSILON_PER_ALPHA", "bound_rows", "check_regret_bound", "keep_goal_rows"]
 
 DEFAULT_EPSILON_PER_ALPHA = 0.5
 
@@ -123,26 +113,6 @@ def bound_rows(
     return np.where(usable_B1, bounded_BA, probs_task_BA)
 
 
-def bound_row(
-    probs_blend_A: Sequence[float], q_task_A: Sequence[float], alpha: float, epsilon: float
-) -> list[float]:
-    """`bound_rows` of one row, π_t computed here from `q_task_A` at `alpha` (eq. 2)."""
-    q_max = max(q_task_A)
-    weights = [math.exp((q - q_max) / alpha) for q in q_task_A]
-    total = math.fsum(weights)
-    probs_task = [w / total for w in weights]
-    inside = [q >= q_max - epsilon for q in q_task_A]
-    blend_mass = math.fsum(p for p, keep in zip(probs_blend_A, inside, strict=True) if keep)
-    if blend_mass <= 0.0:
-        return probs_task
-    task_mass = math.fsum(p for p, keep in zip(probs_task, inside, strict=True) if keep)
-    scale = task_mass / blend_mass
-    return [
-        pb * scale if keep else pt
-        for pb, pt, keep in zip(probs_blend_A, probs_task, inside, strict=True)
-    ]
-
-
 def keep_goal_rows(probs_BA: np.ndarray, kept_BA: np.ndarray) -> np.ndarray:
     """π_K of eq. R4 for each row, (B, A): `probs_BA` is π_B, `kept_BA` the actions that keep the
     goal (a row of all True, or all False, is left as it is; so is a row with π_B(K) = 0)."""
@@ -151,11 +121,3 @@ def keep_goal_rows(probs_BA: np.ndarray, kept_BA: np.ndarray) -> np.ndarray:
     usable_B1 = partial_B1 & (kept_mass_B1 > 0.0)
     kept_BA_probs = np.where(kept_BA, probs_BA, 0.0) / np.where(usable_B1, kept_mass_B1, 1.0)
     return np.where(usable_B1, kept_BA_probs, probs_BA)
-
-
-def keep_goal_row(probs_A: Sequence[float], kept_A: Sequence[bool]) -> list[float]:
-    """`keep_goal_rows` of one row, in Python floats."""
-    kept_mass = math.fsum(p for p, keep in zip(probs_A, kept_A, strict=True) if keep)
-    if all(kept_A) or not any(kept_A) or kept_mass <= 0.0:
-        return list(probs_A)
-    return [p / kept_mass if keep else 0.0 for p, keep in zip(probs_A, kept_A, strict=True)]

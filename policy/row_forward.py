@@ -1,4 +1,5 @@
-"""A stack of small Q-networks on one observation: the inference engine's single-row forward.
+"""A stack of small Q-networks, each on a few input rows: the inference engine's forward at
+small batches.
 
     q_MPA = row_forward(x_XPF, layers, start, members, "relu")
 
@@ -8,70 +9,71 @@
 on the same P rows). The result is (members, P, A) float32: hidden layers take the activation,
 the last one is linear (as `policy.qnet.numpy_stacked_forward`).
 
-Two implementations:
-- `policy/_row_forward.c` (built by setup.py; used when `COMPILED`): one loop over the members
-  that reads each weight once, AVX-512 or AVX2 with FMA, chosen at import, the GIL released.
-  One observation through 35 networks 8-128-128-5 (2.5 MB of weights, not in L2): ~45 µs
-  against numpy's ~90 on the dev machine (benchmarks/engine.py), where the product spends most
-  of its time waiting on the caches;
-- `numpy_row_forward`, the same maths with numpy's stacked matmul (one BLAS call per member and
-  layer): the fallback where there is no compiler, no AVX2 or FMA, or COEXIST_PYTHON_FORWARD=1.
-
-The two differ in the last bits (the order of each sum: the C one is documented in its header,
-the same on every x86-64 with AVX2); tests/policy/test_row_forward.py bounds the difference.
+`numpy_row_forward` is the reference: numpy's stacked matmul, one BLAS call per layer.
+`policy/_row_forward.c` (built by setup.py) computes the same with one loop over the members
+that reads each weight once per row, with AVX2 and FMA; `row_forward` takes it where it is
+built and the CPU has AVX2 and FMA (`COMPILED`), else the reference. The two differ by float32
+rounding (the order of each sum, documented in the C file): tests/policy/test_row_forward.py
+holds the compiled forward to the reference within 1e-4 relative and absolute.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
-from policy._extensions import load
+from policy._kernels import load_kernel
 
 Layers = Sequence[tuple[np.ndarray, np.ndarray]]
 
-__all__ = ["COMPILED", "VARIANT", "all_finite", "numpy_row_forward", "row_forward"]
+__all__ = ["COMPILED", "numpy_row_forward", "row_forward"]
 
 
-_LOADED = load("_row_forward", "COEXIST_PYTHON_FORWARD")
-_EXTENSION = _LOADED if _LOADED is not None and _LOADED.VARIANT != "none" else None
-COMPILED = _EXTENSION is not None
-VARIANT: str = _EXTENSION.VARIANT if _EXTENSION is not None else "numpy"
+# policy/_row_forward.c, built by setup.py where a C compiler exists
+_extension: Any = load_kernel("_row_forward")
+
+COMPILED: bool = _extension is not None and bool(_extension.AVAILABLE)
 
 
 def numpy_row_forward(
     x_XPF: np.ndarray, layers: Layers, start: int, members: int, activation: str
 ) -> np.ndarray:
-    """`row_forward` with numpy (the fallback, and the reference of the tests)."""
+    """`row_forward` with numpy: the reference, and the forward where nothing is compiled. One
+    member on its own rows runs as 2-D products (BLAS speed; numpy's batched 3-D matmul is not)."""
     h = np.asarray(x_XPF, dtype=np.float32)
     last = len(layers) - 1
+    if members == 1 and h.shape[0] == 1:
+        h = h[0]
+        for k, (w_RIO, b_R1O) in enumerate(layers):
+            h = h @ w_RIO[start]
+            h += b_R1O[start]
+            if k < last:
+                _activate(h, activation)
+        return h[None]
     for k, (w_RIO, b_R1O) in enumerate(layers):
         h = np.matmul(h, w_RIO[start : start + members])  # x (1, P, F) broadcasts over members
         h += b_R1O[start : start + members]
         if k < last:
-            if activation == "relu":
-                np.maximum(h, 0.0, out=h)
-            else:
-                np.tanh(h, out=h)
+            _activate(h, activation)
     return h
+
+
+def _activate(h: np.ndarray, activation: str) -> None:
+    if activation == "relu":
+        np.maximum(h, 0.0, out=h)
+    else:
+        np.tanh(h, out=h)
 
 
 def row_forward(
     x_XPF: np.ndarray, layers: Layers, start: int, members: int, activation: str
 ) -> np.ndarray:
     """Members `start` .. `start + members - 1` of the stacked `layers` on their rows (module
-    docstring): (members, P, A) float32."""
-    if _EXTENSION is None:
+    docstring): (members, P, A) float32, compiled when `COMPILED`."""
+    if not COMPILED:
         return numpy_row_forward(x_XPF, layers, start, members, activation)
     x = np.ascontiguousarray(x_XPF, dtype=np.float32)
-    result: np.ndarray = _EXTENSION.forward(x, layers, start, members, activation)
+    result: np.ndarray = _extension.forward(x, layers, start, members, activation)
     return result
-
-
-def all_finite(array: np.ndarray) -> bool:
-    """Whether every entry is finite: one compiled scan of a contiguous float32 array (the
-    forward's output; ~0.3 µs), else numpy's isfinite."""
-    if _EXTENSION is not None and array.dtype == np.float32 and array.flags.c_contiguous:
-        return bool(_EXTENSION.all_finite(array))
-    return bool(np.isfinite(array).all())

@@ -41,7 +41,15 @@ from services.console import is_public as console_is_public
 from services.engine import InferenceEngine
 from services.jobs_api import router as jobs_router
 from services.logging import RequestIdMiddleware
-from services.metrics import EngineCollector, HttpMetrics, SessionCollector
+from services.metrics import (
+    EngineCollector,
+    GrpcMetrics,
+    HttpMetrics,
+    SessionCollector,
+    request_registry,
+    scrape_registry,
+)
+from services.oip.rest import router as v2_router
 from services.registry import router as registry_router
 from services.registry.errors import install_error_handlers as install_registry_errors
 from services.registry.errors import unexpected_response
@@ -52,11 +60,12 @@ from services.rest import sessions_router
 from services.rest.body_limit import BodyLimit
 from services.sessions import SessionStore
 from services.settings import Settings, get_settings
+from services.version import VERSION
 from services.warmup import warm_up
 
 log = logging.getLogger("coexist.server")
 
-ROUTERS: list[APIRouter] = [act_router, sessions_router, registry_router, jobs_router]
+ROUTERS: list[APIRouter] = [act_router, sessions_router, registry_router, jobs_router, v2_router]
 
 
 def create_app(
@@ -65,9 +74,13 @@ def create_app(
     *,
     engine: InferenceEngine | None = None,
     routers: Sequence[APIRouter] = (),
+    tracer_provider: Any = None,
 ) -> FastAPI:
     settings = settings or get_settings()
     settings.check_secure()
+    # OpenTelemetry (services.tracing) with `otel_enabled` or a provider given (the tests'):
+    # otherwise None, and nothing of tracing runs per request
+    tracer = _tracer(tracer_provider) if settings.otel_enabled or tracer_provider else None
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
@@ -89,6 +102,8 @@ def create_app(
             warm_up(owned_engine, limit=settings.cache_size)
             owned_engine.start_refresh_thread()
             app.state.engine = owned_engine
+        if tracer is not None:
+            tracer.instrument(app.state.engine, app.state.engine.store)
         app.state.sessions = SessionStore(
             app.state.engine,
             max_sessions=settings.max_sessions,
@@ -110,6 +125,8 @@ def create_app(
                 tokens=settings.accepted_tokens() if settings.reads_need_token else None,
                 tls=settings.tls_pair(),
                 episodes_per_client=settings.max_episodes_per_client,
+                metrics=app.state.grpc_metrics,
+                tracer=tracer,
             )
             grpc_server.start()
             app.state.grpc_port = grpc_server.port
@@ -135,7 +152,7 @@ def create_app(
     app = FastAPI(
         title="coexist",
         summary="Policy server for multi-agent coexistence (AAIL) and its model registry.",
-        version="0.1.0",
+        version=VERSION,
         lifespan=lifespan,
     )
     app.state.settings = settings
@@ -147,13 +164,13 @@ def create_app(
     # validation errors for every route): one JSON error shape everywhere.
     install_registry_errors(app)
     install_act_errors(app)
-    for router in [*ROUTERS, *routers]:
-        app.include_router(router)
 
     registry = CollectorRegistry()
     registry.register(EngineCollector(lambda: app.state.engine))
     registry.register(SessionCollector(lambda: getattr(app.state, "sessions", None)))
-    http_metrics = HttpMetrics(registry)
+    http_metrics = HttpMetrics(request_registry(registry))
+    app.state.grpc_metrics = GrpcMetrics(request_registry(registry))
+    scraped = scrape_registry(registry)  # every worker's requests with `--workers N`
     # Outermost last: request ids, then metrics, then the body limit (pure ASGI, cheap checks).
     app.add_middleware(
         BodyLimit,
@@ -164,11 +181,17 @@ def create_app(
         app.add_middleware(
             TokenGate, accepted=settings.accepted_tokens(), is_public=console_is_public
         )
-    app.add_middleware(_AsgiWrapper, wrap=http_metrics.middleware)
     # outermost: the id is set before anything logs, and an error no handler took is answered
-    # here (with the id; Starlette's last-resort handler would close the connection)
-    app.add_middleware(RequestIdMiddleware, on_error=unexpected_response)
+    # here (with the id; Starlette's last-resort handler would close the connection); the same
+    # layer counts the request and times it for /metrics
+    app.add_middleware(
+        RequestIdMiddleware,
+        on_error=unexpected_response,
+        record=http_metrics.record,
+        tracer=tracer,
+    )
 
+    # The probes first: routes are matched in order, and a load balancer polls these often.
     @app.get("/healthz", tags=["health"])
     async def healthz() -> dict[str, str]:
         """Liveness: the process answers (touches neither the database nor the models)."""
@@ -186,10 +209,25 @@ def create_app(
     @app.get("/metrics", tags=["health"])
     async def metrics() -> Response:
         """Prometheus metrics: request counts, latency histograms, cache hits, models served."""
-        return Response(generate_latest(registry), media_type=CONTENT_TYPE_LATEST)
+        return Response(generate_latest(scraped), media_type=CONTENT_TYPE_LATEST)
 
+    for router in [*ROUTERS, *routers]:
+        app.include_router(router)
     install_console(app)  # last: every other route is matched before a console route is tried
     return app
+
+
+def _tracer(provider: Any) -> Any:
+    """A `services.tracing.Tracer`, or a clear error when the `otel` extra is not installed."""
+    try:
+        from services.tracing import Tracer
+
+        return Tracer(provider)
+    except ImportError as err:
+        raise RuntimeError(
+            f"COEXIST_OTEL_ENABLED needs OpenTelemetry ({err.name} is missing): "
+            "pip install 'coexist[otel]'"
+        ) from None
 
 
 def _readiness(engine: InferenceEngine | None) -> tuple[bool, dict[str, Any]]:
@@ -208,13 +246,3 @@ def _readiness(engine: InferenceEngine | None) -> tuple[bool, dict[str, Any]]:
         "refresh_thread_alive": status.refresh_thread_alive,
     }
     return ready, body
-
-
-class _AsgiWrapper:
-    """Adapts a plain `wrap(app) -> app` function to Starlette's middleware signature."""
-
-    def __init__(self, app: Any, wrap: Any) -> None:
-        self.inner = wrap(app)
-
-    async def __call__(self, scope: Any, receive: Any, send: Any) -> None:
-        await self.inner(scope, receive, send)

@@ -1,66 +1,41 @@
-"""The environment client: particle episodes in which every agent acts through a policy server.
+"""The environment client: episodes of any registered env in which every agent acts through a
+policy server (`coexist_client.RemotePolicy`).
 
 | agent            | policy                                  | request per step                     |
 |------------------|-----------------------------------------|--------------------------------------|
-| 0 (the ego)      | `method` (aail by default) with every   | its observation, partners 1..N-1 with|
-|                  | other agent as an announced partner     | their goals                          |
+| 0 (the ego)      | `method` (aail_bounded by default) with | its observation, partners 1..N-1 with|
+|                  | every other agent as a partner, its goal| their goals (or `infer`: none, the   |
+|                  | announced or (`infer`) inferred         | server infers them from the actions) |
 | j = 1..N-1       | its own task policy (`sl`), the agent   | agent j's own observation (the env's |
 |                  | as the ego of its own request           | perspective), no partners            |
 
 So the client needs no local models: each agent holds one episode session of the SDK (a gRPC
-`Episode` stream, or `POST /v1/act` per step over HTTP; both seed step t with seed + t, so the two
-transports give the same episodes).
+`Episode` stream, or `POST /v1/act` per step over HTTP, a REST session where goals are inferred;
+all seed step t with seed + t, so the transports give the same episodes).
 
-Seeding: start states are `envs.particle.scenarios.start_states(seed, episodes, N)` (paired across
-methods); agent i's sampling seed in episode e is drawn from `SeedSequence([seed, e, i])`.
-Agents act on the *sampled* action (the Boltzmann policy, as in training) unless `greedy`.
+Seeding: start states are `envs.registry.episode_resets(env, seed, episodes, N)` (paired across
+methods: the particle world's `start_states`, the kitchen's own layout); agent i's sampling seed
+in episode e is drawn from `SeedSequence([seed, e, i])`. Agents act on the *sampled* action
+(the Boltzmann policy, as in training) unless `greedy`.
 
-Returned per episode (`EpisodeResult`): each agent's return (sum of its rewards), whether it ends
-the episode inside its own target area (`success`), and the length. `summarise` gives mean ±
-standard error over episodes (SE = sample std / sqrt(n), 0 for one episode).
+Returned per episode (`EpisodeResult`): each agent's return (sum of its rewards), whether its own
+goal is reached at the last step (`success`: `Domain.goal_reached` on its final observation: in
+its target area, its dish served), and the length. `summarise` gives mean ± standard error over
+episodes (SE = sample std / sqrt(n), 0 for one episode).
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from contextlib import ExitStack
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
+from coexist_client import Client, RemotePolicy
 
 from envs.base import check_goal
-from envs.particle.domain import PARTICLE
-from envs.particle.env import ParticleCoexistenceEnv
-from envs.particle.scenarios import start_states
-from services.sdk.types import Action
-
-SUPPORTED_ENVS = ("particle",)
-
-
-class EpisodeSession(Protocol):
-    """An SDK episode session (`HttpEpisode`, `GrpcEpisode`)."""
-
-    def act(self, observation: Any = None) -> Action: ...
-    def __enter__(self) -> Any: ...
-    def __exit__(self, *exc_info: Any) -> Any: ...
-
-
-class EpisodeClient(Protocol):
-    """Any SDK client: `CoexistClient` or `GrpcCoexistClient`."""
-
-    def episode(
-        self,
-        env: str,
-        ego_goal: str,
-        *,
-        partners: Any = None,
-        method: str = "aail_bounded",
-        regret_bound: float | None = None,
-        seed: int | None = None,
-        alias: str = "production",
-    ) -> EpisodeSession: ...
+from envs.registry import episode_resets, get_domain, make_env
 
 
 @dataclass(frozen=True)
@@ -68,7 +43,7 @@ class EpisodeResult:
     episode: int
     goals: tuple[str, ...]  # agent 0 is the ego
     returns: tuple[float, ...]  # one per agent
-    success: tuple[bool, ...]  # inside its own target area at the last step
+    success: tuple[bool, ...]  # its own goal reached at the last step
     length: int
     frames: tuple[np.ndarray, ...] = ()  # RGB frames when recorded
 
@@ -121,13 +96,14 @@ def agent_seed(seed: int, episode: int, agent: int) -> int:
 
 
 def run_episodes(
-    client: EpisodeClient,
+    client: Client,
     *,
     ego_goal: str,
     partner_goals: Sequence[str],
     env: str = "particle",
     method: str = "aail_bounded",
     regret_bound: float | None = None,
+    infer: bool = False,
     episodes: int = 20,
     seed: int = 0,
     max_steps: int = 200,
@@ -136,85 +112,86 @@ def run_episodes(
     record_first: bool = False,
     on_episode: Callable[[EpisodeResult], None] | None = None,
 ) -> list[EpisodeResult]:
-    """Run `episodes` episodes; see the module docstring. `record_first` keeps episode 0's frames."""
-    if env not in SUPPORTED_ENVS:
-        raise ValueError(f"env: expected one of {SUPPORTED_ENVS}, got {env!r}")
+    """Run `episodes` episodes of `env`; see the module docstring. `infer`: the ego is told no
+    partner goal. `record_first` keeps episode 0's frames."""
+    domain = get_domain(env)
     if episodes < 1:
         raise ValueError(f"episodes: expected >= 1, got {episodes}")
     if max_steps < 1:
         raise ValueError(f"max_steps: expected >= 1, got {max_steps}")
     goals = (ego_goal, *partner_goals)
-    check_goal(PARTICLE, ego_goal, "ego_goal")
+    check_goal(domain, ego_goal, "ego_goal")
     for k, goal in enumerate(partner_goals):
-        check_goal(PARTICLE, goal, f"partner_goals[{k}]")
-    if len(goals) > PARTICLE.max_agents:
-        raise ValueError(f"partner_goals: expected at most {PARTICLE.max_agents - 1} partners")
-    starts_ENS = start_states(seed, episodes, len(goals))
+        check_goal(domain, goal, f"partner_goals[{k}]")
+    if len(goals) > domain.max_agents:
+        raise ValueError(f"partner_goals: expected at most {domain.max_agents - 1} partners")
+    policies = [
+        RemotePolicy(
+            client, env, goals, i, method=method if i == 0 else "sl", infer=infer,
+            greedy=greedy, alias=alias, regret_bound=regret_bound if i == 0 else None,
+        )
+        for i in range(len(goals))
+    ]  # fmt: skip
+    resets = episode_resets(env, seed, episodes, len(goals))
     results = []
-    for e in range(episodes):
-        record = record_first and e == 0
-        result = _run_one(
-            client, env, goals, method, alias, starts_ENS[e], agent_seeds=[
-                agent_seed(seed, e, i) for i in range(len(goals))
-            ], episode=e, max_steps=max_steps, greedy=greedy, record=record,
-            regret_bound=regret_bound,
-        )  # fmt: skip
-        results.append(result)
-        if on_episode is not None:
-            on_episode(result)
+    try:
+        for e in range(episodes):
+            for i, policy in enumerate(policies):
+                policy.reset(seed=agent_seed(seed, e, i))
+            result = _run_one(
+                env, goals, policies, resets[e], episode=e, max_steps=max_steps,
+                record=record_first and e == 0,
+            )  # fmt: skip
+            results.append(result)
+            if on_episode is not None:
+                on_episode(result)
+    finally:
+        for policy in policies:
+            policy.close()
     return results
 
 
 def _run_one(
-    client: EpisodeClient,
     env_name: str,
     goals: tuple[str, ...],
-    method: str,
-    alias: str,
-    start_N4: np.ndarray,
+    policies: Sequence[RemotePolicy],
+    reset: dict[str, Any],
     *,
-    agent_seeds: Sequence[int],
     episode: int,
     max_steps: int,
-    greedy: bool,
     record: bool,
-    regret_bound: float | None = None,
 ) -> EpisodeResult:
-    env = ParticleCoexistenceEnv(
-        goals=goals, max_steps=max_steps, render_mode="rgb_array" if record else None
+    env = make_env(
+        env_name, goals, max_steps=max_steps, render_mode="rgb_array" if record else None
     )
-    agents = env.possible_agents
-    partners = {j: goals[j] for j in range(1, len(goals))}
-    with ExitStack() as stack:
-        sessions = [
-            stack.enter_context(
-                client.episode(
-                    env_name, goal, partners=partners if i == 0 else None,
-                    method=method if i == 0 else "sl", seed=agent_seeds[i], alias=alias,
-                    regret_bound=regret_bound if i == 0 else None,
-                )
-            )
-            for i, goal in enumerate(goals)
-        ]  # fmt: skip
-        observations, infos = env.reset(options={"state": start_N4})
-        frames = [env.render()] if record else []
-        returns = np.zeros(len(goals))
-        length = 0
-        while env.agents:
-            actions = {}
-            for i, agent in enumerate(agents):
-                answer = sessions[i].act(observations[agent])
-                actions[agent] = answer.greedy_action if greedy else answer.action
-            observations, rewards, _, _, infos = env.step(actions)
-            returns += [rewards[a] for a in agents]
-            length += 1
-            if record:
-                frames.append(env.render())
+    domain, agents = get_domain(env_name), env.possible_agents
+    observations, _ = env.reset(**reset)
+    frames = [env.render()] if record else []
+    returns = np.zeros(len(goals))
+    length = 0
+    actions: dict[str, int] = {}
+    while env.agents:
+        # the partners' actions of the previous step: what an inferring ego observed
+        observed = {k: actions[agent] for k, agent in enumerate(agents)} if actions else None
+        actions = {
+            agent: policies[i](observations[agent], observed) for i, agent in enumerate(agents)
+        }
+        observations, rewards, _, _, _ = env.step(actions)
+        returns += [rewards[a] for a in agents]
+        length += 1
+        if record:
+            frames.append(env.render())
+    n = len(agents)
+    success = []
+    for i, agent in enumerate(agents):
+        reached = domain.goal_reached(np.asarray(observations[agent])[None], n, goals[i])
+        success.append(reached is not None and bool(reached[0]))
+    env.close()
     return EpisodeResult(
         episode=episode,
         goals=goals,
         returns=tuple(float(r) for r in returns),
-        success=tuple(bool(infos[a]["in_target"]) for a in agents),
+        success=tuple(success),
         length=length,
         frames=tuple(f for f in frames if f is not None),
     )

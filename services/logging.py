@@ -29,15 +29,16 @@ from __future__ import annotations
 
 import json
 import logging
+import os
 import re
 import time
-import uuid
 from collections.abc import Callable
 from contextvars import ContextVar
 from datetime import UTC, datetime
 from typing import Any, Literal
 
 REQUEST_ID_HEADER = "x-request-id"
+_HEADER_KEY = REQUEST_ID_HEADER.encode()  # as ASGI spells header names: lower-case bytes
 ACCESS_LOGGER = "coexist.access"
 PROBE_PATHS = frozenset({"/healthz", "/readyz", "/metrics"})
 ACCESS_FIELDS = ("method", "route", "path", "status", "duration_ms")
@@ -129,51 +130,84 @@ def log_config(log_format: LogFormat = "text", level: str = "info") -> dict[str,
 
 def _request_id_from(scope: dict[str, Any]) -> str:
     for key, value in scope.get("headers", ()):
-        if key == REQUEST_ID_HEADER.encode():
+        if key == _HEADER_KEY:
             candidate = value.decode("latin-1")
             if VALID_REQUEST_ID.fullmatch(candidate):
                 return candidate
             break
-    return uuid.uuid4().hex
+    return new_request_id()
+
+
+def new_request_id() -> str:
+    """32 random hex digits (the form of `uuid.uuid4().hex`, without building a UUID)."""
+    return os.urandom(16).hex()
+
+
+# `record(route, method, status, seconds)`: what the middleware tells the metrics once a
+# response starts (`services.metrics.HttpMetrics.record`)
+Recorder = Callable[[str, str, int, float], None]
 
 
 class RequestIdMiddleware:
-    """ASGI middleware: request id in, out and on every log line; one access line per request.
+    """ASGI middleware: request id in, out and on every log line; one access line per request;
+    with `record`, the request's count and latency for the metrics; with `tracer`, one span.
 
-    `on_error(exc)`, when given, answers an exception that escaped the app before its response
-    started (an ASGI response, e.g. the 500 error body): here, inside the server's own error
-    layer, the answer still carries the request id and the connection stays open.
+    All of a request's observability in one pure ASGI layer: one wrapper of `send`, one clock
+    read at each end, the route template looked up once. `on_error(exc)`, when given, answers an
+    exception that escaped the app before its response started (an ASGI response, e.g. the 500
+    error body): here, inside the server's own error layer, the answer still carries the request
+    id and the connection stays open. `tracer` (`services.tracing.Tracer`, None when tracing is
+    off: then nothing of it runs) opens a server span around the request.
     """
 
-    def __init__(self, app: Any, on_error: Callable[[Exception], Any] | None = None) -> None:
+    def __init__(
+        self,
+        app: Any,
+        on_error: Callable[[Exception], Any] | None = None,
+        record: Recorder | None = None,
+        tracer: Any = None,
+    ) -> None:
         self.app = app
         self.on_error = on_error
+        self.record = record
+        self.tracer = tracer
 
     async def __call__(self, scope: dict[str, Any], receive: Any, send: Any) -> None:
         if scope["type"] != "http":
             await self.app(scope, receive, send)
             return
+        start = time.perf_counter()
         request_id = _request_id_from(scope)
         token = request_id_var.set(request_id)
-        start = time.perf_counter()
+        id_header = (_HEADER_KEY, request_id.encode())
         status, started = 500, False  # unless a response starts
+        record = self.record
 
         async def send_with_id(message: dict[str, Any]) -> None:
             nonlocal status, started
             if message["type"] == "http.response.start":
                 status, started = message["status"], True
-                headers = [h for h in message.get("headers", []) if h[0] != b"x-request-id"]
-                headers.append((b"x-request-id", request_id.encode()))
-                message = {**message, "headers": headers}
+                headers = message.get("headers") or []
+                if any(h[0] == _HEADER_KEY for h in headers):  # the app's own id gives way
+                    headers = [h for h in headers if h[0] != _HEADER_KEY]
+                message = {**message, "headers": [*headers, id_header]}
+                if record is not None:  # latency to the response start, as before
+                    record(route_template(scope) or "unmatched", scope["method"], status,
+                           time.perf_counter() - start)  # fmt: skip
             await send(message)
 
+        span = None if self.tracer is None else self.tracer.http_span(scope, request_id)
         try:
             await self.app(scope, receive, send_with_id)
         except Exception as exc:
             if self.on_error is None or started:
+                if span is not None:
+                    span.fail(exc)
                 raise
             await self.on_error(exc)(scope, receive, send_with_id)
         finally:
+            if span is not None:
+                span.end(route_template(scope), status)
             _log_access(scope, status, time.perf_counter() - start)
             request_id_var.reset(token)
 

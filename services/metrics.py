@@ -10,16 +10,26 @@
 | `coexist_sessions_live` | gauge | | goal-inference sessions held (expired ones purged first) |
 | `coexist_sessions_max` | gauge | | the limit (`COEXIST_MAX_SESSIONS`) |
 
+| `coexist_grpc_requests_total` | counter | method, code | gRPC calls answered (`/coexist.v1.PolicyService/Act`, `OK`) |
+| `coexist_grpc_request_seconds` | histogram | method | latency, from the handler's start to its end |
+
 The engine's counters are read when Prometheus scrapes (a collector), so the request path pays
-nothing for them. Each process keeps its own registry: with several uvicorn workers a scrape
-answers for the worker that took it (label your scrape targets per worker, or run one worker per
-container as docker/ does).
+nothing for them.
+
+Several workers (`coexist serve --workers N`): the request counters and histograms (HTTP and
+gRPC) use prometheus_client's multiprocess mode. `cli/serve.py` points `PROMETHEUS_MULTIPROC_DIR`
+at a directory it empties at start (`prepare_multiprocess_dir`), each worker writes its values
+to its own files there, and a scrape, whichever worker takes it, sums every worker's files
+(`scrape_registry`). The engine and session figures stay per process (they describe the process
+that answers: its cache, its sessions).
 """
 
 from __future__ import annotations
 
-import time
+import os
+import threading
 from collections.abc import Callable, Iterator
+from pathlib import Path
 from typing import Any
 
 from prometheus_client import CollectorRegistry, Counter, Histogram
@@ -27,11 +37,59 @@ from prometheus_client.core import CounterMetricFamily, GaugeMetricFamily, Metri
 from prometheus_client.registry import Collector
 
 from services.engine import InferenceEngine
-from services.logging import route_template
 from services.sessions import SessionStore
 
 # Latency buckets from 50 µs to 1 s: single acts take well under a millisecond.
+MULTIPROC_ENV = "PROMETHEUS_MULTIPROC_DIR"
 LATENCY_BUCKETS = (5e-5, 1e-4, 2e-4, 5e-4, 1e-3, 2e-3, 5e-3, 1e-2, 2.5e-2, 0.1, 0.25, 1.0)
+
+
+def multiprocess_dir() -> str | None:
+    """The multiprocess directory when this process runs in prometheus_client's multiprocess
+    mode (set before prometheus_client was imported, as the workers of `coexist serve` are)."""
+    return os.environ.get(MULTIPROC_ENV) or None
+
+
+def prepare_multiprocess_dir(default: Path) -> Path:
+    """Set up multiprocess mode for the workers about to start: `PROMETHEUS_MULTIPROC_DIR` (the
+    caller's, else `default`), created and emptied of an earlier run's files (counts of dead
+    processes would otherwise be added to this run's), and exported for the workers."""
+    directory = Path(os.environ.get(MULTIPROC_ENV) or default)
+    directory.mkdir(parents=True, exist_ok=True)
+    for stale in directory.glob("*.db"):
+        stale.unlink()
+    os.environ[MULTIPROC_ENV] = str(directory)
+    return directory
+
+
+def request_registry(app_registry: CollectorRegistry) -> CollectorRegistry | None:
+    """Where the request metrics register: the app's registry, or none in multiprocess mode
+    (their values go to this process's files, which `scrape_registry` reads back)."""
+    return None if multiprocess_dir() else app_registry
+
+
+def scrape_registry(app_registry: CollectorRegistry) -> CollectorRegistry:
+    """What `/metrics` serves: the app's registry, or in multiprocess mode a registry summing
+    every worker's files plus this process's own collectors (engine, sessions)."""
+    if not multiprocess_dir():
+        return app_registry
+    from prometheus_client import multiprocess
+
+    merged = CollectorRegistry()
+    multiprocess.MultiProcessCollector(merged)
+    merged.register(_Collectors(app_registry))
+    return merged
+
+
+class _Collectors(Collector):
+    """Another registry's collectors, collected as one (the per-process ones, in multiprocess
+    mode: the request metrics are not registered there, see `request_registry`)."""
+
+    def __init__(self, registry: CollectorRegistry) -> None:
+        self.registry = registry
+
+    def collect(self) -> Iterator[Metric]:
+        yield from self.registry.collect()
 
 
 class EngineCollector(Collector):
@@ -81,9 +139,14 @@ class SessionCollector(Collector):
 
 
 class HttpMetrics:
-    """Request counters and latency histograms, recorded by a small ASGI middleware."""
+    """HTTP request counters and latency histograms, fed by `RequestIdMiddleware` (`record`).
 
-    def __init__(self, registry: CollectorRegistry) -> None:
+    The labelled children are kept in a dict keyed by (route, method, status), so a request
+    costs one dict lookup, one counter increment and one histogram observation: no label
+    validation per request (prometheus_client's `labels()` does that on every call).
+    """
+
+    def __init__(self, registry: CollectorRegistry | None) -> None:
         self.requests = Counter(
             "coexist_http_requests",
             "HTTP requests answered",
@@ -97,26 +160,49 @@ class HttpMetrics:
             buckets=LATENCY_BUCKETS,
             registry=registry,
         )
+        self._children: dict[tuple[str, str, int], tuple[Any, Any]] = {}
 
-    def middleware(self, app: Any) -> Any:
-        """Wrap an ASGI app; the route label is the matched route's path template."""
+    def record(self, route: str, method: str, status: int, seconds: float) -> None:
+        """Count one answered request and observe its latency (seconds to the response start)."""
+        key = (route, method, status)
+        children = self._children.get(key)
+        if children is None:
+            children = (self.requests.labels(route, method, str(status)),
+                        self.latency.labels(route))  # fmt: skip
+            self._children[key] = children
+        children[0].inc()
+        children[1].observe(seconds)
 
-        async def wrapped(scope: dict[str, Any], receive: Any, send: Any) -> None:
-            if scope["type"] != "http":
-                await app(scope, receive, send)
-                return
-            start = time.perf_counter()
-            status = 500
 
-            async def send_and_record(message: dict[str, Any]) -> None:
-                nonlocal status
-                if message["type"] == "http.response.start":
-                    status = message["status"]
-                    label = route_template(scope) or "unmatched"
-                    self.latency.labels(label).observe(time.perf_counter() - start)
-                    self.requests.labels(label, scope["method"], str(status)).inc()
-                await send(message)
+class GrpcMetrics:
+    """gRPC call counters and latency histograms, fed by the gRPC server's interceptor.
 
-            await app(scope, receive, send_and_record)
+    `method` is the full method name (`/coexist.v1.PolicyService/Act`), `code` the status code's
+    name (`OK`, `INVALID_ARGUMENT` ...); the latency runs from the handler's start to its return
+    (for a stream, to its last answer). Children are cached as in `HttpMetrics`; the cache is
+    filled under a lock, since grpcio's handlers run on a thread pool.
+    """
 
-        return wrapped
+    def __init__(self, registry: CollectorRegistry | None) -> None:
+        self.requests = Counter(
+            "coexist_grpc_requests", "gRPC calls answered", ["method", "code"], registry=registry
+        )
+        self.latency = Histogram(
+            "coexist_grpc_request_seconds",
+            "gRPC call latency",
+            ["method"],
+            buckets=LATENCY_BUCKETS,
+            registry=registry,
+        )
+        self._children: dict[tuple[str, str], tuple[Any, Any]] = {}
+        self._lock = threading.Lock()
+
+    def record(self, method: str, code: str, seconds: float) -> None:
+        """Count one finished call and observe its latency in seconds."""
+        children = self._children.get((method, code))
+        if children is None:
+            with self._lock:
+                children = (self.requests.labels(method, code), self.latency.labels(method))
+                self._children[method, code] = children
+        children[0].inc()
+        children[1].observe(seconds)

@@ -57,6 +57,10 @@ by the test suite and by Ray.
 |                               |                    |               | runner that could not renew it stops its trainer  |
 | `COEXIST_SHUTDOWN_GRACE_S`    | 10                 | server        | on SIGTERM: how long in-flight HTTP requests and  |
 |                               |                    |               | gRPC calls may take to finish                     |
+| `COEXIST_OTEL_ENABLED`        | false              | server        | OpenTelemetry spans of requests, the engine and   |
+|                               |                    |               | the store (the `otel` extra; `services.tracing`)  |
+| `PROMETHEUS_MULTIPROC_DIR`    | `DATA_DIR/prometheus` | `serve --workers N` | N > 1: where the workers' metrics meet; |
+|                               |                    |               | emptied at start (`services.metrics`)             |
 | `COEXIST_TEST_PG_URL`         | `postgresql://postgres@127.0.0.1:5432/test` | tests | the PostgreSQL server of the tests   |
 | `COEXIST_REQUIRE_POSTGRES`    | unset              | tests         | PostgreSQL tests fail instead of skipping         |
 | `RAY_ADDRESS`                 | unset              | `--backend ray` | the Ray cluster when `--ray-address` is not given |
@@ -118,6 +122,7 @@ class Settings(BaseSettings):
     log_format: Literal["json", "text"] = "text"
     log_level: Literal["debug", "info", "warning", "error"] = "info"
     shutdown_grace_s: int = Field(default=10, ge=0, le=3600)
+    otel_enabled: bool = False  # OpenTelemetry spans (services.tracing; the `otel` extra)
     job_lease_s: float = Field(default=30.0, ge=1.0, le=3600)
 
     @field_validator("log_format", "log_level", mode="before")

@@ -19,7 +19,7 @@ what the 2-core budget and the particle world's dense reward call for:
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 GATE_RETRIES = 3
 """Fresh-seed attempts the zoo makes at a task gate a network failed (`trainer.zoo.run_tasks`)."""
@@ -28,6 +28,9 @@ GATE_RETRIES = 3
 @dataclass(frozen=True)
 class SoftQConfig:
     """Hyperparameters shared by every soft-Q learner (eqs. 3-5, Algorithm 1)."""
+
+    ENV: ClassVar[str] = "particle"
+    """The environment this configuration trains in (its learners: `trainer/<ENV>/`)."""
 
     hidden: tuple[int, ...] = (128, 128)
     """Hidden layer sizes of each Q-network MLP."""
@@ -103,7 +106,7 @@ class ImpactConfig(SoftQConfig):
     and its Q-value never corrected: many networks of the first zoo never chose some push they
     need to reach their influence area (`c2` never pushed left, `c3` never down). A quarter of
     uniformly random actions and shorter episodes (more starts spread over the world) keep every
-    push in the replay everywhere; the direction gate (`trainer.gates`) checks the result.
+    push in the replay everywhere; the direction gate (`trainer.particle.gates`) checks the result.
     `reports/paper/impact_training.md` has the measurements behind the two values."""
 
     total_steps: int = 8_000
@@ -112,7 +115,7 @@ class ImpactConfig(SoftQConfig):
     episode_steps: int = 60
     """Training episodes are cut after this many steps: restarts spread the ego over the world."""
     direction_states: int = 2048
-    """Direction gate (`trainer.particle_directions`): states spread over the world it checks."""
+    """Direction gate (`trainer.particle.directions`): states spread over the world it checks."""
     probe_step: float = 0.05
     """Direction gate: how far the ego is moved to see which push raises the partner's value."""
     min_value_gain: float = 0.15

@@ -55,6 +55,9 @@ class TrainingCurves:
 
 
 ProgressFn = Callable[[int, int], None]
+"""`progress(done, total)`: called after every batched training step."""
+ProgressFactory = Callable[[str, int], ProgressFn]
+"""`factory(description, total_steps)` -> the progress callback of one batch of goals."""
 
 
 def train_soft_q(

@@ -9,20 +9,12 @@ import numpy as np
 from rich.console import Console
 from rich.table import Table
 
-from trainer.cooking_gates import CookingImpactGate, CookingTaskGate
-from trainer.gates import ImpactGate, TaskGate
 from trainer.learners import TrainedBatch
-
-KITCHEN_NOTE = (
-    "A cooking task network that failed its gate gets no `production` alias, and in the kitchen "
-    "impact networks train only against `production` task networks (trainer.zoo): its goal gets "
-    "no impact network until a task network passes (then `coexist train impact --env cooking`)."
-)
 
 
 def print_summary(batches: Sequence[TrainedBatch], console: Console | None = None) -> None:
-    """One row per network: its gate verdict and the numbers behind it (the kitchen's gates:
-    dish completion rates, steps to the dish and unshaped returns)."""
+    """One row per network: its gate verdict and the numbers behind it (each gate's
+    `summary_cells`; the kitchen's: dish completion rates, steps to the dish, unshaped returns)."""
     console = console or Console()
     if not batches:
         console.print("nothing to train: every batch of this run is already done (--resume)")
@@ -35,51 +27,15 @@ def print_summary(batches: Sequence[TrainedBatch], console: Console | None = Non
             gate = batch.gates[g] if batch.gates else None
             final = batch.curve_summary(g).get("final")
             cells = ["-", "-", "-", "-"]
-            if isinstance(gate, TaskGate):
-                cells = [
-                    _verdict(gate.passed),
-                    f"{gate.success_rate:.0%}",
-                    f"{gate.own_target_return:.2f} (own target)",
-                    f"{gate.scripted_own_target_return:.2f} (scripted)",
-                ]
-            elif isinstance(gate, ImpactGate):
-                dead = f", dead: {'/'.join(gate.dead_pushes)}" if gate.dead_pushes else ""
-                cells = [
-                    _verdict(gate.passed),
-                    f"{gate.toward_share:.0%} toward{dead}",
-                    f"{gate.partner_return:.2f} (partner)",
-                    f"{gate.partner_return_resting_ego:.2f} (resting ego)",
-                ]
-            if isinstance(gate, CookingTaskGate | CookingImpactGate):
-                cells = _kitchen_cells(gate)
+            if gate is not None:
+                cells = [_verdict(gate.passed), *gate.summary_cells()]
             table.add_row(
                 batch.kind, "+".join(goals), *cells, "-" if final is None else f"{final:.3f}"
             )
     console.print(table)
-    if any(isinstance(g, CookingTaskGate) and not g.passed for b in batches for g in b.gates):
-        console.print(KITCHEN_NOTE)
-
-
-def _kitchen_cells(gate: CookingTaskGate | CookingImpactGate) -> list[str]:
-    """Gate, success (dish completion), return and reference cells of a cooking gate."""
-    if isinstance(gate, CookingTaskGate):
-        return [
-            _verdict(gate.passed),
-            f"{gate.completion_rate:.0%} in {_steps(gate.mean_steps_to_dish)}",
-            f"{gate.mean_return:.2f} (own)",
-            f"{gate.scripted_completion_rate:.0%} in "
-            f"{_steps(gate.scripted_mean_steps_to_dish)} (scripted)",
-        ]
-    return [
-        _verdict(gate.passed),
-        f"{gate.partner_completion_rate:.0%}",
-        f"{gate.partner_return:.2f} (partner)",
-        f"{gate.partner_completion_rate_resting_ego:.0%} (resting ego)",
-    ]
-
-
-def _steps(steps: float | None) -> str:
-    return "-" if steps is None else f"{steps:.0f} st"
+    notes = {g.FAILURE_NOTE for b in batches for g in b.gates if g is not None and not g.passed}
+    for note in sorted(notes - {""}):
+        console.print(note)
 
 
 def _verdict(passed: bool) -> str:

@@ -2,12 +2,11 @@
 
 Order matters: an impact network for partner goal h is trained against the *registered* task
 network of h (its `production` version, else `latest`), and names that version as its parent.
-In the kitchen (env `cooking`) it must be the `production` version: a goal whose task network
-failed every gate attempt gets no impact network (`run_impacts` skips it with a warning, and a
-later `--resume` or `coexist train impact` trains it once a task network has passed). An impact
-network learned beside a task network that cannot cook learns to help a partner that fails
-anyway (the first cooking zoo did: parent `latest`, a 75 % CarrotBanana network). The particle
-world keeps the fallback: its quick tiny zoos (`--fast`, tests) serve networks that fail gates.
+Where the environment's trainer says so (`EnvTrainer.production_parents_only`: the kitchen) it
+must be the `production` version: a goal whose task network failed every gate attempt gets no
+impact network (`run_impacts` skips it with a warning, and a later `--resume` or `coexist train
+impact` trains it once a task network has passed). The particle world keeps the fallback: its
+quick tiny zoos (`--fast`, tests) serve networks that fail gates.
 Work is done in batches of goals; a run directory records finished batches, so an interrupted
 run resumes where it stopped (`--resume`) instead of starting again.
 """
@@ -17,7 +16,7 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -28,14 +27,13 @@ from model_store.errors import NotFound
 from model_store.naming import task_model_name
 from model_store.store import ModelStore
 from policy.qnet import QNetSpec, StackedQNet, tensors_from_safetensors
-from trainer.config import GATE_RETRIES, ImpactConfig, JointConfig, TaskConfig
-from trainer.cooking_config import CookingImpactConfig, CookingTaskConfig
+from trainer.config import GATE_RETRIES, SoftQConfig
+from trainer.domain import env_trainer
 from trainer.learners import TrainedBatch, chunked, train_impacts, train_joint, train_tasks
-from trainer.loop import ProgressFn
+from trainer.loop import ProgressFactory
+from trainer.parallel import BatchJob, train_batches
 from trainer.publish import publish_batch
 
-# (description, total steps) -> per-step progress callback
-ProgressFactory = Callable[[str, int], ProgressFn]
 log = logging.getLogger(__name__)
 
 
@@ -99,17 +97,16 @@ def fingerprint(**parts: object) -> str:
     return hashlib.sha256(blob).hexdigest()[:16]
 
 
-def check_config_env(config: object, env: str) -> None:
-    """A cooking configuration trains in the kitchen, any other in the particle world."""
-    cooking = isinstance(config, CookingTaskConfig | CookingImpactConfig)
-    if cooking != (env == "cooking"):
+def check_config_env(config: SoftQConfig, env: str) -> None:
+    """A configuration trains in the environment it names (`SoftQConfig.ENV`)."""
+    if env != config.ENV:
         raise ValueError(f"config: a {type(config).__name__} does not train env {env!r}")
 
 
 def run_tasks(
     store: ModelStore,
     goals: Sequence[str],
-    config: TaskConfig | CookingTaskConfig,
+    config: SoftQConfig,
     *,
     seed: int,
     goals_per_batch: int,
@@ -118,24 +115,30 @@ def run_tasks(
     env: str = "particle",
     serve_alias: str = "production",
     gate_retries: int = GATE_RETRIES,
+    workers: int = 1,
 ) -> list[TrainedBatch]:
     """Task networks in batches; goals whose network failed its gate are trained again with a
     fresh seed, up to `gate_retries` times (each retry registers a new version). A goal without a
     `production` task network cannot be served as an ego, and in the particle world its impact
     network would learn beside a failed partner, so the zoo retries up to three times: in the
-    second fresh zoo of 35 goals one goal (`d3`) failed its first two attempts."""
+    second fresh zoo of 35 goals one goal (`d3`) failed its first two attempts. Up to `workers`
+    batches train at once, in as many processes (`trainer.parallel`: the same networks)."""
     check_config_env(config, env)
-    batches = []
+    keys, jobs = [], []
     for i, chunk in enumerate(chunked(goals, goals_per_batch)):
         key = f"task:{','.join(chunk)}"
-        if key in run.done:
-            continue
-        batch = train_tasks(
-            chunk,
-            config,
-            seed=seed + i,
-            progress=progress(f"task {chunk[0]}..{chunk[-1]}", config.total_steps),
-        )
+        if key not in run.done:
+            keys.append(key)
+            label = f"task {chunk[0]}..{chunk[-1]}"
+            jobs.append(
+                BatchJob(
+                    label, config.total_steps, train_tasks, (chunk, config), {"seed": seed + i}
+                )
+            )
+    batches = []
+    for key, batch in zip(
+        keys, train_batches(jobs, workers=workers, progress=progress), strict=True
+    ):
         run.record(key, publish_batch(store, batch, env=env, serve_alias=serve_alias))
         batches.append(batch)
     for attempt in range(1, gate_retries + 1):
@@ -157,7 +160,7 @@ def run_tasks(
 def run_impacts(
     store: ModelStore,
     goals: Sequence[str],
-    config: ImpactConfig | CookingImpactConfig,
+    config: SoftQConfig,
     *,
     seed: int,
     goals_per_batch: int,
@@ -166,12 +169,13 @@ def run_impacts(
     env: str = "particle",
     production_parents_only: bool | None = None,
     gate_retries: int = GATE_RETRIES,
+    workers: int = 1,
 ) -> list[TrainedBatch]:
     """Impact networks in batches, each against its partner goal's registered task network.
     `production_parents_only` (default: in the kitchen only, module docstring) skips goals whose
     task network has no `production` version instead of using `latest`. Goals whose network
     failed its gate are trained again with a fresh seed, up to `gate_retries` times, as
-    `run_tasks` does."""
+    `run_tasks` does; up to `workers` batches train at once."""
     check_config_env(config, env)
     strict = (
         production_parents_required(env)
@@ -182,25 +186,15 @@ def run_impacts(
     if unserved:
         warn_unserved_parents(unserved, env)
     trainable = [g for g in goals if g not in unserved]
-    batches = []
+    first = []
     for i, chunk in enumerate(chunked(goals, goals_per_batch)):
         kept = [g for g in chunk if g in trainable]
         key = f"impact:{','.join(kept)}"
         if kept and key not in run.done:
-            label = f"impact {kept[0]}..{kept[-1]}"
-            batches.append(
-                _impact_batch(
-                    store,
-                    kept,
-                    config,
-                    seed + 1000 + i,
-                    label,
-                    key,
-                    run=run,
-                    progress=progress,
-                    env=env,
-                )
-            )
+            first.append((kept, seed + 1000 + i, f"impact {kept[0]}..{kept[-1]}", key))
+    batches = _impact_batches(
+        store, first, config, run=run, progress=progress, env=env, workers=workers
+    )
     for attempt in range(1, gate_retries + 1):
         key = f"impact-retry-{attempt}"
         failed = goals_without(store, env, "impact", trainable, "production")
@@ -208,43 +202,51 @@ def run_impacts(
             continue
         label = f"impact retry {attempt}: {','.join(failed)}"
         retry_seed = seed + 1000 + 7919 * attempt  # a fresh seed per attempt, still deterministic
-        batches.append(
-            _impact_batch(
-                store, failed, config, retry_seed, label, key, run=run, progress=progress, env=env
-            )
-        )
+        retry = [(failed, retry_seed, label, key)]
+        batches += _impact_batches(store, retry, config, run=run, progress=progress, env=env)
     return batches
 
 
-def _impact_batch(
+def _impact_batches(
     store: ModelStore,
-    goals: Sequence[str],
-    config: ImpactConfig | CookingImpactConfig,
-    seed: int,
-    label: str,
-    key: str,
+    chunks: Sequence[tuple[list[str], int, str, str]],
+    config: SoftQConfig,
     *,
     run: RunState,
     progress: ProgressFactory,
     env: str,
-) -> TrainedBatch:
-    """Train, gate and register the impact networks of `goals` (one batch), parented to the
-    task networks they learned beside."""
-    partner_nets, task_versions = load_task_nets(store, env, goals)
-    batch = train_impacts(
-        goals, partner_nets, config, seed=seed, progress=progress(label, config.total_steps)
-    )
-    parents: dict[tuple[str, ...], list[str]] = {
-        (g,): [f"{v.name}/{v.version}"] for g, v in zip(goals, task_versions, strict=True)
-    }
-    run.record(key, publish_batch(store, batch, env=env, parents=parents))
-    return batch
+    workers: int = 1,
+) -> list[TrainedBatch]:
+    """Train, gate and register the impact networks of each (goals, seed, label, run key)
+    chunk, parented to the task networks they learned beside."""
+    jobs: list[BatchJob] = []
+    parents: list[dict[tuple[str, ...], list[str]]] = []
+    for goals, seed, label, _key in chunks:
+        partner_nets, task_versions = load_task_nets(store, env, goals)
+        jobs.append(
+            BatchJob(
+                label,
+                config.total_steps,
+                train_impacts,
+                (goals, partner_nets, config),
+                {"seed": seed},
+            )
+        )
+        parents.append(
+            {(g,): [f"{v.name}/{v.version}"] for g, v in zip(goals, task_versions, strict=True)}
+        )
+    batches = []
+    trained = train_batches(jobs, workers=workers, progress=progress)
+    for (_goals, _seed, _label, key), parent, batch in zip(chunks, parents, trained, strict=True):
+        run.record(key, publish_batch(store, batch, env=env, parents=parent))
+        batches.append(batch)
+    return batches
 
 
 def run_joint(
     store: ModelStore,
     combos: Sequence[Sequence[str]],
-    config: JointConfig,
+    config: SoftQConfig,
     *,
     seed: int,
     run: RunState,
@@ -282,7 +284,7 @@ def run_joint(
 def production_parents_required(env: str) -> bool:
     """Whether an impact network must be trained against a `production` task network (the
     kitchen: module docstring), or may fall back to `latest` (the particle world)."""
-    return env == "cooking"
+    return env_trainer(env).production_parents_only
 
 
 def warn_unserved_parents(goals: Sequence[str], env: str) -> None:

@@ -23,7 +23,7 @@ plate holding the most items of R (ties: the nearest). Only cells the cook can r
 
 With `first="carrot"` the cook prepares that ingredient before the recipe's others: while it is
 still raw (or not yet within reach) the other raw ingredients are left alone and the cook waits.
-This gives the other order of a recipe (the trainer records both, `trainer.cooking_kitchens`).
+This gives the other order of a recipe (the trainer records both, `trainer.cooking.kitchens`).
 
 With `handover="carrot"` the cook is also a *helper*: once its own dish is served (or at once with
 `handover_first=True`, or when its own plan is stuck) it carries a carrot it can reach to an empty

@@ -10,18 +10,16 @@
 
 | module         | what                                                                   |
 |----------------|------------------------------------------------------------------------|
+| `engine`       | `InferenceEngine`: the act (check, resolve, forward, blend, sample),   |
+|                | envs, refresh (thread), status, stats                                  |
+| `validation`   | every field of an `ActRequest` checked, naming the bad one             |
+| `model_cache`  | resolve `name@alias` / pinned versions, load, stack; hot reload        |
+| `networks`     | LRU cache, loaded networks, stacked groups and their forward           |
 | `messages`     | request / result / status dataclasses (docs/architecture.md contract)  |
 | `errors`       | `EngineError`: `InvalidRequest`, `ModelNotFound`, `ModelUnavailable`   |
-| `validation`   | every field of an `ActRequest` checked, naming the bad one             |
 | `environments` | per-env look-up tables, `GET /v1/envs` info, state -> observation      |
-| `networks`     | LRU cache, loaded networks, stacked groups and their numpy forward     |
-| `model_cache`  | resolve `name@alias` / pinned versions, load, stack; hot reload        |
-| `assembly`     | member input rows from the views, impact Q per partner, sampling       |
-| `fastpath`     | the single-row act: row layouts, Python-float reduce, blend and sample |
-| `gathers`      | a row's network inputs as one proven gather of the observation         |
-| `goal_inference`| every goal's task net on the partners' views (log-likelihoods, one pass)|
-|                | and partners' actions recovered from consecutive observations           |
-| `engine`       | `InferenceEngine`: act, envs, refresh (thread), status, stats          |
+| `goal_inference`| every goal's task net on the partners' views (log-likelihoods, one    |
+|                | pass) and partners' actions recovered from consecutive observations    |
 """
 
 from services.engine.engine import InferenceEngine

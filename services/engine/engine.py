@@ -1,36 +1,44 @@
 """`InferenceEngine`: the blended action distributions of paper §3.3 for B observation rows.
-One engine per server process, shared by the REST and gRPC transports.
+One engine per server process, shared by the REST and gRPC transports. An act reads top to
+bottom in `_act`; every batch size takes the same steps (a single observation is B = 1).
 
 | step     | what                                                          | where          |
 |----------|---------------------------------------------------------------|----------------|
 | check    | every field; bad ones -> `InvalidRequest(field, message)`     | `validation`   |
-| resolve  | `{env}/task/{ego_goal}` and `{env}/impact/{g}` for every      | `model_cache`  |
-|          | partner goal g with probability > 0 (sl: the task net only;   |                |
+| resolve  | `{env}/task/{ego_goal}` and `{env}/impact/{g}` for every      | `_plan_members`|
+|          | partner goal g with probability > 0 (sl: the task net only;   | `model_cache`  |
 |          | jl: `{env}/joint/{ego}+{p1}+...`, partners ordered by index), |                |
 |          | by `name@alias` or a pinned version                           |                |
 | stack    | the networks' weights, once per combination of versions       | `model_cache`  |
-| forward  | one `numpy_stacked_forward` over all members (task net on its | `networks`,    |
-|          | K task views, each impact net on its partners' impact views)  | `assembly`     |
-| blend    | `policy.blend.blend` (eqs. 8-10) on the task Q (mean over the |                |
-|          | K views) and one impact Q per partner; jl: the joint Q alone  |                |
-| sample   | inverse CDF per row from `default_rng(seed)`, one stream over | `assembly`     |
+| inputs   | each member's input rows from the domain's views (table below)| `_inputs`      |
+| forward  | `networks.forward_group`: every member on its rows            | `networks`     |
+| reduce   | task Q = mean over the K task views; one impact Q per partner,| `_impact_q`    |
+|          | a goal distribution's the expectation over its goals (§3.2)   |                |
+| blend    | `policy.blend.blend_checked` (eqs. 8-10; R1 for aail_bounded);| `policy.blend` |
+|          | jl: the joint Q alone                                         |                |
+| sample   | inverse CDF per row from `default_rng(seed)`, one stream over | `sample_actions`|
 |          | the rows (row r of a batch is not row 1 of a single request)  |                |
-| infer    | partners' actions under all G task nets, one pass (issue 9)   | `goal_inference`|
 
-A single observation row with sl, nail or aail takes `fastpath.act_row` after the stack step:
-the same steps with few numpy calls and Python floats (3-4x faster at batch 1; numbers
-equal up to float32 rounding). The general path builds its answer as arrays (`ActColumns`, what
-`act_columns` returns; `act` makes the rows of them); the fast path's row becomes columns by
-`ActColumns.from_results`. The networks a request shape needs (`_plan_members`) are
-remembered; resolution and stacking go through `model_cache` on every request (a remembered
-plan as one fixed set: `ModelCache.resolve_group`), so hot reload, the stacks' LRU order and the
-cache counters are those of the general path.
+Member input rows (B observation rows, K task views, U_g partners with goal g):
+
+| member          | input rows                                   | Q-values used as                   |
+|-----------------|----------------------------------------------|------------------------------------|
+| task            | (B*K, pair_dim), row b*K + k = view k of b   | mean over k -> q_task (B, A)       |
+| impact, goal g  | (U_g*B, pair_dim), block u = the impact view | block u -> partner u's Q for g     |
+|                 | of the u-th partner with goal g              |                                    |
+| joint           | (B, obs_dim), the whole observation          | q (B, A)                           |
+
+What a request's shape fixes (its networks, `_plan_members`; where each partner's Q-values lie
+and the models used, `_layout`) is computed once and remembered: the plans by request shape,
+the layouts on the stacked group they index (`StackedGroup.memo`).
 
 Choices the paper leaves open: the temperature is the request's, else the task (jl: joint)
 model's training α (`lineage.config["alpha"]`), else 0.02. Whether AAIL standardises the
-Q-vectors before eq. 8 is the environment's `Domain.blend_normalisation` (`policy.blend`). For jl the "task" diagnostics describe
-the joint policy (`task_weight` 1, partner weights 0); jl needs each partner's announced goal.
-Partners given with `sl` are checked but load no network.
+Q-vectors before eq. 8 is the environment's `Domain.blend_normalisation` (`policy.blend`). For
+jl the "task" diagnostics describe the joint policy (`task_weight` 1, partner weights 0); jl
+needs each partner's announced goal. Partners given with `sl` are checked but load no network.
+Goal inference for sessions (partners' actions under every goal's task network) is
+`goal_inference`.
 
 Hot reload: `refresh()` (or the daemon thread of `start_refresh_thread`, every
 `refresh_interval_s`) swaps moved aliases to their new versions, loaded before the swap; see
@@ -42,6 +50,7 @@ from __future__ import annotations
 import logging
 import threading
 from collections.abc import Mapping, Sequence
+from typing import NamedTuple
 
 import numpy as np
 
@@ -49,20 +58,10 @@ from envs.registry import known_envs
 from model_store.errors import InvalidArgument, ModelStoreError
 from model_store.naming import joint_model_name
 from model_store.store import ModelStore
-from policy.blend import BlendMethod, blend
-from policy.regret_bound import keep_goal_rows
-from services.engine.assembly import (
-    finished_rows,
-    goal_kept_of,
-    impact_q,
-    member_inputs,
-    models_used,
-    regret_bound_of,
-    sample_actions,
-)
+from policy.blend import BlendMethod, blend_checked
+from policy.regret_bound import DEFAULT_EPSILON_PER_ALPHA, keep_goal_rows
 from services.engine.environments import env_runtime
 from services.engine.errors import EngineError, InvalidRequest
-from services.engine.fastpath import act_row
 from services.engine.goal_inference import goal_log_likelihoods, recover_partner_actions
 from services.engine.messages import (
     DEFAULT_TEMPERATURE,
@@ -73,6 +72,7 @@ from services.engine.messages import (
     EngineStatus,
     EnvInfo,
     Member,
+    ModelUsed,
 )
 from services.engine.model_cache import ModelCache
 from services.engine.networks import StackedGroup, forward_group
@@ -81,6 +81,7 @@ from services.engine.validation import CheckedRequest, check_request
 log = logging.getLogger(__name__)
 
 MEMBER_PLANS_MAX = 1024  # request shapes remembered (the table is cleared when full)
+LAYOUTS_MAX = 256  # request layouts remembered per stacked group (cleared when full)
 
 
 class InferenceEngine:
@@ -118,25 +119,21 @@ class InferenceEngine:
     # --- act -------------------------------------------------------------------------------
     def act(self, request: ActRequest) -> list[ActResult]:
         """One result per observation row; `EngineError` on bad input or missing models."""
-        return self.act_checked(request, None)
+        return self._counted(request, None).rows()
 
     def act_columns(self, request: ActRequest) -> ActColumns:
         """`act`'s results as columns (one array per field, the models once): the same values,
         sampled actions, errors and stats; `act_columns(r).rows()` equals `act(r)`."""
-        answer = self._counted(request, None)
-        return answer if isinstance(answer, ActColumns) else ActColumns.from_results(answer)
+        return self._counted(request, None)
 
     def act_checked(self, request: ActRequest, checked: CheckedRequest | None) -> list[ActResult]:
         """`act`, given what `check_request(request)` would return (None: check it here).
         Internal, for a caller that checked the request's parts itself and builds `checked`
         from them (a session: settings once, the observation and its belief's distribution on
         each step); `request.observations` and `request.partners` are then not read."""
-        answer = self._counted(request, checked)
-        return answer if isinstance(answer, list) else answer.rows()
+        return self._counted(request, checked).rows()
 
-    def _counted(
-        self, request: ActRequest, checked: CheckedRequest | None
-    ) -> list[ActResult] | ActColumns:
+    def _counted(self, request: ActRequest, checked: CheckedRequest | None) -> ActColumns:
         try:
             answer = self._act(request, checked)
         except EngineError:
@@ -146,27 +143,21 @@ class InferenceEngine:
         self.stats.rows += len(answer)
         return answer
 
-    def _act(
-        self, request: ActRequest, checked: CheckedRequest | None
-    ) -> list[ActResult] | ActColumns:
-        """The single-row fast path's rows, else the general path's columns (each converts to
-        the other only when asked for it: `act` wants rows, `act_columns` columns)."""
+    def _act(self, request: ActRequest, checked: CheckedRequest | None) -> ActColumns:
+        """Check, resolve, forward, blend, sample (module docstring)."""
         public = checked is None  # a transport's request, not a session's (which checks its own)
         if checked is None:
             checked = check_request(request, self.max_batch)
         domain, method = checked.runtime.domain, request.method
         members, group = self._resolve_members(request, checked, check_pins=public)
+        layout = _layout(checked, members, group)
+        q_members = forward_group(group, _inputs(checked, members, group, layout))
         batch, n_actions = checked.obs_BD.shape[0], domain.n_actions
-        if batch == 1 and method != "jl":
-            results = act_row(checked, request, members, group, self._rng)
-            if results is not None:
-                return results
-        inputs, layout = member_inputs(checked, members, group)
-        q_members = forward_group(group, inputs)
         if method == "jl":
             q_task_BA = q_members[0]
         else:  # the task Q averaged over the K task views (one per other agent)
             q_task_BA = q_members[0].reshape(batch, -1, n_actions).mean(axis=1)
+        q_task_BA = q_task_BA.astype(np.float64)
         finished_B = finished_rows(request, checked)
         if finished_B is not None:  # R3: nothing left to earn, the exact task Q is flat
             flat_BA = np.broadcast_to(q_task_BA.mean(axis=1, keepdims=True), q_task_BA.shape)
@@ -175,37 +166,37 @@ class InferenceEngine:
         q_impact_BPA = np.zeros((batch, 0, n_actions))  # sl, jl: the task/joint network alone
         if method in ("nail", "aail", "aail_bounded"):
             blend_method = method
-            q_impact_BPA = impact_q(checked, q_members, layout)
+            q_impact_BPA = _impact_q(checked, q_members, layout)
         if not (np.isfinite(q_task_BA).all() and np.isfinite(q_impact_BPA).all()):
             raise InvalidRequest("observations", "values so large that the Q-values overflow")
         temperature = request.temperature or group.nets[0].alpha or DEFAULT_TEMPERATURE
-        normalise = checked.runtime.domain.blend_normalisation == "standardise"
         epsilon_B = regret_bound_of(request, group, checked)
-        blended = blend(
+        blended = blend_checked(
             blend_method,
             q_task_BA,
             q_impact_BPA,
-            temperature,
-            normalise=normalise,
-            regret_bound=epsilon_B,
+            np.ones(q_impact_BPA.shape[:2], dtype=bool),
+            np.full(batch, float(temperature)),
+            domain.blend_normalisation == "standardise",
+            epsilon_B,
         )
         partner_weights_BP = blended.partner_weights_BP
         if blend_method == "sl":  # no impact network was evaluated: every partner weighs 0
             partner_weights_BP = np.zeros((batch, len(checked.partners)))
         rng = self._rng if request.seed is None else np.random.default_rng(request.seed)
-        probs_BA = np.asarray(blended.probs_BA, dtype=np.float64)
+        probs_BA = blended.probs_BA
         kept_BA = goal_kept_of(request, checked, epsilon_B)
         if kept_BA is not None:  # R4: no action that loses the reached goal where one keeps it
             probs_BA = keep_goal_rows(probs_BA, kept_BA)
         return ActColumns(
             method=method,
-            models=models_used(checked, members, group),
+            models=list(layout.models),
             probs=probs_BA,
             actions=sample_actions(probs_BA, rng).astype(np.int64, copy=False),
             greedy_actions=probs_BA.argmax(axis=1).astype(np.int64, copy=False),
-            task_entropies=np.asarray(blended.task_entropy_B, dtype=np.float64),
-            task_weights=np.asarray(blended.task_weight_B, dtype=np.float64),
-            partner_weights=np.asarray(partner_weights_BP, dtype=np.float64),
+            task_entropies=blended.task_entropy_B,
+            task_weights=blended.task_weight_B,
+            partner_weights=partner_weights_BP,
         )
 
     def _resolve_members(
@@ -325,6 +316,7 @@ class InferenceEngine:
 
 
 MemberPlan = tuple[tuple[Member, ...], tuple[tuple[str, str, str], ...]]
+Slots = dict[tuple[int, str], tuple[int, int]]
 
 
 def _check_pins_used(pinned: Mapping[str, int], needs: Sequence[tuple[str, str, str]]) -> None:
@@ -367,3 +359,182 @@ def _plan_members(request: ActRequest, checked: CheckedRequest) -> MemberPlan:
         needs.append((runtime.impact_names[goal], field_of[goal], "no impact network"))
         members.append(("impact", goal))
     return tuple(members), tuple(needs)
+
+
+class Layout(NamedTuple):
+    """What a request layout (members, partners' indices and goals) fixes, per stacked group."""
+
+    positions: tuple[tuple[int, ...], ...]  # per impact member: the partners it serves, in order
+    slots: Slots  # (partner position, goal) -> (member, block)
+    models: tuple[ModelUsed, ...]  # the models used, the same objects on every call
+    # the goal distributions' mixes (`_impact_q`): per goal count, the partners' positions and
+    # (P', G) rows of their goals' Q-values among the impact members' rows at batch 1 (member j
+    # has one row per partner it serves; at batch B each row is B rows)
+    mixes: tuple[tuple[tuple[int, ...], np.ndarray], ...]
+
+
+def _layout(checked: CheckedRequest, members: Sequence[Member], group: StackedGroup) -> Layout:
+    """The layout of this request's partners over the group's members, remembered on the
+    group (with a belief over 35 goals and 4 partners: 140 slots and 141 models)."""
+    partners = tuple((p.index, p.goals, p.probs is None) for p in checked.partners)
+    key = ("layout", tuple(members), partners)  # an announced goal is not a distribution over it
+    layout: Layout | None = group.memo.get(key)
+    if layout is not None:
+        return layout
+    member_of = {goal: j for j, (role, goal) in enumerate(members) if role == "impact"}
+    served: list[list[int]] = [[] for _ in members]
+    slots: Slots = {}
+    for position, partner in enumerate(checked.partners if len(members) > 1 else ()):
+        for goal in partner.goals:
+            j = member_of[goal]
+            slots[(position, goal)] = (j, len(served[j]))
+            served[j].append(position)
+    first_unit = np.cumsum([0] + [len(partners) for partners in served[1:]])  # per member j-1
+    by_count: dict[int, list[int]] = {}
+    for position, partner in enumerate(checked.partners if len(members) > 1 else ()):
+        if partner.probs is not None:
+            by_count.setdefault(len(partner.goals), []).append(position)
+    mixes = tuple(
+        (tuple(positions), np.array([
+            [first_unit[slots[(k, goal)][0] - 1] + slots[(k, goal)][1]
+             for goal in checked.partners[k].goals]
+            for k in positions
+        ], dtype=np.intp))
+        for positions in by_count.values()
+    )  # fmt: skip
+    layout = Layout(
+        tuple(map(tuple, served[1:])), slots, _models_used(checked, members, group), mixes
+    )
+    if len(group.memo) >= LAYOUTS_MAX:
+        group.memo.clear()
+    group.memo[key] = layout
+    return layout
+
+
+def _models_used(
+    checked: CheckedRequest, members: Sequence[Member], group: StackedGroup
+) -> tuple[ModelUsed, ...]:
+    """The task (or joint) network, then per partner (in request order) each goal's impact net."""
+    first = group.nets[0]
+    used = [ModelUsed(members[0][0], first.name, first.version, first.sha256, None, members[0][1])]
+    if len(members) > 1:
+        net_of = {goal: group.nets[j] for j, (role, goal) in enumerate(members) if role == "impact"}
+        for partner in checked.partners:
+            for goal in partner.goals:
+                net = net_of[goal]
+                used.append(
+                    ModelUsed("impact", net.name, net.version, net.sha256, partner.index, goal)
+                )
+    return tuple(used)
+
+
+def _inputs(
+    checked: CheckedRequest, members: Sequence[Member], group: StackedGroup, layout: Layout
+) -> list[np.ndarray]:
+    """Each member's input rows (module docstring, second table)."""
+    obs_BD, n_agents, domain = checked.obs_BD, checked.n_agents, checked.runtime.domain
+    if members[0][0] == "joint":
+        joint = group.nets[0]
+        if joint.spec.obs_dim != obs_BD.shape[1]:
+            raise InvalidRequest(
+                "observations",
+                f"the joint network {joint.name} takes {joint.spec.obs_dim} features, "
+                f"the observations have {obs_BD.shape[1]} (a joint network knows no bystanders)",
+            )
+        return [obs_BD]
+    views_BKP = domain.task_views(obs_BD, n_agents)
+    inputs = [views_BKP.reshape(-1, views_BKP.shape[-1])]
+    if len(members) == 1:
+        return inputs
+    views = [domain.impact_view(obs_BD, n_agents, p.index) for p in checked.partners]
+    joined: dict[tuple[int, ...], np.ndarray] = {}  # members serving the same partners share
+    for positions in layout.positions:
+        if positions not in joined:
+            blocks = [views[position] for position in positions]
+            joined[positions] = blocks[0] if len(blocks) == 1 else np.concatenate(blocks)
+        inputs.append(joined[positions])
+    return inputs
+
+
+def _impact_q(
+    checked: CheckedRequest, q_members: Sequence[np.ndarray], layout: Layout
+) -> np.ndarray:
+    """One impact Q-vector per partner, (B, P, A) float64; a goal distribution is mixed by its
+    probabilities (§3.2: the expected impact Q, `policy.blend.mix_goal_beliefs`' einsum without
+    its checks: a non-finite Q goes on to the caller's overflow check). Distributions over
+    equally many goals (a session's whole beliefs) share one einsum."""
+    batch, n_actions = checked.obs_BD.shape[0], checked.runtime.domain.n_actions
+    partners = checked.partners
+    if not partners:
+        return np.zeros((batch, 0, n_actions))
+    per_partner: list[np.ndarray | None] = [None] * len(partners)
+    for position, partner in enumerate(partners):
+        if partner.probs is None:
+            j, block = layout.slots[(position, partner.goals[0])]
+            per_partner[position] = q_members[j][block * batch : (block + 1) * batch]
+    if layout.mixes:
+        q_all = np.concatenate(q_members[1:])  # the impact members' rows, one after the other
+        for positions, units_PG in layout.mixes:
+            rows_PGB = units_PG[:, :, None] * batch + np.arange(batch)
+            q_BPGA = q_all[rows_PGB].transpose(2, 0, 1, 3).astype(np.float64)
+            probs_PG = np.array([partners[k].probs for k in positions], np.float64)
+            q_BPA = np.einsum("pg,bpga->bpa", probs_PG, q_BPGA)
+            for i, position in enumerate(positions):
+                per_partner[position] = q_BPA[:, i]
+    return np.stack(per_partner, axis=1, dtype=np.float64)  # type: ignore[arg-type]  # all set
+
+
+def sample_actions(probs_BA: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """One action per row drawn from `probs_BA` by inverse CDF (one uniform per row, in order):
+    the first action whose cumulative probability exceeds u, so a p = 0 action is never drawn."""
+    cdf_BA = np.cumsum(probs_BA, axis=1)
+    u_B1 = rng.random((probs_BA.shape[0], 1)) * cdf_BA[:, -1:]
+    return np.minimum((cdf_BA <= u_B1).sum(axis=1), probs_BA.shape[1] - 1)
+
+
+def regret_bound_of(
+    request: ActRequest, group: StackedGroup, checked: CheckedRequest
+) -> np.ndarray | None:
+    """ε of `aail_bounded` per row, (B,) (`policy.regret_bound`): the request's, else
+    `DEFAULT_EPSILON_PER_ALPHA` × the task network's training α; 0 on the rows where the
+    environment tells that the ego's own goal is not reached yet (the progress guard, R2).
+    None for the other methods."""
+    if request.method != "aail_bounded":
+        return None
+    if request.regret_bound is not None:
+        epsilon = float(request.regret_bound)
+    else:
+        epsilon = DEFAULT_EPSILON_PER_ALPHA * float(group.nets[0].alpha or DEFAULT_TEMPERATURE)
+    runtime = checked.runtime
+    reached = runtime.domain.goal_reached(checked.obs_BD, checked.n_agents, request.ego_goal)
+    if reached is None:
+        return np.full(checked.obs_BD.shape[0], epsilon)
+    return np.where(reached, epsilon, 0.0)
+
+
+def finished_rows(request: ActRequest, checked: CheckedRequest) -> np.ndarray | None:
+    """Rows, (B,) bool, where `aail_bounded` blends with a flat task Q (R3 of
+    `policy.regret_bound`): the environment tells that the ego's goal is reached for good
+    (`Domain.goal_is_final`: a served dish). None where no row is (and for the other methods)."""
+    domain = checked.runtime.domain
+    if request.method != "aail_bounded" or not domain.goal_is_final:
+        return None
+    reached = domain.goal_reached(checked.obs_BD, checked.n_agents, request.ego_goal)
+    if reached is None or not reached.any():
+        return None
+    return np.asarray(reached, dtype=bool)
+
+
+def goal_kept_of(
+    request: ActRequest, checked: CheckedRequest, epsilon_B: np.ndarray | None
+) -> np.ndarray | None:
+    """(B, A) bool for R4 of `policy.regret_bound`: the actions that keep the ego's reached goal,
+    on the rows where `aail_bounded` blends (ε > 0); every action elsewhere. None where nothing
+    is to keep (another method, no row blending, or a goal that cannot be lost)."""
+    if epsilon_B is None or not (epsilon_B > 0.0).any():
+        return None
+    domain = checked.runtime.domain
+    kept_BA = domain.goal_kept(checked.obs_BD, checked.n_agents, request.ego_goal)
+    if kept_BA is None:
+        return None
+    return np.where((epsilon_B > 0.0)[:, None], kept_BA, True)

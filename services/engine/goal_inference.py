@@ -8,14 +8,12 @@ The belief itself (prior, forgetting, floor) is pure maths in `policy.belief`.
 | resolve  | `{env}/task/{g}` for EVERY goal g of the catalogue, in catalogue order, by |
 |          | alias or pinned version (`model_cache`, as `act` does; one fixed set)      |
 | stack    | one `StackedGroup` of the G task networks (cached by their versions)       |
-| views    | per partner p its view of the pair, `domain.partner_view(obs, N, p)`, as   |
-|          | one proven gather of the observation when the domain's view is a selection |
+| views    | per partner p its view of the pair, `domain.partner_view(obs, N, p)`       |
 | forward  | one stacked pass per spec partition: the same (P, pair_obs_dim) rows go    |
-|          | through all G networks, (1, P, F) @ (G, F, H) ... -> (G, P, A); in numpy,  |
-|          | with 2-3 partners one such pass per partner (faster: `ROW_BY_ROW_MAX`)     |
+|          | through all G networks, (1, P, F) @ (G, F, H) ... -> (G, P, A)             |
+|          | (`policy.row_forward`)                                                     |
 | softmax  | log softmax(Q_g / α_g)[a_p] (`policy.belief.boltzmann_log_likelihoods`'s  |
-|          | arithmetic, bit for bit, on the forward's layout: `_log_likelihoods`;      |
-|          | compiled by `policy.belief_compiled.compiled_log_softmax`, the same bits)  |
+|          | arithmetic on the forward's layout: `_log_likelihoods`)                    |
 | ahead    | `likelihood_table`: the same pass for every action a, before the actions   |
 |          | are known; `LikelihoodTable.pick` then gives the same numbers (a session   |
 |          | computes step t + 1's table right after answering step t)                  |
@@ -31,10 +29,7 @@ Errors: `InvalidRequest` naming `env`, `observation`, `partners[i].index`, `obse
 action per partner), `observed[i].action`, `temperature`, `alias`, `versions[name]`;
 `ModelNotFound` (field `partners`) when a goal has no task network under the alias / version.
 
-Latency (G = 35 networks 8-128-128-5, random weights, the compiled forward, median of 2000
-calls, 2-core dev machine): 54 µs for one partner (the forward ~35-40 µs of it, each weight read
-once), 75 µs for 2, 104 µs for 3 and 124 µs for 4 partners (numpy instead: ~90 µs for one). A
-session, which checked its inputs already, calls `checked_log_likelihoods` (the same pass
+A session, which checked its inputs already, calls `checked_log_likelihoods` (the same pass
 without the argument checks).
 
 Recovering actions: an env may give its `Domain` an optional method
@@ -57,26 +52,18 @@ from envs.base import Domain
 from model_store.errors import brief
 from policy.belief_compiled import compiled_log_softmax
 from policy.row_forward import COMPILED as ROW_FORWARD
-from policy.row_forward import all_finite, row_forward
+from policy.row_forward import row_forward
 from services.engine.environments import EnvRuntime, env_runtime
 from services.engine.errors import EngineError, InvalidRequest
-from services.engine.gathers import Gather, find_gather
 from services.engine.messages import DEFAULT_TEMPERATURE, Member
 from services.engine.model_cache import ModelCache
-from services.engine.networks import Partition, StackedGroup
+from services.engine.networks import StackedGroup
 from services.engine.validation import check_alias, check_observations, check_versions
 
-VIEW_GATHERS_MAX = 1024  # (env, agent count, partners) layouts remembered (cleared when full)
 ALPHA_MEMO_KEY = ("goal_inference", "alpha_G")  # the group's per-goal training α, memoised
-# numpy (no compiled forward) with 2 or 3 partners: one pass per partner row. Measured with
-# G = 35 nets 8-128-128-5, one OpenBLAS thread: a one-row pass (matrix-vector products) costs
-# ~47 µs, so 2 rows ~95 and 3 ~141, while one (G, P, 128) pass costs ~149 µs for 2 rows and ~207
-# for 3 (small-M sgemm kernels), and ~146 for 4 rows, where the single pass wins again. The
-# compiled forward takes every row in one pass (the weights stream once) and computes each row
-# alone, bit for bit, however many rows come with it.
-ROW_BY_ROW_MAX = 3
-# whether a pass's rows are each what a pass of that row alone gives (then any subset of a
-# table's partners can be served): always compiled; with numpy only row by row
+# whether a pass's rows are each what a pass of that row alone gives, bit for bit (then any
+# subset of a table's partners can be served): the compiled forward computes each row alone;
+# numpy's batched matmul may round a row differently with other rows
 ROWS_INDEPENDENT = ROW_FORWARD
 # z = Q - max Q with Q finite in float32, so |z| < 2^129: z / α overflows float64 (max ~2^1024)
 # only for α below ~2^-895 ~ 1e-269
@@ -121,54 +108,29 @@ def _goal_networks(env: str) -> GoalNetworks:
     )
 
 
-_view_gathers: dict[tuple[str, int, tuple[int, ...]], Gather | None] = {}
-
-
-def _partner_views(runtime: EnvRuntime, obs_D: np.ndarray, n_agents: int,
-                   partners: tuple[int, ...]) -> np.ndarray:  # fmt: skip
+def _partner_views(
+    runtime: EnvRuntime, obs_D: np.ndarray, n_agents: int, partners: tuple[int, ...]
+) -> np.ndarray:
     """The partners' views of the pair (partner, ego) as one (1, P, F) float32 block."""
     domain: Domain = runtime.domain
-    key = (domain.name, n_agents, partners)
-    if key in _view_gathers:
-        gather = _view_gathers[key]
-    else:
-
-        def build(obs_BD: np.ndarray) -> np.ndarray:
-            return np.stack([domain.partner_view(obs_BD, n_agents, p) for p in partners], axis=1)
-
-        gather = find_gather(build, obs_D.shape[0])
-        if len(_view_gathers) >= VIEW_GATHERS_MAX:
-            _view_gathers.clear()
-        _view_gathers[key] = gather
-    if gather is not None:
-        x_P1F = gather(obs_D)
-    else:
-        x_P1F = np.stack(
-            [domain.partner_view(obs_D[None], n_agents, p)[0] for p in partners]
-        ).astype(np.float32)[:, None, :]
-    return x_P1F.reshape(1, len(partners), -1)
-
-
-def _forward_shared(part: Partition, x_1PF: np.ndarray) -> np.ndarray:
-    """Every member of the partition on the same rows: (1, P, F) -> (members, P, A), float32.
-    `row_weights` hold the first member `first_repeats` times; it is used once here."""
-    start = part.first_repeats - 1
-    return row_forward(x_1PF, part.row_weights, start, len(part.members), part.spec.activation)
+    obs_1D = obs_D[None]
+    views = [domain.partner_view(obs_1D, n_agents, p) for p in partners]
+    return np.concatenate(views).astype(np.float32, copy=False)[None]
 
 
 def _forward_all(group: StackedGroup, x_1PF: np.ndarray) -> np.ndarray:
     """Q-values (G, P, A) of every member of the group on the same rows: one stacked pass per
-    spec partition (one in total when every task network has the same architecture); with
-    numpy, per partner row when there are 2 or 3 (`ROW_BY_ROW_MAX`)."""
-    n_rows = x_1PF.shape[1]
-    if not ROW_FORWARD and 1 < n_rows <= ROW_BY_ROW_MAX:
-        return np.concatenate([_forward_all(group, x_1PF[:, p : p + 1]) for p in range(n_rows)], 1)
+    spec partition (one in total when every task network has the same architecture)."""
     if len(group.partitions) == 1:
-        return _forward_shared(group.partitions[0], x_1PF)
+        part = group.partitions[0]
+        return row_forward(x_1PF, part.row_weights, 0, len(part.members), part.spec.activation)
     n_actions = group.nets[0].spec.n_actions
     q_GPA = np.empty((len(group.nets), x_1PF.shape[1], n_actions), dtype=np.float32)
     for part in group.partitions:
-        q_GPA[list(part.members)] = _forward_shared(part, x_1PF)
+        members = len(part.members)
+        q_GPA[list(part.members)] = row_forward(
+            x_1PF, part.row_weights, 0, members, part.spec.activation
+        )
     return q_GPA
 
 
@@ -190,7 +152,7 @@ def _scaled(
     """z = (Q - max Q) / α as float64 (G, P, A) and log Σ_a exp z (G, P): the two parts of
     log softmax(Q / α). The Q-values are finite (checked by the caller), so the division by α
     is the only step that can overflow (to -inf, meant), and only when an α is `tiny` (<
-    `TINY_ALPHA`): errstate (~1 µs) only then."""
+    `TINY_ALPHA`): errstate (a cost on every call) only then."""
     z = q_GPA.astype(np.float64)
     z -= z.max(axis=2, keepdims=True)  # <= 0, the arg-max exactly 0
     if tiny:
@@ -204,10 +166,11 @@ def _scaled(
 def _log_likelihoods(
     q_GPA: np.ndarray, actions_P: np.ndarray, alpha: np.ndarray | float, tiny: bool
 ) -> np.ndarray:
-    """`boltzmann_log_likelihoods(q_GPA.transpose(1, 0, 2), actions_P, α, validate=False)`: the
-    same arithmetic and numbers, bit for bit (tests/services/test_goal_likelihoods.py), in the
-    forward's (G, P, A) layout with fewer numpy calls (`_scaled`)."""
-    table = compiled_log_softmax(q_GPA, alpha)  # z - log_norm, the same bits, compiled
+    """`boltzmann_log_likelihoods(q_GPA.transpose(1, 0, 2), actions_P, α, validate=False)` in
+    the forward's (G, P, A) layout: compiled (`policy.belief_compiled.compiled_log_softmax`),
+    else the same arithmetic in numpy with fewer calls (`_scaled`); equal within the tolerance
+    of tests/services/test_goal_likelihoods.py."""
+    table = compiled_log_softmax(q_GPA, alpha)  # z - log_norm, compiled
     if table is not None:
         if len(actions_P) == 1:
             return table[:, 0, int(actions_P[0])][None]
@@ -352,7 +315,7 @@ def _q_values(
     else:
         with np.errstate(over="ignore", invalid="ignore"):  # huge inputs: refused just below
             q_GPA = _forward_all(group, x_1PF)
-    if not all_finite(q_GPA):
+    if not np.isfinite(q_GPA).all():
         raise InvalidRequest("observation", "values so large that the Q-values overflow")
     return q_GPA
 
@@ -373,10 +336,8 @@ class LikelihoodTable:
 
     `pick` returns exactly what `checked_log_likelihoods` would on the same observation and
     networks, bit for bit: z - log_norm subtracted per element either way. Rows are
-    independent with the compiled forward, and with numpy when the table's forward ran row by
-    row (P <= `ROW_BY_ROW_MAX`, also for P = 1), so any subset of such a table's partners is
-    served; a batched numpy table (P > 3) serves its own partner tuple only (a batched matrix
-    product may round a row differently with other rows).
+    independent with the compiled forward, so any subset of a table's partners is served;
+    with numpy a table serves its own partner tuple only (`ROWS_INDEPENDENT`).
     """
 
     group: StackedGroup  # the task networks it was computed with
@@ -393,10 +354,7 @@ class LikelihoodTable:
         wanted = tuple(partners)
         if wanted == self.partners:
             rows: Sequence[int] = range(len(wanted))
-        elif (
-            ROWS_INDEPENDENT
-            or (len(self.partners) <= ROW_BY_ROW_MAX and len(wanted) <= ROW_BY_ROW_MAX)
-        ) and set(wanted) <= set(self.partners):
+        elif ROWS_INDEPENDENT and set(wanted) <= set(self.partners):
             rows = [self.partners.index(p) for p in wanted]
         else:
             return None

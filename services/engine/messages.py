@@ -64,8 +64,8 @@ class ModelUsed:
     goal: str  # the goal the network serves (for a joint network: the ego's)
 
 
-@dataclass(slots=True)  # read-only by convention: a frozen dataclass's __init__ cost 4x as
-class ActResult:  # much, 0.24 ms of a 256-row batch (benchmarks/serving.py)
+@dataclass(slots=True)  # read-only by convention: a frozen dataclass's __init__ is several
+class ActResult:  # times dearer, and a batch makes one per row (docs/performance.md)
     probs: list[float]
     action: int  # sampled from `probs`
     greedy_action: int  # arg max of `probs` (the first on ties)

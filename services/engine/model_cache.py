@@ -18,8 +18,8 @@ operations only, never a load or a forward.
 
 Fixed sets (`resolve_group`): a caller that asks again and again for the same tuple of names (the
 engine's cached request plans; goal inference's task network of every goal, 35 in the particle
-world) gets the versions and the stacked group in one look-up instead of one per name (~2 µs
-instead of ~15 for 36 names). An entry remembers the resolution table it was read from and counts
+world) gets the versions and the stacked group in one look-up instead of one per name. An
+entry remembers the resolution table it was read from and counts
 only while that table is current, so a reload (which always swaps the table when the store's
 change token moved) invalidates every fixed set at once: hot reload works as for single names.
 An entry holds no group, only its stack key: the group comes from the stack LRU, whose bound and
@@ -217,9 +217,7 @@ class ModelCache:
                     f"{domain.n_actions} (and obs_dim {domain.pair_obs_dim} for task/impact)",
                 )
             nets.append(net)
-        # one row of observations feeds the task net K <= max_agents - 1 views (fastpath)
-        repeats = 1 if members[0][0] == "joint" else max(1, domain.max_agents - 1)
-        group = build_group(nets, first_repeats=repeats)
+        group = build_group(nets)
         self._stacks.put(key, group)
         return group
 

@@ -7,20 +7,16 @@
 | `load_net`      | store -> `LoadedNet` (the store verifies the sha256 on every load)        |
 | `StackedGroup`  | the networks one request needs, stacked per architecture                  |
 | `forward_group` | member inputs (rows_j, D) -> member Q-values (rows_j, A)                  |
-| `forward_rows`  | one observation row: R one-row members -> (R, 1, A) (`fastpath`)         |
 
-A group is split into *partitions* of members with the same spec. A partition whose members have
-at most `STACK_MAX_ROWS` input rows each is evaluated by one `numpy_stacked_forward` on a
-(G, R, D) input, R the largest member's row count, smaller members padded with zero rows (their
-outputs are cut off again): at small batches the per-call overhead dominates, and one pass pays it
-once. Larger partitions are evaluated member by member (G = 1 slices of the same stacked weights,
-no padding): numpy's batched 3-D matmul does not reach BLAS speed, one 2-D product per member
-does, so at batch 256 the members' BLAS calls win. A single observation row is cheapest as R
-one-row members (K task views + one view per impact net): R matrix-vector products in one
-stacked call, ~2x faster than the padded (G, K, D) stack (`forward_rows`, `Partition`).
-Where `policy.row_forward` is compiled, `forward_rows` and every partition of at most
-`ROW_FORWARD_MAX_ROWS` rows per member run in its single C loop (each weight read once) instead
-of numpy's matmul.
+A group is split into *partitions* of members with the same spec, whose weights are stacked
+once, (G, in, out) per layer. `forward_group` evaluates the members of a partition that have
+the same number of input rows R together, one `policy.row_forward.row_forward` on a (G', R, D)
+input: a request's impact networks (one view each per observation row) in one call, its task
+network (K views per row) in another. Where the compiled forward exists it takes calls of at
+most `ROW_FORWARD_MAX_ROWS` rows per member (a few matrix-vector products per network: one loop
+that reads each weight once per row); larger calls take numpy's matmul, stacked up to
+`STACK_MAX_ROWS` rows per member and member by member beyond (a 2-D product per member reaches
+BLAS speed, numpy's batched 3-D matmul does not).
 """
 
 from __future__ import annotations
@@ -35,16 +31,15 @@ import numpy as np
 
 from model_store.entities import ModelVersion
 from model_store.store import ModelStore
-from policy.qnet import QNetSpec, numpy_stacked_forward, stack_numpy, tensors_from_safetensors
+from policy.qnet import QNetSpec, stack_numpy, tensors_from_safetensors
 from policy.row_forward import COMPILED as ROW_FORWARD
-from policy.row_forward import row_forward
+from policy.row_forward import numpy_row_forward, row_forward
 
 K = TypeVar("K", bound=Hashable)
 V = TypeVar("V")
 
 STACK_MAX_ROWS = 64  # members with more input rows than this are evaluated one by one
-ROW_FORWARD_MAX_ROWS = 8  # members with at most this many rows: `policy.row_forward` when compiled
-ROW_REPEAT_MAX_BYTES = 8 << 20  # at most this much extra memory for `Partition.row_weights`
+ROW_FORWARD_MAX_ROWS = 8  # members with at most this many rows: compiled, where it is built
 
 
 class LruCache(Generic[K, V]):
@@ -138,24 +133,19 @@ def _row_layers_of(
 
 @dataclass(frozen=True, eq=False)
 class Partition:
-    """Members of one spec, stacked. `row_weights` holds, per layer, (R, in, out) weights and
-    (R, 1, out) biases with the first member repeated `first_repeats` times (R = repeats + G - 1),
-    transposed for `x @ w`: a single observation row (K task views, one view per impact net)
-    is then one stacked forward of R one-row members over a slice, with no copy (`forward_rows`).
-    `weights` are views of the same memory in the (G, out, in) layout of `stack_numpy`."""
+    """Members of one spec, stacked: per layer the weights transposed for `x @ w`, (G, in, out),
+    and the biases (G, 1, out), member g of the partition at index g."""
 
     members: tuple[int, ...]  # indices into the group's members
     spec: QNetSpec
-    weights: list[tuple[np.ndarray, np.ndarray]]  # per layer (G, out, in), (G, out)
-    row_weights: list[tuple[np.ndarray, np.ndarray]]  # per layer (R, in, out), (R, 1, out)
-    first_repeats: int
+    row_weights: list[tuple[np.ndarray, np.ndarray]]  # per layer (G, in, out), (G, 1, out)
 
 
 @dataclass(frozen=True, eq=False)
 class StackedGroup:
     nets: tuple[LoadedNet, ...]
     partitions: tuple[Partition, ...]
-    # per request layout: derived look-up tables (`services.engine.fastpath`), bounded
+    # per request layout: derived look-up tables (`services.engine.engine`), bounded
     memo: dict[Hashable, Any] = field(default_factory=dict, repr=False)
 
 
@@ -163,75 +153,54 @@ def _row_layers(net: LoadedNet) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
     return net.row_layers or _row_layers_of(net.tensors, net.spec)  # or: made without load_net
 
 
-def _partition(
-    nets: Sequence[LoadedNet], members: list[int], spec: QNetSpec, repeats: int
-) -> Partition:
+def _partition(nets: Sequence[LoadedNet], members: list[int], spec: QNetSpec) -> Partition:
     layers = [_row_layers(nets[j]) for j in members]
-    layer_bytes = sum(w.nbytes + b.nbytes for w, b in layers[0])
-    if (repeats - 1) * layer_bytes > ROW_REPEAT_MAX_BYTES:
-        repeats = 1  # too big to copy: a single row with several task views takes the general path
-    row_weights, weights = [], []
-    for k in range(len(spec.layer_sizes)):
+    row_weights = [
         # one copy per layer from the nets' own (in, out) layouts (~4x cheaper than stacking
         # the (out, in) tensors and transposing the stack: a top-k blend makes many groups)
-        w_RIO = np.concatenate([layers[0][k][0]] * (repeats - 1) + [n[k][0] for n in layers])
-        b_R1O = np.concatenate([layers[0][k][1]] * (repeats - 1) + [n[k][1] for n in layers])
-        row_weights.append((w_RIO, b_R1O))
-        weights.append((w_RIO[repeats - 1 :].transpose(0, 2, 1), b_R1O[repeats - 1 :, 0, :]))
-    return Partition(tuple(members), spec, weights, row_weights, repeats)
+        (np.concatenate([n[k][0] for n in layers]), np.concatenate([n[k][1] for n in layers]))
+        for k in range(len(spec.layer_sizes))
+    ]
+    return Partition(tuple(members), spec, row_weights)
 
 
-def build_group(nets: Sequence[LoadedNet], first_repeats: int = 1) -> StackedGroup:
-    """Stack the members' weights, one partition per distinct spec (in order of appearance);
-    member 0 (the task network) is repeated `first_repeats` times in `row_weights`."""
+def build_group(nets: Sequence[LoadedNet]) -> StackedGroup:
+    """Stack the members' weights, one partition per distinct spec (in order of appearance)."""
     by_spec: dict[QNetSpec, list[int]] = {}
     for j, net in enumerate(nets):
         by_spec.setdefault(net.spec, []).append(j)
-    partitions = tuple(
-        _partition(nets, members, spec, max(first_repeats, 1) if members[0] == 0 else 1)
-        for spec, members in by_spec.items()
-    )
+    partitions = tuple(_partition(nets, members, spec) for spec, members in by_spec.items())
     return StackedGroup(tuple(nets), partitions)
 
 
-def forward_rows(part: Partition, x_R1D: np.ndarray, first_rows: int) -> np.ndarray:
-    """One-row members: x (R, 1, in) whose first `first_rows` rows go through the partition's
-    first member and the others through one member each, in order -> q (R, 1, A). Needs
-    `first_rows <= part.first_repeats`. At batch 1 this beats a padded (G, K, in) stack: the
-    R matrix-vector products run in one loop (`policy.row_forward`, compiled where it can)."""
-    start = part.first_repeats - first_rows
-    members = len(part.row_weights[0][0]) - start
-    return row_forward(x_R1D, part.row_weights, start, members, part.spec.activation)
-
-
-def _forward_partition(part: Partition, inputs: Sequence[np.ndarray]) -> list[np.ndarray]:
-    rows = [inputs[j].shape[0] for j in part.members]
-    activation = part.spec.activation
-    if max(rows) > STACK_MAX_ROWS and len(rows) > 1:
-        return [
-            numpy_stacked_forward(
-                [(w[g : g + 1], b[g : g + 1]) for w, b in part.weights], inputs[j][None], activation
-            )[0]
-            for g, j in enumerate(part.members)
-        ]
-    if min(rows) == max(rows):
-        x_GRD = np.stack([inputs[j] for j in part.members])
-    else:
-        x_GRD = np.zeros((len(rows), max(rows), part.spec.obs_dim), dtype=np.float32)
-        for g, j in enumerate(part.members):
-            x_GRD[g, : rows[g]] = inputs[j]
-    if ROW_FORWARD and max(rows) <= ROW_FORWARD_MAX_ROWS:  # a few rows: one compiled loop
-        start = part.first_repeats - 1  # the first member's own copy in `row_weights`
-        q_GRA = row_forward(x_GRD, part.row_weights, start, len(rows), activation)
-    else:
-        q_GRA = numpy_stacked_forward(part.weights, x_GRD, activation)
-    return [q_GRA[g, : rows[g]] for g in range(len(rows))]
+def _forward_members(part: Partition, x_GRD: np.ndarray, starts: list[int]) -> np.ndarray:
+    """Members at positions `starts` of the partition (consecutive) on x (G', R, D)."""
+    rows, activation = x_GRD.shape[1], part.spec.activation
+    if ROW_FORWARD and rows <= ROW_FORWARD_MAX_ROWS:
+        return row_forward(x_GRD, part.row_weights, starts[0], len(starts), activation)
+    if rows <= STACK_MAX_ROWS:
+        return numpy_row_forward(x_GRD, part.row_weights, starts[0], len(starts), activation)
+    return np.concatenate([
+        numpy_row_forward(x_GRD[i : i + 1], part.row_weights, g, 1, activation)
+        for i, g in enumerate(starts)
+    ])  # fmt: skip
 
 
 def forward_group(group: StackedGroup, inputs: Sequence[np.ndarray]) -> list[np.ndarray]:
-    """Q-values (rows_j, A) of every member j on its input (rows_j, obs_dim of its spec)."""
+    """Q-values (rows_j, A) float32 of every member j on its input (rows_j, obs_dim of its spec):
+    per partition, consecutive members with as many rows are evaluated together."""
     outputs: list[np.ndarray] = [np.empty(0)] * len(group.nets)
     for part in group.partitions:
-        for j, q in zip(part.members, _forward_partition(part, inputs), strict=True):
-            outputs[j] = q
+        g = 0
+        while g < len(part.members):
+            rows = inputs[part.members[g]].shape[0]
+            end = g + 1
+            while end < len(part.members) and inputs[part.members[end]].shape[0] == rows:
+                end += 1
+            same = part.members[g:end]
+            x_GRD = inputs[same[0]][None] if len(same) == 1 else np.stack([inputs[j] for j in same])
+            q_GRA = _forward_members(part, x_GRD, list(range(g, end)))
+            for i, j in enumerate(same):
+                outputs[j] = q_GRA[i]
+            g = end
     return outputs

@@ -12,6 +12,9 @@
 |                      | `route` the full method (`/coexist.v1.PolicyService/Act`), `status`   |
 |                      | the status code name (`OK`, `INVALID_ARGUMENT` ...), `duration_ms`;   |
 |                      | INFO, or DEBUG for health checks (load balancers poll them)           |
+| metrics              | with `metrics`: `coexist_grpc_requests_total{method, code}` and       |
+|                      | `coexist_grpc_request_seconds{method}` (`services.metrics`)           |
+| trace                | with `tracer`: one server span per call (`services.tracing`)          |
 
 A load balancer or client that forwards one id through every hop (envoy does with
 `x-request-id`) therefore gets the same id in the HTTP and gRPC logs of every replica.
@@ -21,13 +24,19 @@ from __future__ import annotations
 
 import logging
 import time
-import uuid
 from collections.abc import Callable, Iterator
 from typing import Any
 
 import grpc
 
-from services.logging import ACCESS_LOGGER, REQUEST_ID_HEADER, VALID_REQUEST_ID, request_id_var
+from services.logging import (
+    ACCESS_LOGGER,
+    REQUEST_ID_HEADER,
+    VALID_REQUEST_ID,
+    new_request_id,
+    request_id_var,
+)
+from services.metrics import GrpcMetrics
 
 access_log = logging.getLogger(ACCESS_LOGGER)
 HEALTH_PREFIX = "/grpc.health.v1.Health/"
@@ -40,7 +49,7 @@ def request_id_from(metadata: Any) -> str:
             if isinstance(value, str) and VALID_REQUEST_ID.fullmatch(value):
                 return value
             break
-    return uuid.uuid4().hex
+    return new_request_id()
 
 
 def _status_name(context: grpc.ServicerContext, failed: bool) -> str:
@@ -59,49 +68,87 @@ def _log_access(route: str, status: str, seconds: float) -> None:
     access_log.log(level, "GRPC %s %s %.1f ms", route, status, seconds * 1000, extra=fields)
 
 
-def _unary(behaviour: Callable[..., Any], route: str) -> Callable[..., Any]:
-    def call(request: Any, context: grpc.ServicerContext) -> Any:
+class _Observed:
+    """What every call of one method shares: its route, the metrics and the tracer."""
+
+    def __init__(self, route: str, metrics: GrpcMetrics | None, tracer: Any) -> None:
+        self.route, self.metrics, self.tracer = route, metrics, tracer
+
+    def begin(self, context: grpc.ServicerContext, attach: bool) -> tuple[str, Any]:
+        """The call's id (echoed now, as initial metadata) and its span (None: tracing off),
+        made the thread's current span with `attach`."""
         request_id = request_id_from(context.invocation_metadata())
         context.send_initial_metadata(((REQUEST_ID_HEADER, request_id),))
-        token = request_id_var.set(request_id)
-        start, failed = time.perf_counter(), True
-        try:
-            response = behaviour(request, context)
-            failed = False
-            return response
-        finally:
-            _log_access(route, _status_name(context, failed), time.perf_counter() - start)
-            request_id_var.reset(token)
+        if self.tracer is None:
+            return request_id, None
+        return request_id, self.tracer.grpc_span(self.route, request_id, attach=attach)
 
-    return call
+    def end(self, context: grpc.ServicerContext, failed: bool, start: float, span: Any) -> None:
+        seconds = time.perf_counter() - start
+        status = _status_name(context, failed)
+        if self.metrics is not None:
+            self.metrics.record(self.route, status, seconds)
+        if span is not None:
+            span.end(self.route, status)
+        _log_access(self.route, status, seconds)
 
+    def unary(self, behaviour: Callable[..., Any]) -> Callable[..., Any]:
+        def call(request: Any, context: grpc.ServicerContext) -> Any:
+            start = time.perf_counter()
+            request_id, span = self.begin(context, attach=True)
+            token = request_id_var.set(request_id)
+            failed = True
+            try:
+                response = behaviour(request, context)
+                failed = False
+                return response
+            finally:
+                self.end(context, failed, start, span)
+                request_id_var.reset(token)
 
-def _streaming(behaviour: Callable[..., Iterator[Any]], route: str) -> Callable[..., Any]:
-    def call(request: Any, context: grpc.ServicerContext) -> Iterator[Any]:
-        request_id = request_id_from(context.invocation_metadata())
-        context.send_initial_metadata(((REQUEST_ID_HEADER, request_id),))
-        start, failed = time.perf_counter(), True
-        responses = behaviour(request, context)
-        try:
-            while True:
-                # set around each step only: between steps the worker thread serves grpcio
-                token = request_id_var.set(request_id)
-                try:
-                    response = next(responses)
-                except StopIteration:
-                    break
-                finally:
-                    request_id_var.reset(token)
-                yield response
-            failed = False
-        finally:
-            _log_access(route, _status_name(context, failed), time.perf_counter() - start)
+        return call
 
-    return call
+    def streaming(self, behaviour: Callable[..., Iterator[Any]]) -> Callable[..., Any]:
+        def call(request: Any, context: grpc.ServicerContext) -> Iterator[Any]:
+            start = time.perf_counter()
+            request_id, span = self.begin(context, attach=False)
+            failed = True
+            responses = behaviour(request, context)
+            try:
+                while True:
+                    # set around each step only: between steps the worker thread serves grpcio
+                    token = request_id_var.set(request_id)
+                    step = None if span is None else span.activate()
+                    try:
+                        response = next(responses)
+                    except StopIteration:
+                        break
+                    finally:
+                        if step is not None:
+                            span.deactivate(step)
+                        request_id_var.reset(token)
+                    yield response
+                failed = False
+            finally:
+                self.end(context, failed, start, span)
+
+        return call
 
 
 class RequestIdInterceptor(grpc.ServerInterceptor):
-    """Wraps every handler of the server (module docstring)."""
+    """Wraps every handler of the server (module docstring); with `metrics`, each call is
+    counted and timed (`services.metrics.GrpcMetrics`); with `tracer`
+    (`services.tracing.Tracer`), each call is a server span.
+
+    grpcio asks the interceptors for every call; the wrapped handler of a method is built once
+    and kept (keyed by the handler it wraps, so a refusal built per call is wrapped per call).
+    """
+
+    CACHE_SIZE = 256  # more methods than any server here has; beyond it handlers are not kept
+
+    def __init__(self, metrics: GrpcMetrics | None = None, tracer: Any = None) -> None:
+        self.metrics, self.tracer = metrics, tracer
+        self._wrapped: dict[int, tuple[grpc.RpcMethodHandler, grpc.RpcMethodHandler]] = {}
 
     def intercept_service(
         self,
@@ -111,23 +158,34 @@ class RequestIdInterceptor(grpc.ServerInterceptor):
         handler = continuation(handler_call_details)
         if handler is None:  # unknown method: grpcio answers UNIMPLEMENTED itself
             return None
-        route = str(handler_call_details.method)
+        kept = self._wrapped.get(id(handler))
+        if kept is not None and kept[0] is handler:
+            return kept[1]
+        wrapped = self._wrap(handler, str(handler_call_details.method))
+        if len(self._wrapped) < self.CACHE_SIZE:
+            self._wrapped[id(handler)] = (handler, wrapped)  # the handler kept: its id stays
+        return wrapped
+
+    def _wrap(self, handler: grpc.RpcMethodHandler, route: str) -> grpc.RpcMethodHandler:
+        observed = _Observed(route, self.metrics, self.tracer)
         common = {
             "request_deserializer": handler.request_deserializer,
             "response_serializer": handler.response_serializer,
         }
         if handler.unary_unary is not None:
-            return grpc.unary_unary_rpc_method_handler(_unary(handler.unary_unary, route), **common)
+            return grpc.unary_unary_rpc_method_handler(
+                observed.unary(handler.unary_unary), **common
+            )
         if handler.unary_stream is not None:
             return grpc.unary_stream_rpc_method_handler(
-                _streaming(handler.unary_stream, route), **common
+                observed.streaming(handler.unary_stream), **common
             )
         if handler.stream_unary is not None:
             return grpc.stream_unary_rpc_method_handler(
-                _unary(handler.stream_unary, route), **common
+                observed.unary(handler.stream_unary), **common
             )
         if handler.stream_stream is not None:
             return grpc.stream_stream_rpc_method_handler(
-                _streaming(handler.stream_stream, route), **common
+                observed.streaming(handler.stream_stream), **common
             )
         return handler

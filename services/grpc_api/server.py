@@ -42,6 +42,10 @@ from services.grpc_api.errors import parse_or_malformed
 from services.grpc_api.gen.coexist.v1 import policy_pb2 as pb
 from services.grpc_api.request_ids import RequestIdInterceptor
 from services.grpc_api.servicer import PolicyServicer
+from services.metrics import GrpcMetrics
+from services.oip.grpc_servicer import SERVICE_NAME as OIP_SERVICE_NAME
+from services.oip.grpc_servicer import InferenceServicer
+from services.oip.grpc_servicer import handlers as oip_handlers
 
 log = logging.getLogger(__name__)
 
@@ -151,6 +155,8 @@ def build_grpc_server(
     tokens: tuple[str, ...] | None = None,
     tls: tuple[bytes, bytes] | None = None,
     episodes_per_client: int | None = None,
+    metrics: GrpcMetrics | None = None,
+    tracer: Any = None,
 ) -> GrpcServer:
     """A gRPC server (not started) bound to `host:port`; port 0 binds a free port (`.port`).
 
@@ -163,11 +169,14 @@ def build_grpc_server(
     step's evidence after sending each answer (`services.sessions.session`, "Scoring ahead").
     `tokens`: every call but health checks needs `authorization: Bearer <one of them>`
     (`services.auth.TokenInterceptor`); None: open. `tls`: (certificate chain, private key),
-    PEM: the port speaks TLS only; None: plaintext.
+    PEM: the port speaks TLS only; None: plaintext. `metrics`: every call counted and timed
+    (`services.metrics.GrpcMetrics`, served on the REST server's `/metrics`); `tracer`: every
+    call a span (`services.tracing.Tracer`; None, the default: tracing off).
     """
     if max_workers < 1:
         raise ValueError(f"max_workers: expected >= 1, got {max_workers}")
-    interceptors: list[grpc.ServerInterceptor] = [RequestIdInterceptor()]  # ids, access lines
+    # ids, access lines, metrics, spans
+    interceptors: list[grpc.ServerInterceptor] = [RequestIdInterceptor(metrics, tracer)]
     if tokens is not None:
         interceptors.append(TokenInterceptor(tokens))  # inside: refusals are logged with ids
     server = grpc.server(
@@ -182,6 +191,11 @@ def build_grpc_server(
     handlers = _policy_handlers(servicer)
     server.add_generic_rpc_handlers((grpc.method_handlers_generic_handler(SERVICE_NAME, handlers),))
     server.add_registered_method_handlers(SERVICE_NAME, handlers)
+    # the Open Inference Protocol (KServe v2) beside the policy service
+    v2_handlers = oip_handlers(InferenceServicer(engine))
+    server.add_generic_rpc_handlers(
+        (grpc.method_handlers_generic_handler(OIP_SERVICE_NAME, v2_handlers),)
+    )
 
     health_servicer = EngineHealthServicer(
         ready or (lambda: engine.status().store_reachable), recheck_s=health_recheck_s

@@ -1,9 +1,8 @@
 """Request bodies parsed with orjson: `FastJsonRoute`, the route class of the inference and
 session routers.
 
-FastAPI parses a JSON body with the standard library's `json.loads` (`Request.json()`), which
-took 0.9 ms for a 256-row `/v1/act:batch` body on this machine against 0.12 ms for
-`orjson.loads`. The route class only swaps the parser; validation, OpenAPI docs and errors stay
+FastAPI parses a JSON body with the standard library's `json.loads` (`Request.json()`), several
+times slower than `orjson.loads` on a batch body of numbers (docs/performance.md). The route class only swaps the parser; validation, OpenAPI docs and errors stay
 FastAPI's.
 
 A body of `OFFLOAD_BYTES` or more is parsed in a worker thread, so the event loop goes on
@@ -19,7 +18,7 @@ Where orjson reads a body differently, the standard parser runs as before:
   indices, versions, expected_step) is a scalar in an object, so a float of magnitude >= 2^63
   there sends the body to the standard parser (a version number of 10^30 is still the engine's
   422 naming `versions[...]`). Vectors and matrices of numbers (observations, states) are not
-  walked: they are floats either way, and walking 256 rows of them cost ~40 µs of a batch.
+  walked: they are floats either way, and walking every row of a batch would cost time.
 """
 
 from __future__ import annotations

@@ -1,21 +1,26 @@
 """`LeanJsonRoute`: `FastJsonRoute` with a direct path for a valid JSON body (the act
 and session routers).
 
-FastAPI's request handler spends ~30 µs per request on this machine before the endpoint runs
-(dependency solving, query, header and cookie parsing, exit stacks): more than half of a session
-step's route overhead. For an endpoint taking only plain `str` path parameters, one pydantic
-body model and the `Request`, a request whose `content-type` is `application/json` and whose body
+FastAPI's request handler does work per request before the endpoint runs (dependency solving,
+query, header and cookie parsing, exit stacks) that an endpoint of the shape below does not need:
+a measurable share of a session step's route overhead (`benchmarks/session_breakdown.py`).
+For an endpoint taking only plain `str` path parameters, one pydantic body model and the
+`Request`, a request whose `content-type` is `application/json` and whose body
 parses (orjson, as `FastJsonRequest`) and validates against the model calls the endpoint
 directly, with the arguments FastAPI would pass. Anything else (another content type, an empty,
 malformed or invalid body, an unreadable stream, a body size limit, FastAPI telemetry on) takes
 FastAPI's own handler, so every error and its message is FastAPI's.
 
 Dependencies are never skipped: an endpoint with any, or a route included with router-level ones
-(`include_router(..., dependencies=[...])`), always takes FastAPI's handler. Recent FastAPI keeps
-an inclusion's dependencies in an "effective route context" it sets while building the handler;
-older versions merge them into the route's own dependant; both are read.
-tests/services/test_sessions_lean_route.py checks that an included dependency still runs and
-that both paths answer alike.
+(`include_router(..., dependencies=[...])`, at any depth), always takes FastAPI's handler. Only
+FastAPI's public API is read: the route's own dependant when the handler is built, and, at the
+first request a handler serves, every inclusion of the route in the app
+(`fastapi.routing.iter_route_contexts(app.routes)`, whose contexts carry each inclusion's
+dependant): if any inclusion adds a dependency, that handler keeps FastAPI's path for good.
+FastAPI versions without `iter_route_contexts` copy an included route with the inclusion's
+dependencies merged into its own dependant, which the build-time check reads.
+tests/services/test_sessions_lean_route.py checks that included dependencies (also nested) still
+run and that both paths answer alike.
 """
 
 from __future__ import annotations
@@ -25,7 +30,6 @@ import typing
 from collections.abc import Callable, Coroutine
 from typing import Any
 
-import fastapi.routing
 from fastapi import Request, Response
 from fastapi.routing import APIRoute
 from pydantic import BaseModel
@@ -46,9 +50,12 @@ try:  # the scope key of a body size limit (FastAPI's handler maps its errors): 
 except ImportError:  # pragma: no cover - an older Starlette: no such limit
     MAX_BODY_SIZE_SCOPE_KEY = "max_body_size"
 
+try:  # FastAPI that includes routers lazily: each inclusion's effective route, public
+    from fastapi.routing import iter_route_contexts
+except ImportError:  # pragma: no cover - older FastAPI: inclusions are copies (module docstring)
+    iter_route_contexts = None  # type: ignore[assignment]
+
 Handler = Callable[[Request], Coroutine[Any, Any, Response]]
-# set while FastAPI builds the handler of an included route (recent versions); absent before
-_INCLUSION = getattr(fastapi.routing, "_effective_route_context_var", None)
 # what a dependant may hold besides path parameters, one body and the request
 _EXTRAS = (
     "dependencies", "query_params", "header_params", "cookie_params", "websocket_param_name",
@@ -66,21 +73,24 @@ class DirectCall(typing.NamedTuple):
     path_names: tuple[str, ...]
 
 
-def _dependant(route: APIRoute) -> Any:
-    """The dependant FastAPI builds this handler from: the inclusion's while one is built."""
-    context = _INCLUSION.get() if _INCLUSION is not None else None
-    if context is not None and getattr(context, "original_route", None) is route:
-        return getattr(context, "dependant", None)
-    return route.dependant
+def _adds_nothing(dependant: Any) -> bool:
+    """Whether a dependant holds nothing but path parameters, the body and the request."""
+    return dependant is not None and not any(getattr(dependant, n, None) for n in _EXTRAS)
+
+
+def inclusions_add_nothing(app: Any, route: APIRoute) -> bool:
+    """Whether no inclusion of `route` in `app` adds a dependency (or a parameter) to it."""
+    if iter_route_contexts is None:
+        return True  # older FastAPI: the route's own dependant has the inclusion's, checked
+    contexts = [c for c in iter_route_contexts(app.routes) if c.original_route is route]
+    return all(_adds_nothing(getattr(context, "dependant", None)) for context in contexts)
 
 
 def direct_call(route: APIRoute) -> DirectCall | None:
     """How to call the route's endpoint directly, or None when it does not qualify (module
     docstring: plain `str` path parameters, one body model, the request, nothing else)."""
-    endpoint, dependant = route.endpoint, _dependant(route)
-    if dependant is None or not inspect.iscoroutinefunction(endpoint):
-        return None
-    if any(getattr(dependant, name, None) for name in _EXTRAS):
+    endpoint, dependant = route.endpoint, route.dependant
+    if not inspect.iscoroutinefunction(endpoint) or not _adds_nothing(dependant):
         return None
     if len(dependant.body_params) != 1 or not dependant.request_param_name:
         return None
@@ -109,10 +119,16 @@ class LeanJsonRoute(FastJsonRoute):
         endpoint = self.endpoint
         model, body_name, request_name, path_names = call
 
+        direct: bool | None = None  # known at the first request: `inclusions_add_nothing`
+
         async def route_handler(request: Request) -> Response:
+            nonlocal direct
             request = FastJsonRequest(request.scope, request.receive)
+            if direct is None:
+                direct = inclusions_add_nothing(request.app, self)
             if (
-                request.headers.get("content-type") == "application/json"
+                direct
+                and request.headers.get("content-type") == "application/json"
                 and MAX_BODY_SIZE_SCOPE_KEY not in request.scope
                 and get_telemetry_data() is None
             ):

@@ -53,7 +53,7 @@ class SessionSettings:
     # The act pass blends each inferred partner's impact networks by its belief
     # (`policy.belief.blend_goal_probs`). Default: every goal, the exact expected impact Q and
     # the same networks at every step. A smaller mass or a goal bound keeps only the top goals:
-    # fewer networks, but each new set of them costs the engine a new stacked group (~1 ms).
+    # fewer networks, but each new set of them costs the engine a new stacked group.
     blend_mass: float = 1.0  # the belief mass whose most probable goals are blended, (0, 1]
     blend_max_goals: int | None = None  # at most this many goals per partner (None: no bound)
 

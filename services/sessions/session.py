@@ -26,14 +26,14 @@ State held: the settings (checked once), one log-belief row (G,) per inferred pa
 previous observation, the next step's index and per-partner counters, and what the last belief
 says (`policy.belief.belief_views`: the blend's distribution and the summary, one exp for all
 partners), which a step without evidence reuses; and the next step's likelihood table
-(below: G x P x A float64, 1.4 KB per inferred partner of the particle world).
+(below: G x P x A float64 per inferred partner).
 
 Scoring ahead (`prepare_next`, on by default; `prefetch=False` turns it off). Step t + 1's
 evidence is scored on o_t, which step t already holds: right after step t's answer is sent, the
 transport calls `prepare_next`, which runs the likelihood pass on o_t for every action
 (`goal_inference.likelihood_table`, G x P x A numbers), so that step t + 1 only picks its
-actions' entries instead of running the pass while the client waits (~50 of a REST step's
-~200 µs of work). The numbers are those of the pass run at step t + 1, bit for bit; a step
+actions' entries instead of running the pass while the client waits (docs/performance.md has
+its share of a step). The numbers are those of the pass run at step t + 1, bit for bit; a step
 uses the table only if it was made for that step, for those partners (`LikelihoodTable.pick`)
 and with the task networks the aliases resolve to at that step (a hot reload in between: the
 pass runs again). New settings drop it. The CPU work is the same, moved off the step's

@@ -70,6 +70,27 @@ def test_verdicts_compare_each_transport_with_its_own_floor() -> None:
     assert got["REST: batch actions/s / act req/s (c=1)"] == (34.13, True)
 
 
+def test_verdicts_against_the_bare_servers() -> None:
+    cases = []
+    for t in ("REST", "gRPC"):
+        cases += [_case(t, "no-op", 1, 5000, 0.22), _case(t, "no-op", 32, 10000, 3.0),
+                  _case(t, "act", 1, 3000, 0.3), _case(t, "act", 32, 3000, 9.0),
+                  _case(t, "batch", 1, 400, 2.5, rows=256),
+                  _case(t, "floor no-op", 1, 6000, 0.2), _case(t, "floor no-op", 32, 8000, 3.0)]  # fmt: skip
+    got = {name: (round(value, 2), met) for name, value, _, met in serving.verdicts(cases)}
+    assert got["REST: no-op p50 / bare FastAPI no-op p50 (c=1)"] == (1.1, True)
+    assert got["REST: act p50 / bare FastAPI no-op p50 (c=1)"] == (1.5, True)
+    assert got["gRPC: health p50 / bare grpcio health p50 (c=1)"] == (1.1, True)
+    assert got["gRPC: act p50 / bare grpcio health p50 (c=1)"] == (1.5, True)
+    assert got["REST: act req/s / bare FastAPI no-op req/s (c=32)"] == (0.38, False)
+    assert len(got) == 11
+    slower = [c if c.case != "no-op" else _case(c.transport, "no-op", c.concurrency, 1, 0.24)
+              for c in cases]  # fmt: skip
+    got = {name: met for name, _, _, met in serving.verdicts(slower)}
+    assert not got["REST: no-op p50 / bare FastAPI no-op p50 (c=1)"]
+    assert not got["gRPC: health p50 / bare grpcio health p50 (c=1)"]
+
+
 def test_rounds_give_median_figures_and_median_ratios() -> None:
     def one_round(act_p50: float, noop_rps: int, act_rps: int) -> list:
         return (
@@ -124,6 +145,9 @@ def test_a_short_real_run_answers_every_request(tmp_path: Path) -> None:
         check=True, timeout=300, cwd=ROOT,
     )  # fmt: skip
     figures = json.loads(out.read_text())
-    assert len(figures["cases"]) == 14 and len(figures["targets"]) == 6  # batch rows: c = 1
-    assert {c["case"] for c in figures["cases"]} == {"no-op", "act", "batch", "batch rows"}
+    # 14 of coexist (batch rows: c = 1) and 4 of the bare servers; 6 + 5 targets
+    assert len(figures["cases"]) == 18 and len(figures["targets"]) == 11
+    assert {c["case"] for c in figures["cases"]} == {
+        "no-op", "act", "batch", "batch rows", "floor no-op"
+    }  # fmt: skip
     assert all(c["failed"] == 0 and c["requests"] > 0 for c in figures["cases"])

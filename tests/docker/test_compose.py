@@ -6,6 +6,9 @@
 - the Dockerfile: multi-stage, non-root, CPU torch by default, CUDA documented, health checks,
   and its COPY list holds every package pyproject ships;
 - Envoy's config sends both listeners to the replicas' ports;
+- monitoring: Prometheus scrapes every replica's /metrics (by the service's DNS name), Grafana
+  is provisioned with that Prometheus and a dashboard whose every query names a metric the
+  server exports (checked against the replicas of the process topology below);
 - the same topology as plain processes, running what the images install (a wheel built from the
   Dockerfile's COPY list, not this checkout): PostgreSQL (a fresh schema), the migration command,
   the trainer command (`--help`: a real zoo takes tens of minutes; a tiny registered zoo stands
@@ -16,6 +19,8 @@
 
 from __future__ import annotations
 
+import json
+import re
 import subprocess
 import sys
 import tomllib
@@ -37,6 +42,8 @@ from docker_files import (
 )
 
 sys.path.insert(0, str(REPO / "tests" / "services"))  # the serve-process helpers
+from coexist_client import GrpcCoexistClient
+from coexist_client.sessions import AFFINITY_HEADER
 from replica_cluster import (
     ADMIN_TOKEN,
     OBS,
@@ -47,9 +54,6 @@ from replica_cluster import (
     server_env,
     start_server,
 )
-
-from services.sdk import GrpcCoexistClient
-from services.sdk.http_sessions import AFFINITY_HEADER
 
 COMPOSE = yaml.safe_load((DOCKER / "compose.yaml").read_text())
 SERVICES: dict[str, Any] = COMPOSE["services"]
@@ -62,7 +66,9 @@ def _depends(service: str) -> dict[str, str]:
 
 
 def test_compose_describes_the_topology() -> None:
-    assert set(SERVICES) == {"postgres", "migrate", "trainer", "inference", "lb"}
+    assert set(SERVICES) == {
+        "postgres", "migrate", "trainer", "inference", "lb", "prometheus", "grafana"
+    }  # fmt: skip
     assert "pg_isready" in " ".join(SERVICES["postgres"]["healthcheck"]["test"])
     assert _depends("migrate") == {"postgres": "service_healthy"}
     assert SERVICES["migrate"]["restart"] == "no"  # one shot
@@ -112,7 +118,7 @@ def test_the_images_default_commands_are_cli_commands(target: str) -> None:
     with pytest.raises(AssertionError, match="no sub-command 'trian'"):  # the check can fail
         parse_coexist(["coexist", "trian", "zoo"])
     with pytest.raises(Exception, match="No such option"):
-        parse_coexist(["coexist", "train", "zoo", "--backend", "ray", "--workers", "2"])
+        parse_coexist(["coexist", "train", "zoo", "--backend", "ray", "--no-such-option", "2"])
 
 
 def test_the_dockerfile_builds_small_non_root_images() -> None:
@@ -130,6 +136,57 @@ def test_the_dockerfile_builds_small_non_root_images() -> None:
     copied = set(STAGES["build"].copies)
     assert {p.rstrip("*") for p in packages} <= copied, "a package is missing from COPY"
     assert {"pyproject.toml", shipped["project"]["readme"]} <= copied
+
+
+def _dashboard_metrics() -> set[str]:
+    """The metric names the provisioned dashboard's queries read (`_total`, `_bucket` and the
+    like kept: they are what the server's /metrics page shows)."""
+    dashboard = json.loads((DOCKER / "grafana" / "dashboards" / "coexist.json").read_text())
+    exprs = [t["expr"] for p in dashboard["panels"] for t in p["targets"]]
+    return {name for e in exprs for name in re.findall(r"\b(coexist_[a-z_]+)", e)}
+
+
+def test_prometheus_and_grafana_watch_the_replicas() -> None:
+    prometheus, grafana = SERVICES["prometheus"], SERVICES["grafana"]
+    assert _depends("prometheus") == {"inference": "service_healthy"}
+    assert grafana["depends_on"] == ["prometheus"]
+    for service in (prometheus, grafana):  # every mounted file or folder exists
+        for volume in service["volumes"]:
+            source = volume.split(":")[0]
+            if source.startswith("./"):
+                assert (DOCKER / source).exists(), volume
+            else:
+                assert source in COMPOSE["volumes"], volume
+        assert all(p.startswith("127.0.0.1:") for p in service["ports"])  # local only
+    config_mount = next(v for v in prometheus["volumes"] if v.startswith("./prometheus.yml"))
+    assert config_mount.split(":")[1] in " ".join(prometheus["command"])
+    scrape = yaml.safe_load((DOCKER / "prometheus.yml").read_text())["scrape_configs"]
+    (job,) = scrape
+    (target,) = job["dns_sd_configs"]
+    assert target["names"] == ["inference"] and target["port"] == 8000
+    assert job["metrics_path"] == "/metrics" and "8000" in SERVICES["inference"]["expose"]
+    with pytest.raises(KeyError, match="GRAFANA_ADMIN_PASSWORD"):  # no default password
+        interpolate(grafana["environment"], {})
+    provisioning = DOCKER / "grafana" / "provisioning"
+    (source,) = yaml.safe_load((provisioning / "datasources" / "prometheus.yaml").read_text())[
+        "datasources"
+    ]
+    port = prometheus["ports"][0].split(":")[-1]
+    assert source["url"] == f"http://prometheus:{port}"
+    (provider,) = yaml.safe_load((provisioning / "dashboards" / "coexist.yaml").read_text())[
+        "providers"
+    ]
+    mounts = dict(v.split(":")[:2] for v in grafana["volumes"] if v.startswith("./"))
+    assert mounts["./grafana/dashboards"] == provider["options"]["path"]
+    assert mounts["./grafana/provisioning"] == "/etc/grafana/provisioning"
+    dashboard = json.loads((DOCKER / "grafana" / "dashboards" / "coexist.json").read_text())
+    uids = {t["datasource"]["uid"] for p in dashboard["panels"] for t in p["targets"]}
+    assert uids == {source["uid"]}
+    home = grafana["environment"]["GF_DASHBOARDS_DEFAULT_HOME_DASHBOARD_PATH"]
+    assert home == f"{provider['options']['path']}/coexist.json"
+    assert {"coexist_http_requests_total", "coexist_http_request_seconds_bucket"} <= (
+        _dashboard_metrics()
+    )
 
 
 def test_envoy_sends_both_protocols_to_the_replicas() -> None:
@@ -269,6 +326,10 @@ def test_the_topology_runs_as_plain_processes(tmp_path: Path) -> None:
                         action = client.act("particle", "a2", OBS, partners={1: "b3"}, seed=1)
                         assert len(action.probs) == 5
                 assert http_lb.counts == [2, 2] and grpc_lb.counts == [1, 1]
+            for server in replicas:  # what Prometheus scrapes: every dashboard metric is there
+                page = httpx.get(f"{server.http_url}/metrics").text
+                exported = set(re.findall(r"^(coexist_[a-z_]+)", page, flags=re.MULTILINE))
+                assert _dashboard_metrics() <= exported, _dashboard_metrics() - exported
         for k, server in enumerate(replicas):
             assert server.process.returncode in (0, -15)
             answered = [line for line in server.logs() if '"through-lb-' in line]

@@ -1,12 +1,10 @@
-"""`policy.belief_compiled`: the compiled belief update and views give the numpy path's bits on
-random, peaked, flat, floored and extreme beliefs; they step aside (None) where the numpy path
-masks, and COEXIST_PYTHON_BELIEF=1 turns them off."""
+"""`policy.belief_compiled`: the compiled belief update, views and likelihood table against the
+numpy reference, within 1e-12 (absolute on log-probabilities and probabilities), on random,
+peaked, flat, floored and extreme beliefs (the top goals and the kept goals exactly); they step
+aside (None) where the numpy path masks."""
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 from collections.abc import Callable
 from typing import Any
 
@@ -17,6 +15,17 @@ from policy import belief_compiled as bc
 from policy.belief import BeliefConfig, PreparedUpdate, belief_views, update_log_belief
 
 pytestmark = pytest.mark.skipif(not bc.COMPILED, reason="built without a C compiler")
+TOL = 1e-12
+
+
+def same_views(got: list[bc.BeliefView], want: list[bc.BeliefView]) -> None:
+    assert len(got) == len(want)
+    for a, b in zip(got, want, strict=True):
+        assert a.blend_goals == b.blend_goals
+        np.testing.assert_allclose(a.blend_probs, b.blend_probs, rtol=0, atol=TOL)
+        assert [g for g, _ in a.top] == [g for g, _ in b.top]
+        np.testing.assert_allclose([p for _, p in a.top], [p for _, p in b.top], rtol=0, atol=TOL)
+        assert a.entropy == pytest.approx(b.entropy, rel=0, abs=TOL)
 
 
 def both(call: Callable[[], Any], monkeypatch: pytest.MonkeyPatch) -> tuple[Any, Any]:
@@ -48,7 +57,7 @@ def log_beliefs(rng: np.random.Generator, rows: int, goals: int, kind: str) -> n
 @pytest.mark.parametrize("config", [BeliefConfig(), BeliefConfig(forgetting=1.0, floor=0.0),
                                     BeliefConfig(forgetting=0.5, floor=0.01)])  # fmt: skip
 @pytest.mark.parametrize(("rows", "goals"), [(1, 35), (4, 35), (3, 1), (2, 7), (5, 200)])
-def test_the_update_has_the_numpy_bits(
+def test_the_update_matches_numpy(
     kind: str, config: BeliefConfig, rows: int, goals: int, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     if config.floor * goals >= 1:
@@ -62,9 +71,9 @@ def test_the_update_has_the_numpy_bits(
         # the compiled path did run (the comparison below is not numpy against itself)
         assert bc.compiled_update(log_b, lik, None, config.forgetting, config.floor) is not None
         got, want = both(lambda: update(log_b, lik), monkeypatch)  # noqa: B023
-        np.testing.assert_array_equal(got, want)
+        np.testing.assert_allclose(got, want, rtol=TOL, atol=TOL)
         got, want = both(lambda: update_log_belief(log_b[0], lik[0], prior[0], config), monkeypatch)  # noqa: B023
-        np.testing.assert_array_equal(got, want)
+        np.testing.assert_allclose(got, want, rtol=TOL, atol=TOL)
 
 
 def test_non_finite_evidence_takes_the_numpy_path(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -80,7 +89,7 @@ def test_non_finite_evidence_takes_the_numpy_path(monkeypatch: pytest.MonkeyPatc
 @pytest.mark.parametrize("kind", ["random", "peaked", "flat", "ties"])
 @pytest.mark.parametrize(("rows", "goals", "k"), [(1, 35, 3), (4, 35, 3), (2, 1, 3), (3, 9, 9),
                                                   (2, 200, 64)])  # fmt: skip
-def test_the_views_have_the_numpy_bits(
+def test_the_views_match_numpy(
     kind: str, rows: int, goals: int, k: int, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     rng = np.random.default_rng(goals + k)
@@ -89,7 +98,7 @@ def test_the_views_have_the_numpy_bits(
         log_b = log_beliefs(rng, rows, goals, kind)
         assert bc.compiled_views(log_b, names, k) is not None
         got, want = both(lambda: belief_views(log_b, names, k), monkeypatch)  # noqa: B023
-        assert got == want  # floats compared with ==
+        same_views(got, want)
 
 
 def test_a_zero_probability_takes_the_numpy_path(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -113,18 +122,11 @@ def test_bad_arguments_are_refused() -> None:
         _belief_row.view_rows(np.zeros((2, 3)), 0)
 
 
-def test_the_environment_switches_to_numpy() -> None:
-    code = "import policy.belief_compiled as b; print(b.COMPILED)"
-    env = {**os.environ, "COEXIST_PYTHON_BELIEF": "1"}
-    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
-    assert out.stdout.split() == ["False"], out.stderr
-
-
 @pytest.mark.parametrize(
     ("goals", "partners", "actions"), [(35, 1, 5), (35, 4, 5), (3, 2, 1), (7, 3, 9)]
 )
 @pytest.mark.parametrize("alpha_kind", ["per goal", "scalar", "tiny"])
-def test_the_log_softmax_table_has_the_engines_numpy_bits(
+def test_the_log_softmax_table_matches_the_engines_numpy(
     goals: int, partners: int, actions: int, alpha_kind: str
 ) -> None:
     """`compiled_log_softmax` against the engine's numpy lines (`goal_inference._scaled`, then
@@ -145,19 +147,6 @@ def test_the_log_softmax_table_has_the_engines_numpy_bits(
         want = z - log_norm[:, :, None]
         got = bc.compiled_log_softmax(q, alpha)
         assert got is not None
-        np.testing.assert_array_equal(got, want)
-
-
-@pytest.mark.parametrize("goals", [1, 8, 35])
-def test_the_mix_adds_in_numpys_order(goals: int) -> None:
-    rng = np.random.default_rng(goals)
-    q = rng.standard_normal((goals + 3, 5)).astype(np.float32)
-    rows = rng.permutation(goals + 3)[:goals].tolist()
-    probs = rng.dirichlet(np.ones(goals)).tolist()
-    terms = np.multiply(np.asarray(probs)[:, None], q[rows], dtype=float)
-    assert (
-        bc.compiled_mix(tuple(probs), q, tuple(rows))
-        == np.add.accumulate(terms, axis=0)[-1].tolist()
-    )
-    with pytest.raises(ValueError, match="rows"):
-        bc.compiled_mix(probs, q, [0] * (goals - 1) + [goals + 3])
+        np.testing.assert_array_equal(np.isfinite(got), np.isfinite(want))
+        finite = np.isfinite(want)
+        np.testing.assert_allclose(got[finite], want[finite], rtol=TOL, atol=TOL)

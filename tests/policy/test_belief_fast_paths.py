@@ -3,10 +3,12 @@
 below, `PreparedUpdate` = `update_log_belief`, `belief_summary` = `top_goals` +
 `belief_entropy`, `blend_goal_weights` = `blend_goal_probs`, `belief_views` = both per row. Random beliefs, likelihoods with
 -inf / NaN / +inf entries, forgetting 1 and floor 0 included (the shortcuts branch on exactly
-those cases)."""
+those cases). The numpy code throughout: the compiled kernel is held to it within a tolerance
+by tests/policy/test_belief_compiled.py."""
 
 from __future__ import annotations
 
+import importlib
 import math
 
 import numpy as np
@@ -31,6 +33,12 @@ CONFIGS = [
     BeliefConfig(forgetting=0.7, floor=0.0),
     BeliefConfig(forgetting=1.0, floor=0.01),
 ]
+
+
+@pytest.fixture(autouse=True)
+def numpy_only(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The numpy shortcuts, not the compiled kernel (`policy.belief_compiled` steps aside)."""
+    monkeypatch.setattr(importlib.import_module("policy.belief_compiled"), "_EXTENSION", None)
 
 
 def _random_log_probs(rng: np.random.Generator, shape: tuple[int, ...], zeros: bool) -> np.ndarray:

@@ -8,15 +8,8 @@ import numpy as np
 import pytest
 
 from policy.blend import blend, blend_vectorised
-from policy.blend_fast import blend_row
 from policy.maths import boltzmann
-from policy.regret_bound import (
-    bound_row,
-    bound_rows,
-    check_regret_bound,
-    keep_goal_row,
-    keep_goal_rows,
-)
+from policy.regret_bound import bound_rows, check_regret_bound, keep_goal_rows
 
 ALPHA = 0.02
 
@@ -52,9 +45,9 @@ def test_blend_matches_the_direct_equation(eps: float) -> None:
     for b in range(len(q_task)):
         expected = direct(q_task[b].tolist(), aail[b].tolist(), ALPHA, eps)
         np.testing.assert_allclose(bounded.probs_BA[b], expected, rtol=0, atol=1e-12)
-        row = blend_row("aail_bounded", q_task[b].tolist(), q_impact[b].tolist(), ALPHA,
-                        regret_bound=eps)  # fmt: skip
-        np.testing.assert_allclose(row.probs_A, expected, rtol=0, atol=1e-12)
+        row = blend("aail_bounded", q_task[b : b + 1], q_impact[b : b + 1], ALPHA,
+                    regret_bound=eps)  # fmt: skip  # one row: the same code, B = 1
+        np.testing.assert_allclose(row.probs_BA[0], expected, rtol=0, atol=1e-12)
     np.testing.assert_allclose(reference.probs_BA, bounded.probs_BA, rtol=0, atol=1e-12)
     # the diagnostics are AAIL's
     np.testing.assert_allclose(
@@ -93,10 +86,10 @@ def test_outside_actions_keep_their_task_probability_by_hand() -> None:
 
 
 def test_no_blend_mass_inside_falls_back_to_the_task_policy() -> None:
-    q_task = [0.0, -1.0, -1.0]
-    assert bound_row([0.0, 0.5, 0.5], q_task, ALPHA, 0.1) == pytest.approx(
-        boltzmann(np.array(q_task), ALPHA).tolist()
-    )
+    q_task = np.array([[0.0, -1.0, -1.0]])
+    probs_task = boltzmann(q_task, ALPHA)
+    got = bound_rows(np.array([[0.0, 0.5, 0.5]]), q_task, probs_task, 0.1)
+    np.testing.assert_allclose(got, probs_task, rtol=0, atol=1e-15)
 
 
 @pytest.mark.parametrize("bad", [-0.1, float("nan"), float("inf"), "0.1", True, None])
@@ -149,6 +142,8 @@ def test_keep_goal_matches_the_direct_equation() -> None:
     for p, k, got in zip(probs, kept, rows, strict=True):
         want = keep_direct(p.tolist(), k.tolist())
         np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-15)
-        np.testing.assert_allclose(keep_goal_row(p.tolist(), k.tolist()), want, rtol=1e-12)
+        one = keep_goal_rows(p[None], k[None])[0]  # one row: the same code, B = 1
+        np.testing.assert_allclose(one, want, rtol=1e-12)
         assert got.sum() == pytest.approx(1.0)
-    assert keep_goal_row([0.2, 0.3, 0.5], [True, False, True]) == [0.2 / 0.7, 0.0, 0.5 / 0.7]
+    one = keep_goal_rows(np.array([[0.2, 0.3, 0.5]]), np.array([[True, False, True]]))
+    np.testing.assert_allclose(one, [[0.2 / 0.7, 0.0, 0.5 / 0.7]], rtol=1e-15)

@@ -11,6 +11,7 @@ from typing import Any
 
 import orjson
 import pytest
+from coexist_client import CoexistClient
 from console_zoo import build_console_zoo
 from fastapi.testclient import TestClient
 from http_live_server import inference_app, live_http_server
@@ -22,7 +23,6 @@ from services.console import STATIC_DIR, is_public
 from services.console.episodes import EpisodeSettings, LiveEpisode
 from services.engine import InferenceEngine
 from services.env_client import run_episodes
-from services.sdk import CoexistClient
 from services.settings import Settings
 
 ADMIN, READ = "console-admin-t0ken", "console-read-t0ken"

@@ -1,6 +1,6 @@
 """services.engine.networks: a stacked group built from the networks' own (in, out) layouts
 (`LoadedNet.row_layers`, made once at load) holds exactly the arrays stacked from their
-tensors, for every partition and layer, with the task network repeated."""
+tensors, for every partition and layer."""
 
 from __future__ import annotations
 
@@ -22,21 +22,16 @@ def test_groups_from_row_layers_equal_groups_from_tensors(tiny_zoo) -> None:
     nets = [load_net(store, store.resolve(f"{name}@production")) for name in names]
     assert all(net.row_layers for net in nets)
     bare = [dataclasses.replace(net, row_layers=()) for net in nets]  # made without load_net
-    for repeats in (1, 4):
-        a, b = build_group(nets, repeats), build_group(bare, repeats)
-        for part_a, part_b in zip(a.partitions, b.partitions, strict=True):
-            assert part_a.first_repeats == part_b.first_repeats
-            for (wa, ba), (wb, bb) in zip(part_a.row_weights, part_b.row_weights, strict=True):
-                np.testing.assert_array_equal(wa, wb)
-                np.testing.assert_array_equal(ba, bb)
-                assert wa.flags.c_contiguous and wa.dtype == np.float32
-            for (wa, ba), (wb, bb) in zip(part_a.weights, part_b.weights, strict=True):
-                np.testing.assert_array_equal(wa, wb)
-                np.testing.assert_array_equal(ba, bb)
-            # the general path's (G, out, in) layout is the tensors' own
-            first = part_a.members[0]
+    a, b = build_group(nets), build_group(bare)
+    for part_a, part_b in zip(a.partitions, b.partitions, strict=True):
+        for (wa, ba), (wb, bb) in zip(part_a.row_weights, part_b.row_weights, strict=True):
+            np.testing.assert_array_equal(wa, wb)
+            np.testing.assert_array_equal(ba, bb)
+            assert wa.flags.c_contiguous and wa.dtype == np.float32
+        # the (in, out) layout is the tensors' own (out, in) transposed, member by member
+        for g, j in enumerate(part_a.members):
             np.testing.assert_array_equal(
-                part_a.weights[0][0][0], nets[first].tensors["layers.0.weight"]
+                part_a.row_weights[0][0][g].T, nets[j].tensors["layers.0.weight"]
             )
 
 
@@ -71,12 +66,12 @@ def test_general_path_layouts_are_remembered(tiny_zoo) -> None:
 
 @pytest.mark.parametrize("batch", [1, 3])
 def test_goal_distributions_mix_as_mix_goal_beliefs_does(tiny_zoo, batch: int) -> None:
-    """`impact_q` mixes equal-size distributions in one einsum over precomputed rows: each
-    partner's expected Q is `mix_goal_beliefs` of its own goals' Q-values, bit for bit (an
-    announced partner and a distribution of another size beside them)."""
+    """`_impact_q` mixes equal-size distributions in one einsum over precomputed rows: each
+    partner's expected Q is `mix_goal_beliefs` of its own goals' Q-values (an announced
+    partner and a distribution of another size beside them)."""
     from policy.blend import mix_goal_beliefs
     from services.engine import ActRequest, InferenceEngine, PartnerSpec
-    from services.engine.assembly import impact_q, member_inputs
+    from services.engine.engine import _impact_q, _inputs, _layout
     from services.engine.networks import forward_group
     from services.engine.validation import check_request
 
@@ -92,10 +87,10 @@ def test_goal_distributions_mix_as_mix_goal_beliefs_does(tiny_zoo, batch: int) -
     request = ActRequest("particle", "a2", rng.random((batch, 20)), partners)
     checked = check_request(request, 4096)
     members, group = engine._resolve_members(request, checked)
-    inputs, layout = member_inputs(checked, members, group)
-    q_members = forward_group(group, inputs)
-    got = impact_q(checked, q_members, layout)
-    assert layout is not None and got.shape == (batch, 4, 5)
+    layout = _layout(checked, members, group)
+    q_members = forward_group(group, _inputs(checked, members, group, layout))
+    got = _impact_q(checked, q_members, layout)
+    assert got.shape == (batch, 4, 5)
     for position, partner in enumerate(checked.partners):
         blocks = [layout.slots[(position, goal)] for goal in partner.goals]
         q_BGA = np.stack([q_members[j][k * batch : (k + 1) * batch] for j, k in blocks], axis=1)
@@ -104,4 +99,4 @@ def test_goal_distributions_mix_as_mix_goal_beliefs_does(tiny_zoo, batch: int) -
             continue
         probs = np.broadcast_to(np.asarray(partner.probs), (batch, 1, len(blocks)))
         want = mix_goal_beliefs(q_BGA[:, None].astype(np.float64), probs)[:, 0]
-        np.testing.assert_array_equal(got[:, position], want)
+        np.testing.assert_allclose(got[:, position], want, rtol=1e-12, atol=1e-12)

@@ -20,7 +20,7 @@ from policy.maths import boltzmann
 from policy.qnet import QNetSpec, qnet_from_safetensors
 from policy.regret_bound import DEFAULT_EPSILON_PER_ALPHA
 from services.engine import ActRequest, InferenceEngine, PartnerSpec
-from services.engine.assembly import sample_actions
+from services.engine.engine import sample_actions
 
 PHANTOM = np.array([0.5, 0.5, 0.0, 0.0])
 PARTNER_GOALS = ("b3", "c1", "d4", "e0")

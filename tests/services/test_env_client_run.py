@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from coexist_client import CoexistClient, GrpcCoexistClient
 from grpc_live_server import LiveServer, live_grpc_server
 from http_live_server import inference_app, live_http_server
 from PIL import Image
@@ -21,7 +22,6 @@ from model_store.sql import SqlModelStore
 from services.engine import ActRequest, InferenceEngine, PartnerSpec
 from services.engine.messages import DEFAULT_METHOD
 from services.env_client import EpisodeResult, agent_seed, mean_se, run_episodes, summarise
-from services.sdk import CoexistClient, GrpcCoexistClient
 
 GOALS = ("a2", "b3", "c")  # ego a2, partners b3 and c
 

@@ -9,12 +9,12 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from coexist_client.jobs import JobsClient
 from http_live_server import live_http_server
 from jobs_fakes import FAIL, OK, SLEEP, TOKEN, fake_jobs_app, wait_for
 from typer.testing import CliRunner, Result
 
 from cli.main import app as coexist
-from services.sdk.jobs import JobsClient
 
 
 @pytest.fixture

@@ -20,6 +20,7 @@ from typing import Any
 
 import httpx
 import pytest
+from coexist_client import GrpcCoexistClient
 from replica_cluster import (
     ADMIN_TOKEN,
     OBS,
@@ -32,7 +33,6 @@ from replica_cluster import (
 )
 
 import services.settings
-from services.sdk import GrpcCoexistClient
 from services.settings import Settings
 
 pytestmark = pytest.mark.postgres

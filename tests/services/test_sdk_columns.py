@@ -10,13 +10,7 @@ from typing import Any
 import httpx
 import numpy as np
 import pytest
-from grpc_live_server import LiveServer, live_grpc_server
-from http_live_server import inference_app, live_http_server
-
-from model_store.sql import SqlModelStore
-from services.engine import ActRequest, InferenceEngine, PartnerSpec
-from services.grpc_api.gen.coexist.v1 import policy_pb2 as pb
-from services.sdk import (
+from coexist_client import (
     Action,
     ActionColumns,
     AsyncCoexistClient,
@@ -26,7 +20,13 @@ from services.sdk import (
     InvalidArgument,
     proto,
 )
-from services.sdk.bodies import act_batch_body
+from coexist_client.bodies import act_batch_body
+from grpc_live_server import LiveServer, live_grpc_server
+from http_live_server import inference_app, live_http_server
+
+from model_store.sql import SqlModelStore
+from services.engine import ActRequest, InferenceEngine, PartnerSpec
+from services.grpc_api.gen.coexist.v1 import policy_pb2 as pb
 
 OBS_BD = np.random.default_rng(7).random((6, 12)) * 0.9
 PARTNERS: dict[int, Any] = {2: {"b3": 0.6, "c": 0.4}, 1: "d4"}

@@ -10,11 +10,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from grpc_live_server import LiveServer, live_grpc_server
-
-from model_store.sql import SqlModelStore
-from services.engine import ActRequest, ActResult, PartnerSpec
-from services.sdk import (
+from coexist_client import (
     Action,
     AsyncGrpcCoexistClient,
     CoexistError,
@@ -23,6 +19,10 @@ from services.sdk import (
     NotFound,
     Unavailable,
 )
+from grpc_live_server import LiveServer, live_grpc_server
+
+from model_store.sql import SqlModelStore
+from services.engine import ActRequest, ActResult, PartnerSpec
 
 OBS_2 = [0.1, 0.4, 0.0, 0.0, 0.7, 0.6, 0.1, -0.1]
 

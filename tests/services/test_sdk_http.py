@@ -10,11 +10,7 @@ from typing import Any
 import httpx
 import numpy as np
 import pytest
-from http_live_server import inference_app, live_http_server
-
-from model_store.sql import SqlModelStore
-from services.engine import ActRequest, ActResult, InferenceEngine, PartnerSpec
-from services.sdk import (
+from coexist_client import (
     Action,
     AsyncCoexistClient,
     CoexistClient,
@@ -23,6 +19,10 @@ from services.sdk import (
     NotFound,
     Unavailable,
 )
+from http_live_server import inference_app, live_http_server
+
+from model_store.sql import SqlModelStore
+from services.engine import ActRequest, ActResult, InferenceEngine, PartnerSpec
 
 OBS_2 = [0.1, 0.4, 0.0, 0.0, 0.7, 0.6, 0.1, -0.1]
 

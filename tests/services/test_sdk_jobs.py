@@ -1,4 +1,4 @@
-"""`services.sdk.jobs.JobsClient` against a real server (uvicorn, loopback) whose runner runs the
+"""`coexist_client.JobsClient` against a real server (uvicorn, loopback) whose runner runs the
 fake trainer: submit, wait, list, logs (whole, tail, followed), cancel, and the typed errors.
 Also the byte-offset log reads the follower relies on (`trainer.jobs.runner.read_log_from`)."""
 
@@ -8,12 +8,12 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from coexist_client import CoexistError, InvalidArgument, NotFound, Unavailable
+from coexist_client.errors import error_for_http
+from coexist_client.jobs import JobInfo, JobsClient
 from http_live_server import live_http_server
 from jobs_fakes import FAIL, OK, SLEEP, TOKEN, fake_jobs_app
 
-from services.sdk import CoexistError, InvalidArgument, NotFound, Unavailable
-from services.sdk.errors import error_for_http
-from services.sdk.jobs import JobInfo, JobsClient
 from trainer.jobs.runner import LOG_NAME, read_log_from
 
 

@@ -12,9 +12,9 @@ from pathlib import Path
 
 import httpx
 import pytest
+from coexist_client import CoexistClient, GrpcCoexistClient
 
 from model_store.sql import SqlModelStore
-from services.sdk import CoexistClient, GrpcCoexistClient
 
 OBS = [0.1, 0.4, 0.0, 0.0, 0.7, 0.6, 0.0, 0.0]
 

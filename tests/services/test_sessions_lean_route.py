@@ -4,6 +4,8 @@ router-level dependencies always run; only endpoints of the supported shape qual
 
 from __future__ import annotations
 
+import ast
+import pathlib
 from collections.abc import Iterator
 from typing import Annotated, Any
 
@@ -13,7 +15,7 @@ import pytest
 from fastapi import APIRouter, Body, Depends, FastAPI, HTTPException, Path, Request, Response
 from fastapi.testclient import TestClient
 
-from services.rest import install_error_handlers, sessions_router
+from services.rest import install_error_handlers, lean_route, sessions_router
 from services.rest.json_body import FastJsonRoute
 from services.rest.lean_route import LeanJsonRoute, direct_call
 from services.rest.session_schemas import SessionStepBody
@@ -96,6 +98,38 @@ def test_router_level_dependencies_still_run() -> None:
     with _client(LeanJsonRoute, dependencies=[Depends(deny)]) as client:
         response = client.post("/v1/items/x/steps", content=b'{"observation": [1]}', headers=JSON)
     assert response.status_code == 403
+
+
+def test_dependencies_of_an_outer_inclusion_still_run() -> None:
+    def deny() -> None:
+        raise HTTPException(403, "no")
+
+    inner = APIRouter(prefix="/v1", route_class=LeanJsonRoute)
+    inner.add_api_route("/items/{item_id}/steps", echo, methods=["POST"])
+    outer = APIRouter(prefix="/outer")
+    outer.include_router(inner)
+    app = FastAPI()
+    app.include_router(outer, dependencies=[Depends(deny)])
+    app.include_router(inner)  # the same route included again without: the direct path
+    with TestClient(app) as client:
+        body = b'{"observation": [1]}'
+        guarded = client.post("/outer/v1/items/x/steps", content=body, headers=JSON)
+        open_ = client.post("/v1/items/x/steps", content=body, headers=JSON)
+    assert guarded.status_code == 403
+    assert open_.status_code == 200 and open_.json()["item_id"] == "x"
+
+
+def test_no_private_fastapi_names_are_read() -> None:
+    tree = ast.parse(pathlib.Path(lean_route.__file__).read_text())
+    imported = [
+        (node.module, alias.name)
+        for node in ast.walk(tree)
+        if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("fastapi")
+        for alias in node.names
+    ]
+    assert imported and not [name for _, name in imported if name.startswith("_")]
+    strings = [n.value for n in ast.walk(tree) if isinstance(n, ast.Constant)]
+    assert not [v for v in strings if isinstance(v, str) and v.startswith("_effective")]
 
 
 def _route(endpoint: Any, **kwargs: Any) -> fastapi.routing.APIRoute:

@@ -106,9 +106,8 @@ def test_a_step_scored_ahead_is_the_step_scored_on_demand(
         served = engine.stats.likelihood_tables_used - before
         previous = (orders * 2)[t - 2] if t > 1 else list(range(1, n_agents))
         # the table is made for the partners the last step observed, in its order; its rows
-        # are independent with the compiled forward, with numpy for <= 3 rows
-        independent = ROWS_INDEPENDENT or (len(previous) <= 3 and len(order) <= 3)
-        servable = order == previous or (independent and set(order) <= set(previous))
+        # are independent with the compiled forward
+        servable = order == previous or (ROWS_INDEPENDENT and set(order) <= set(previous))
         assert served == int(servable), (t, order, previous)
         used += served
     assert used > 0

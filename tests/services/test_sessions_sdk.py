@@ -11,15 +11,7 @@ from typing import Any
 import httpx
 import numpy as np
 import pytest
-from fastapi import FastAPI
-from grpc_live_server import live_grpc_server
-from http_live_server import inference_app, live_http_server
-from session_zoo import random_observation, session_zoo_template
-
-from model_store.sql import SqlModelStore
-from services.engine import InferenceEngine
-from services.rest import sessions_router
-from services.sdk import (
+from coexist_client import (
     AsyncCoexistClient,
     AsyncGrpcCoexistClient,
     CoexistClient,
@@ -30,8 +22,16 @@ from services.sdk import (
     ResourceExhausted,
     SessionStep,
 )
-from services.sdk.errors import error_for_http
-from services.sdk.http_sessions import AFFINITY_HEADER
+from coexist_client.errors import error_for_http
+from coexist_client.sessions import AFFINITY_HEADER
+from fastapi import FastAPI
+from grpc_live_server import live_grpc_server
+from http_live_server import inference_app, live_http_server
+from session_zoo import random_observation, session_zoo_template
+
+from model_store.sql import SqlModelStore
+from services.engine import InferenceEngine
+from services.rest import sessions_router
 from services.sessions import Observed, Session, SessionPartner, SessionSettings
 
 ACTIONS = [None, 3, 3, 1, 0]

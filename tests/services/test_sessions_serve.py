@@ -12,10 +12,9 @@ import sys
 from pathlib import Path
 
 import pytest
+from coexist_client import CoexistClient, CoexistError, GrpcCoexistClient
 from session_zoo import session_zoo_template
 from test_serve_cli import OBS, _free_port, _wait_ready
-
-from services.sdk import CoexistClient, CoexistError, GrpcCoexistClient
 
 
 @pytest.mark.slow

@@ -12,13 +12,12 @@ from pathlib import Path
 
 import httpx
 import pytest
+from coexist_client import CoexistClient, GrpcCoexistClient
+from coexist_client.errors import Unavailable
+from coexist_client.jobs import JobsClient
 from live_serve import serving, zoo_copy
 from replica_cluster import OBS
 from tls_certs import make_tls_files
-
-from services.sdk import CoexistClient, GrpcCoexistClient
-from services.sdk.errors import Unavailable
-from services.sdk.jobs import JobsClient
 
 READ_TOKEN = "tls-read-token-0123456789"
 

@@ -14,6 +14,7 @@ from typing import Any
 import grpc
 import httpx
 import pytest
+from coexist_client import CoexistClient, GrpcCoexistClient
 from grpc_health.v1 import health_pb2, health_pb2_grpc
 from grpc_reflection.v1alpha import reflection_pb2, reflection_pb2_grpc
 from live_serve import serving, zoo_copy
@@ -21,7 +22,6 @@ from replica_cluster import OBS, Server
 
 from services.grpc_api.gen.coexist.v1 import policy_pb2 as pb
 from services.grpc_api.gen.coexist.v1 import policy_pb2_grpc as pb_grpc
-from services.sdk import CoexistClient, GrpcCoexistClient
 
 READ_TOKEN = "read-token-for-the-tests-0123"
 READ = {"Authorization": f"Bearer {READ_TOKEN}"}

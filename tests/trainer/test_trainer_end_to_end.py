@@ -10,8 +10,8 @@ import pytest
 
 from model_store.sql.sql_store import SqlModelStore
 from trainer.config import ImpactConfig, JointConfig, TaskConfig
-from trainer.gates import TaskGate
 from trainer.learners import train_tasks
+from trainer.particle.gates import TaskGate
 from trainer.zoo import RunState, load_task_nets, run_impacts, run_joint, run_tasks
 
 TINY: dict[str, Any] = dict(

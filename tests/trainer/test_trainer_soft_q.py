@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import math
 
 import numpy as np
@@ -103,3 +104,28 @@ def test_replay_ring_buffer_overwrites_oldest_and_samples_per_network() -> None:
     assert batch.obs_GBD.shape == (2, 64, 1)
     assert (batch.obs_GBD[0] < 100).all() and (batch.obs_GBD[1] >= 100).all()
     assert torch.allclose(batch.next_obs_GBD - batch.obs_GBD, torch.full((2, 64, 1), 0.5))
+
+
+def test_hand_written_gradient_matches_autograd() -> None:
+    """The update's gradient of eq. 4 (written out layer by layer) equals autograd's."""
+    learner = StackedSoftQ(
+        SPEC, 3, lr=1e-3, gamma=0.9, alpha=0.05, generator=torch.Generator().manual_seed(5)
+    )
+    batch = _batch(3, size=32)
+    reference = copy.deepcopy(learner.online)
+    with torch.no_grad():
+        target_GB = soft_q_target(
+            batch.rew_GB, learner.target(batch.next_obs_GBD), learner.gamma, learner.alpha
+        )
+    q_GB = reference(batch.obs_GBD).gather(2, batch.act_GB.unsqueeze(-1)).squeeze(-1)
+    (0.5 * (target_GB - q_GB).pow(2).mean(dim=1)).sum().backward()
+    stats = learner.set_gradients(batch)
+    np.testing.assert_allclose(
+        stats.loss_G.numpy(), (0.5 * (target_GB - q_GB).pow(2).mean(dim=1)).detach().numpy(),
+        rtol=1e-6,
+    )  # fmt: skip
+    for (name, mine), theirs in zip(
+        learner.online.named_parameters(), reference.parameters(), strict=True
+    ):
+        assert mine.grad is not None and theirs.grad is not None
+        torch.testing.assert_close(mine.grad, theirs.grad, rtol=1e-5, atol=1e-7, msg=name)

@@ -34,7 +34,8 @@ from model_store.defaults import open_store
 from model_store.store import ModelStore
 from policy.qnet import StackedQNet
 from trainer.config import GATE_RETRIES, ImpactConfig, JointConfig, SoftQConfig, TaskConfig
-from trainer.learners import Kind, TrainedBatch, chunked, train_impacts, train_joint, train_tasks
+from trainer.domain import Kind, TrainedBatch
+from trainer.learners import chunked, train_impacts, train_joint, train_tasks
 from trainer.loop import TrainingCurves
 from trainer.zoo import (
     goals_without,
@@ -228,6 +229,6 @@ def train_batch(
         batch.config,
         batch.seed,
         batch.curves,
-        batch.gates,
+        list(batch.gates),
         [v.ref for v in registered],
     )

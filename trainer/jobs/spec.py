@@ -42,6 +42,7 @@ class JobSpec:
         """Check every field (see the module docstring); return self."""
         from envs.base import check_goal
         from envs.registry import get_domain
+        from trainer.domain import env_trainer
 
         if self.kind not in JOB_KINDS:
             raise InvalidArgument(
@@ -76,11 +77,9 @@ class JobSpec:
         if self.kind == "joint" and not self.combos:
             raise InvalidArgument("combos: a joint job needs at least one", field="combos")
         if self.combos:
-            if self.env == "cooking":
-                raise InvalidArgument(
-                    "combos: the joint-learner baseline is trained for the particle world only",
-                    field="combos",
-                )
+            no_joint = env_trainer(self.env).no_joint_reason
+            if no_joint:
+                raise InvalidArgument(f"combos: {no_joint}", field="combos")
             for combo in (c for c in self.combos.split(",") if c.strip()):
                 goals = [g.strip() for g in combo.split("+")]
                 if not 2 <= len(goals) <= 5:

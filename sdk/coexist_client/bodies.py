@@ -1,0 +1,271 @@
+"""Request bodies shared by every SDK client: the REST API's JSON, which the gRPC clients translate.
+
+Partners may be given as
+
+| form                                   | meaning                                          |
+|----------------------------------------|--------------------------------------------------|
+| `{1: "b3"}`                            | partner at index 1 announced goal b3             |
+| `{1: {"b3": 0.7, "c": 0.3}}`           | a distribution over partner 1's goals            |
+| `[PartnerSpec(1, goal="b3"), ...]`     | objects with `index`, `goal`, `goal_probs`       |
+| `[{"index": 1, "goal": "b3"}, ...]`    | the REST JSON form                               |
+| `{1: None}`                            | sessions and episodes: infer partner 1's goal    |
+|                                        | (uniform prior); `infer=[1]` with a goal above   |
+|                                        | makes that goal the prior instead                |
+
+A session step's `observed` (the partners' actions since the previous step) may be given as
+`{1: 3}` (partner 1 took action 3; `None`: the server recovers it from the observations) or as a
+list of `{"index": 1, "action": 3}` / objects with `index` and `action`.
+
+Observations are checked here for shape and finiteness (JSON cannot carry NaN or inf); every
+other check is the server's, so the SDK and the server cannot disagree about what is valid.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from coexist_client.errors import InvalidArgument
+
+# The values are `str | Mapping[str, float]`; typed `Any` so mixed dict literals type-check.
+Partners = Mapping[int, Any] | Sequence[Any] | None
+
+
+def _bad(field: str, message: str) -> InvalidArgument:
+    return InvalidArgument("invalid_argument", f"{field}: {message}", field)
+
+
+def _partner_from_object(item: Any, field: str) -> dict[str, Any]:
+    if isinstance(item, Mapping):
+        index, goal, goal_probs = item.get("index"), item.get("goal"), item.get("goal_probs")
+    elif hasattr(item, "index"):
+        index = item.index
+        goal, goal_probs = getattr(item, "goal", None), getattr(item, "goal_probs", None)
+    else:
+        raise _bad(field, f"expected a partner spec (index, goal or goal_probs), got {item!r}")
+    infer = item.get("infer") if isinstance(item, Mapping) else getattr(item, "infer", None)
+    spec: dict[str, Any] = {"index": index}
+    if goal is not None:
+        spec["goal"] = goal
+    if goal_probs is not None:
+        spec["goal_probs"] = dict(goal_probs)
+    if infer:
+        spec["infer"] = True
+    return spec
+
+
+def normalise_partners(partners: Partners, *, infer_allowed: bool = False) -> list[dict[str, Any]]:
+    """Partners in the REST JSON form, `[{"index": 1, "goal": "b3"}, ...]`; `{i: None}` (infer
+    the goal) only with `infer_allowed` (sessions and episodes)."""
+    if partners is None:
+        return []
+    if isinstance(partners, Mapping):
+        specs = []
+        for index, goal in partners.items():
+            if isinstance(goal, str):
+                specs.append({"index": index, "goal": goal})
+            elif isinstance(goal, Mapping):
+                specs.append({"index": index, "goal_probs": dict(goal)})
+            elif goal is None and infer_allowed:  # nothing announced: the server infers it
+                specs.append({"index": index, "infer": True})
+            else:
+                also = "" if infer_allowed else " (None, to infer the goal: sessions and episodes)"
+                raise _bad(
+                    f"partners[{index}]",
+                    f"expected a goal or goal probabilities{also}, got {goal!r}",
+                )
+        return specs
+    if isinstance(partners, str | bytes):
+        raise _bad("partners", "expected a mapping or a list of partner specs, got a string")
+    return [_partner_from_object(p, f"partners[{k}]") for k, p in enumerate(partners)]
+
+
+def _finite_rows(values: Any, field: str, ndim: int) -> list[Any]:
+    try:
+        array = np.asarray(values, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise _bad(field, f"expected a {ndim}-D array of numbers") from None
+    if array.ndim != ndim:
+        raise _bad(field, f"expected a {ndim}-D array of numbers, got shape {array.shape}")
+    if not np.all(np.isfinite(array)):
+        bad = np.argwhere(~np.isfinite(array))[0].tolist()
+        where = "".join(f"[{i}]" for i in bad)
+        raise _bad(f"{field}{where}", "expected a finite number (NaN and inf are refused)")
+    rows: list[Any] = array.tolist()
+    return rows
+
+
+def _settings(
+    env: str,
+    ego_goal: str,
+    partners: Partners,
+    method: str,
+    temperature: float | None,
+    seed: int | None,
+    alias: str,
+    versions: Mapping[str, int] | None,
+    regret_bound: float | None = None,
+) -> dict[str, Any]:
+    for name, value in (("temperature", temperature), ("regret_bound", regret_bound)):
+        if value is not None and not math.isfinite(value):
+            raise _bad(name, "expected a finite number")
+    return {
+        "env": env,
+        "ego_goal": ego_goal,
+        "partners": normalise_partners(partners),
+        "method": method,
+        "temperature": temperature,
+        "regret_bound": regret_bound,
+        "seed": seed,
+        "alias": alias,
+        "versions": dict(versions or {}),
+    }
+
+
+def act_body(
+    env: str,
+    ego_goal: str,
+    observation: Any = None,
+    *,
+    state: Any = None,
+    ego_index: int = 0,
+    partners: Partners = None,
+    method: str = "aail_bounded",
+    temperature: float | None = None,
+    regret_bound: float | None = None,
+    seed: int | None = None,
+    alias: str = "production",
+    versions: Mapping[str, int] | None = None,
+) -> dict[str, Any]:
+    """The JSON body of `POST /v1/act`."""
+    body = _settings(
+        env, ego_goal, partners, method, temperature, seed, alias, versions, regret_bound
+    )
+    body.update(observation_fields(observation, state, ego_index))
+    return body
+
+
+def observation_fields(observation: Any, state: Any, ego_index: int) -> dict[str, Any]:
+    """`{"observation": [...]}` or `{"state": [[...], ...], "ego_index": i}` (exactly one given)."""
+    if (observation is None) == (state is None):
+        raise _bad("observation", "give exactly one of observation and state (+ ego_index)")
+    if observation is not None:
+        return {"observation": _finite_rows(observation, "observation", 1)}
+    return {"state": _finite_rows(state, "state", 2), "ego_index": ego_index}
+
+
+def act_batch_body(
+    env: str,
+    ego_goal: str,
+    observations: Any = None,
+    *,
+    states: Any = None,
+    ego_index: int = 0,
+    partners: Partners = None,
+    method: str = "aail_bounded",
+    temperature: float | None = None,
+    regret_bound: float | None = None,
+    seed: int | None = None,
+    alias: str = "production",
+    versions: Mapping[str, int] | None = None,
+    columns: bool = False,
+) -> dict[str, Any]:
+    """The JSON body of `POST /v1/act:batch`; `columns`: ask for the columnar answer."""
+    body = _settings(
+        env, ego_goal, partners, method, temperature, seed, alias, versions, regret_bound
+    )
+    if columns:
+        body["format"] = "columns"
+    if (observations is None) == (states is None):
+        raise _bad("observations", "give exactly one of observations and states (+ ego_index)")
+    if observations is not None:
+        body["observations"] = _finite_rows(observations, "observations", 2)
+    else:
+        body["states"] = _finite_rows(states, "states", 3)
+        body["ego_index"] = ego_index
+    return body
+
+
+def _inferring(partners: Partners, infer: Sequence[int]) -> list[dict[str, Any]]:
+    """Partners in JSON form with `infer` set on the indices in `infer` (added if absent)."""
+    specs = normalise_partners(partners, infer_allowed=True)
+    wanted = list(infer)
+    for spec in specs:
+        if spec["index"] in wanted:
+            spec["infer"] = True
+    known = {spec["index"] for spec in specs}
+    specs += [{"index": i, "infer": True} for i in wanted if i not in known]
+    return specs
+
+
+def session_body(
+    env: str,
+    ego_goal: str,
+    *,
+    partners: Partners = None,
+    infer: Sequence[int] = (),
+    method: str = "aail_bounded",
+    temperature: float | None = None,
+    regret_bound: float | None = None,
+    seed: int | None = None,
+    alias: str = "production",
+    versions: Mapping[str, int] | None = None,
+    belief: Mapping[str, Any] | None = None,
+) -> dict[str, Any]:
+    """The JSON body of `POST /v1/sessions` (also an Episode's settings): `act_body`'s
+    fields without the observation, `infer` marked on partners, plus `belief` (forgetting, floor, temperature,
+    blend_mass, blend_max_goals; left out: the server's defaults)."""
+    body = _settings(env, ego_goal, None, method, temperature, seed, alias, versions, regret_bound)
+    body["partners"] = _inferring(partners, infer)
+    if belief is not None:
+        if not isinstance(belief, Mapping):
+            raise _bad("belief", f"expected a mapping (forgetting, floor, ...), got {belief!r}")
+        body["belief"] = {k: v for k, v in belief.items() if v is not None}
+    return body
+
+
+Observed = Mapping[int, Any] | Sequence[Any] | None
+
+
+def observed_entries(observed: Observed) -> list[dict[str, Any]]:
+    """`observed` in the REST JSON form, `[{"index": 1, "action": 3}, ...]` (module docstring)."""
+    if observed is None:
+        return []
+    if isinstance(observed, Mapping):
+        items = [{"index": index, "action": action} for index, action in observed.items()]
+    elif isinstance(observed, str | bytes):
+        raise _bad("observed", "expected a mapping of partner index to action, or a list")
+    else:
+        items = []
+        for j, entry in enumerate(observed):
+            if isinstance(entry, Mapping):
+                items.append({"index": entry.get("index"), "action": entry.get("action")})
+            elif hasattr(entry, "index"):
+                items.append({"index": entry.index, "action": getattr(entry, "action", None)})
+            else:
+                raise _bad(f"observed[{j}]", f"expected {{index, action}}, got {entry!r}")
+    return [{k: v for k, v in item.items() if v is not None} for item in items]
+
+
+def step_body(
+    observation: Any = None,
+    *,
+    state: Any = None,
+    ego_index: int = 0,
+    observed: Observed = None,
+    expected_step: int | None = None,
+) -> dict[str, Any]:
+    """The JSON body of `POST /v1/sessions/{id}/steps`."""
+    body = observation_fields(observation, state, ego_index)
+    body["observed"] = observed_entries(observed)
+    if expected_step is not None:
+        body["expected_step"] = expected_step
+    return body
+
+
+def step_seed(seed: int | None, step: int) -> int | None:
+    """The seed of step `step` of an episode: seed + step (the `Episode` stream's rule)."""
+    return None if seed is None else seed + step

@@ -1,0 +1,220 @@
+"""Quality gates: is a trained network good enough to be served (`production`)?
+
+Task gate (per goal g), on `eval_episodes` seeded random starts, a partner heading for a random
+goal with the scripted controller (deterministic, so every run below sees the same partner):
+- success: share of episodes in which the ego reaches its target area, sampling its actions from
+  the Boltzmann policy at the training α (what the server returns), must be ≥ `success_threshold`;
+- return: the mean *own-target* return (−Σ_t distance to its target area: the part of the reward
+  the ego's actions control; the influence part depends only on the partner, identical in every
+  run) of the network's greedy policy must be within max(`return_margin` × |scripted|,
+  `return_slack`) of the scripted straight-to-target controller's on the same starts. Greedy,
+  because this compares what the network *learned* with a deterministic controller; sampling
+  noise at α is measured by the success rate and reported (`sampled_own_target_return`).
+
+Impact gate (per partner goal h), two checks that must both pass:
+- helps: on seeded random starts the partner acts with its task network; the partner's mean
+  return with the impact-driven ego must exceed its mean return with an ego that rests (action 0)
+  on the same starts;
+- directions (`trainer.particle.directions`): from states spread over the world, the network's
+  preferred push must raise the partner's value where that value says a push helps, and no push
+  it clearly needs may be dead. Episodes alone passed networks that never pushed left or down.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+import torch
+
+from envs.particle.batched import BatchedParticleWorld
+from envs.particle.domain import PARTICLE
+from envs.particle.goals import GOAL_IDS, TARGET_BOXES_G4
+from envs.particle.scripted import scripted_actions
+from envs.particle.world import box_distance, in_target, observations, random_states
+from policy.qnet import StackedQNet
+from policy.torch_ops import sample_boltzmann_t
+from trainer.config import ImpactConfig, TaskConfig
+from trainer.particle.directions import dead_pushes, direction_checks
+
+# (state_BN4, obs_BND) -> actions_BN
+EgoPolicy = Callable[[np.ndarray, np.ndarray], np.ndarray]
+
+
+@dataclass(frozen=True)
+class TaskGate:
+    goal: str
+    success_rate: float
+    mean_return: float
+    own_target_return: float
+    scripted_own_target_return: float
+    passed: bool
+    sampled_own_target_return: float = float("nan")
+    FAILURE_NOTE: ClassVar[str] = ""
+
+    def metrics(self) -> dict[str, Any]:
+        return asdict(self)
+
+    def summary_cells(self) -> list[str]:
+        """Success rate, own-target return, the scripted controller's."""
+        return [
+            f"{self.success_rate:.0%}",
+            f"{self.own_target_return:.2f} (own target)",
+            f"{self.scripted_own_target_return:.2f} (scripted)",
+        ]
+
+
+@dataclass(frozen=True)
+class ImpactGate:
+    goal: str
+    partner_return: float
+    partner_return_resting_ego: float
+    passed: bool
+    toward_share: float  # `trainer.particle.directions`
+    push_recall: dict[str, float | None]
+    dead_pushes: tuple[str, ...]  # pushes whose recall falls short
+    FAILURE_NOTE: ClassVar[str] = ""
+
+    def metrics(self) -> dict[str, Any]:
+        return asdict(self)
+
+    def summary_cells(self) -> list[str]:
+        """Direction gate, the partner's return beside this network, beside a resting ego."""
+        dead = f", dead: {'/'.join(self.dead_pushes)}" if self.dead_pushes else ""
+        return [
+            f"{self.toward_share:.0%} toward{dead}",
+            f"{self.partner_return:.2f} (partner)",
+            f"{self.partner_return_resting_ego:.2f} (resting ego)",
+        ]
+
+
+def _grouped_q(nets: StackedQNet, views_BD: np.ndarray, n_nets: int) -> torch.Tensor:
+    views = torch.from_numpy(views_BD.astype(np.float32)).reshape(n_nets, -1, views_BD.shape[-1])
+    with torch.no_grad():
+        return nets(views)
+
+
+def _run(
+    world: BatchedParticleWorld,
+    goals_BN: np.ndarray,
+    starts: np.ndarray,
+    steps: int,
+    policy: EgoPolicy,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per env: ego return, partner return, ego's own-target return, whether it reached its target."""
+    world.reset(starts.copy())
+    n_envs = starts.shape[0]
+    returns_BN = np.zeros((n_envs, starts.shape[1]))
+    own_B = np.zeros(n_envs)
+    reached_B = np.zeros(n_envs, dtype=bool)
+    target_B4 = TARGET_BOXES_G4[goals_BN[:, 0]]
+    for _ in range(steps):
+        result = world.step(policy(world.state, observations(world.state)))
+        returns_BN += result.rewards_BN
+        own_B -= box_distance(world.state[:, 0, :2], target_B4)
+        reached_B |= in_target(world.state, goals_BN)[:, 0]
+    return returns_BN[:, 0], returns_BN[:, 1], own_B, reached_B
+
+
+def task_gates(
+    nets: StackedQNet, goals: Sequence[int], config: TaskConfig, seed: int
+) -> list[TaskGate]:
+    """Evaluate G task networks (member g learned goals[g]) against the scripted controller."""
+    n_nets, n_eps = len(goals), config.eval_episodes
+    rng = np.random.default_rng(seed)
+    goals_BN = np.stack(
+        [np.repeat(np.asarray(goals), n_eps), rng.integers(0, len(GOAL_IDS), n_nets * n_eps)], 1
+    )
+    starts = random_states(rng, (n_nets * n_eps,), 2)
+    world = BatchedParticleWorld(goals_BN, max_steps=config.eval_steps + 1, seed=seed)
+    generator = torch.Generator().manual_seed(seed)
+
+    def learned(greedy: bool) -> EgoPolicy:
+        def policy(state_BN4: np.ndarray, obs_BND: np.ndarray) -> np.ndarray:
+            q = _grouped_q(nets, PARTICLE.task_views(obs_BND[:, 0], 2)[:, 0], n_nets)
+            acts = q.argmax(-1) if greedy else sample_boltzmann_t(q, config.alpha, generator)
+            partner = scripted_actions(state_BN4, goals_BN)[:, 1]
+            return np.stack([acts.numpy().reshape(-1), partner], axis=1)
+
+        return policy
+
+    def scripted(state_BN4: np.ndarray, obs_BND: np.ndarray) -> np.ndarray:
+        return scripted_actions(state_BN4, goals_BN)
+
+    ret, _, sampled_own, reached = _run(world, goals_BN, starts, config.eval_steps, learned(False))
+    _, _, own, _ = _run(world, goals_BN, starts, config.eval_steps, learned(True))
+    _, _, ref, _ = _run(world, goals_BN, starts, config.eval_steps, scripted)
+    gates = []
+    for g, goal in enumerate(goals):
+        part = slice(g * n_eps, (g + 1) * n_eps)
+        success, own_mean, ref_mean = reached[part].mean(), own[part].mean(), ref[part].mean()
+        allowed = max(config.return_margin * abs(ref_mean), config.return_slack)
+        close_enough = own_mean >= ref_mean - allowed
+        passed = bool(success >= config.success_threshold and close_enough)
+        gates.append(
+            TaskGate(
+                goal=GOAL_IDS[goal],
+                success_rate=float(success),
+                mean_return=float(ret[part].mean()),
+                own_target_return=float(own_mean),
+                scripted_own_target_return=float(ref_mean),
+                passed=passed,
+                sampled_own_target_return=float(sampled_own[part].mean()),
+            )
+        )
+    return gates
+
+
+def impact_gates(
+    impact_nets: StackedQNet,
+    partner_task_nets: StackedQNet,
+    partner_goals: Sequence[int],
+    config: ImpactConfig,
+    seed: int,
+) -> list[ImpactGate]:
+    """Does each impact network raise its partner's return over a resting ego, and push where
+    the partner's value says it should (module docstring)?"""
+    n_nets, n_eps = len(partner_goals), config.eval_episodes
+    rng = np.random.default_rng(seed)
+    partner_B = np.repeat(np.asarray(partner_goals), n_eps)
+    goals_BN = np.stack([partner_B, partner_B], 1)
+    world = BatchedParticleWorld(goals_BN, max_steps=config.eval_steps + 1, seed=seed)
+    starts = random_states(rng, (n_nets * n_eps,), 2)
+
+    def make_policy(ego_acts: bool) -> EgoPolicy:
+        generator = torch.Generator().manual_seed(seed)
+
+        def policy(state_BN4: np.ndarray, obs_BND: np.ndarray) -> np.ndarray:
+            q_p = _grouped_q(partner_task_nets, PARTICLE.partner_view(obs_BND[:, 0], 2, 1), n_nets)
+            partner = sample_boltzmann_t(q_p, config.alpha, generator).numpy().reshape(-1)
+            if ego_acts:
+                q_i = _grouped_q(impact_nets, PARTICLE.impact_view(obs_BND[:, 0], 2, 1), n_nets)
+                ego = sample_boltzmann_t(q_i, config.alpha, generator).numpy().reshape(-1)
+            else:
+                ego = np.zeros_like(partner)
+            return np.stack([ego, partner], axis=1)
+
+        return policy
+
+    _, with_impact, _, _ = _run(world, goals_BN, starts, config.eval_steps, make_policy(True))
+    _, resting, _, _ = _run(world, goals_BN, starts, config.eval_steps, make_policy(False))
+    directions = direction_checks(impact_nets, partner_task_nets, config, seed)
+    gates = []
+    for g, goal in enumerate(partner_goals):
+        part = slice(g * n_eps, (g + 1) * n_eps)
+        helped, idle = with_impact[part].mean(), resting[part].mean()
+        check = directions[g]
+        gates.append(
+            ImpactGate(
+                goal=GOAL_IDS[goal],
+                partner_return=float(helped),
+                partner_return_resting_ego=float(idle),
+                passed=bool(helped > idle and check.passed),
+                toward_share=check.toward_share,
+                push_recall=check.push_recall,
+                dead_pushes=tuple(dead_pushes(check, config)),
+            )
+        )
+    return gates
