@@ -40,14 +40,14 @@ def test_the_sdk_wheel_works_alone_against_a_real_server(tmp_path: Path) -> None
     )  # fmt: skip
     folder = tmp_path / "server"
     with serving(folder, build_console_zoo(folder / "models.db")) as server:
+        with Client(server.http_url) as client:  # before the script promotes a version 2
+            want = client.act("particle", "a2", OBS, partners={1: "b3"}, seed=7)
         done = subprocess.run(
             [str(python), str(REPO / "tests" / "services" / "sdk_install_script.py"),
              server.http_url, server.grpc_target, ADMIN_TOKEN],
             capture_output=True, text=True, timeout=120, check=False, cwd=tmp_path,
         )  # fmt: skip
         assert done.returncode == 0, done.stderr[-3000:]
-        with Client(server.http_url) as client:
-            want = client.act("particle", "a2", OBS, partners={1: "b3"}, seed=7)
     got = json.loads(done.stdout)
     assert got["server_modules_found"] == []
     assert got["act_http"] == pytest.approx(list(want.probs), abs=1e-12)
