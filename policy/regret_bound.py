@@ -48,7 +48,7 @@ return, so its exact task Q is the same for every action. A trained network is o
 that: in the kitchen its residual preferences after the dish (a few α) are approximation error,
 yet eq. 9 reads them as confidence and keeps the impact network out. There the engine blends
 with the row's task Q replaced by its mean over the actions (`services.engine.engine.
-finished_rows`): π_t is uniform, w_t = 0 (eq. 9), every action lies in S_ε, and π_B is the
+aail_bounded_guard`): π_t is uniform, w_t = 0 (eq. 9), every action lies in S_ε, and π_B is the
 impact networks' blend. The ego's regret is exactly 0 there, so the bound still holds.
 
 Keeping the goal (R4). Where the goal is reached but can be lost (the particle world's target

@@ -158,7 +158,7 @@ class InferenceEngine:
         else:  # the task Q averaged over the K task views (one per other agent)
             q_task_BA = q_members[0].reshape(batch, -1, n_actions).mean(axis=1)
         q_task_BA = q_task_BA.astype(np.float64)
-        finished_B = finished_rows(request, checked)
+        epsilon_B, finished_B = aail_bounded_guard(request, group, checked)
         if finished_B is not None:  # R3: nothing left to earn, the exact task Q is flat
             flat_BA = np.broadcast_to(q_task_BA.mean(axis=1, keepdims=True), q_task_BA.shape)
             q_task_BA = np.where(finished_B[:, None], flat_BA, q_task_BA)
@@ -170,7 +170,6 @@ class InferenceEngine:
         if not (np.isfinite(q_task_BA).all() and np.isfinite(q_impact_BPA).all()):
             raise InvalidRequest("observations", "values so large that the Q-values overflow")
         temperature = request.temperature or group.nets[0].alpha or DEFAULT_TEMPERATURE
-        epsilon_B = regret_bound_of(request, group, checked)
         blended = blend_checked(
             blend_method,
             q_task_BA,
@@ -492,37 +491,28 @@ def sample_actions(probs_BA: np.ndarray, rng: np.random.Generator) -> np.ndarray
     return np.minimum((cdf_BA <= u_B1).sum(axis=1), probs_BA.shape[1] - 1)
 
 
-def regret_bound_of(
+def aail_bounded_guard(
     request: ActRequest, group: StackedGroup, checked: CheckedRequest
-) -> np.ndarray | None:
-    """ε of `aail_bounded` per row, (B,) (`policy.regret_bound`): the request's, else
-    `DEFAULT_EPSILON_PER_ALPHA` × the task network's training α; 0 on the rows where the
-    environment tells that the ego's own goal is not reached yet (the progress guard, R2).
-    None for the other methods."""
+) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """What `aail_bounded` needs from the environment (`policy.regret_bound`), one
+    `goal_reached` call for both: ε per row, (B,) (the request's, else
+    `DEFAULT_EPSILON_PER_ALPHA` × the task network's training α; 0 where the ego's own goal is
+    not reached yet, R2), and the rows, (B,) bool, whose goal is reached for good
+    (`Domain.goal_is_final`: a served dish), where the task Q is flat (R3; None where no row
+    is). (None, None) for the other methods."""
     if request.method != "aail_bounded":
-        return None
+        return None, None
     if request.regret_bound is not None:
         epsilon = float(request.regret_bound)
     else:
         epsilon = DEFAULT_EPSILON_PER_ALPHA * float(group.nets[0].alpha or DEFAULT_TEMPERATURE)
-    runtime = checked.runtime
-    reached = runtime.domain.goal_reached(checked.obs_BD, checked.n_agents, request.ego_goal)
-    if reached is None:
-        return np.full(checked.obs_BD.shape[0], epsilon)
-    return np.where(reached, epsilon, 0.0)
-
-
-def finished_rows(request: ActRequest, checked: CheckedRequest) -> np.ndarray | None:
-    """Rows, (B,) bool, where `aail_bounded` blends with a flat task Q (R3 of
-    `policy.regret_bound`): the environment tells that the ego's goal is reached for good
-    (`Domain.goal_is_final`: a served dish). None where no row is (and for the other methods)."""
     domain = checked.runtime.domain
-    if request.method != "aail_bounded" or not domain.goal_is_final:
-        return None
     reached = domain.goal_reached(checked.obs_BD, checked.n_agents, request.ego_goal)
-    if reached is None or not reached.any():
-        return None
-    return np.asarray(reached, dtype=bool)
+    if reached is None:
+        return np.full(checked.obs_BD.shape[0], epsilon), None
+    reached_B = np.asarray(reached, dtype=bool)
+    finished_B = reached_B if domain.goal_is_final and reached_B.any() else None
+    return np.where(reached_B, epsilon, 0.0), finished_B
 
 
 def goal_kept_of(
