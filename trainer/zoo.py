@@ -146,15 +146,31 @@ def run_tasks(
         failed = goals_without(store, env, "task", goals, serve_alias)
         if key in run.done or not failed:
             continue
-        batch = train_tasks(
-            failed,
-            config,
-            seed=seed + 7919 * attempt,  # a fresh seed per attempt, still deterministic
-            progress=progress(f"task retry {attempt}: {','.join(failed)}", config.total_steps),
-        )
-        run.record(key, publish_batch(store, batch, env=env, serve_alias=serve_alias))
-        batches.append(batch)
+        halves = retry_halves(failed)
+        retry_jobs = [
+            BatchJob(
+                f"task retry {attempt}: {','.join(half)}",
+                config.total_steps,
+                train_tasks,
+                (half, config),
+                {"seed": seed + 7919 * attempt + i},  # a fresh seed per attempt, deterministic
+            )
+            for i, half in enumerate(halves)
+        ]
+        trained = train_batches(retry_jobs, workers=workers, progress=progress)
+        for i, batch in enumerate(trained):
+            versions = publish_batch(store, batch, env=env, serve_alias=serve_alias)
+            run.record(f"{key}:{i}", versions)
+            batches.append(batch)
+        run.record(key, [])  # its halves' versions are recorded under their own keys
     return batches
+
+
+def retry_halves(failed: Sequence[str]) -> list[list[str]]:
+    """The goals of a gate retry as two batches (one when a single goal failed): with two
+    workers the halves train at once instead of one batch leaving a core idle. The split
+    depends on the failed goals alone, so the networks never depend on the number of workers."""
+    return chunked(list(failed), (len(failed) + 1) // 2) if failed else []
 
 
 def run_impacts(
@@ -200,10 +216,15 @@ def run_impacts(
         failed = goals_without(store, env, "impact", trainable, "production")
         if key in run.done or not failed:
             continue
-        label = f"impact retry {attempt}: {','.join(failed)}"
         retry_seed = seed + 1000 + 7919 * attempt  # a fresh seed per attempt, still deterministic
-        retry = [(failed, retry_seed, label, key)]
-        batches += _impact_batches(store, retry, config, run=run, progress=progress, env=env)
+        retry = [
+            (half, retry_seed + i, f"impact retry {attempt}: {','.join(half)}", f"{key}:{i}")
+            for i, half in enumerate(retry_halves(failed))
+        ]
+        batches += _impact_batches(
+            store, retry, config, run=run, progress=progress, env=env, workers=workers
+        )
+        run.record(key, [])  # its halves' versions are recorded under their own keys
     return batches
 
 

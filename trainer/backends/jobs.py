@@ -11,10 +11,10 @@ through the store as safetensors only).
 | kind       | members of one job                   | seed (as in `trainer.zoo`) | run key            |
 |------------|--------------------------------------|----------------------------|--------------------|
 | task       | up to `goals_per_batch` goals        | seed + batch index         | `task:a2,b3`       |
-| task retry | the goals whose network failed its   | seed + 7919 x attempt      | `task-retry-1`     |
-|            | gate (none left: no job)             |                            |                    |
+| task retry | the goals whose network failed its   | seed + 7919 x attempt + i  | `task-retry-1:0`   |
+|            | gate, in two halves i (none: no job) |                            | `task-retry-1:1`   |
 | impact     | up to `goals_per_batch` goals        | seed + 1000 + batch index  | `impact:a2,b3`     |
-| impact retry | as the task retry                  | seed + 1000 + 7919 x attempt | `impact-retry-1` |
+| impact retry | as the task retry                  | seed + 1000 + 7919 x attempt + i | `impact-retry-1:0` |
 | joint      | every combination of one size        | seed + 2000 + size         | `joint:a2+b3;c+c4` |
 
 Stages run in order (tasks and their gate retries, then impacts, then joint): an impact job
@@ -41,6 +41,7 @@ from trainer.zoo import (
     goals_without,
     load_task_nets,
     production_parents_required,
+    retry_halves,
     warn_unserved_parents,
 )
 
@@ -95,14 +96,18 @@ def task_stage(
     return Stage(tuple(jobs), config, gate_retries, tuple(goals), seed)
 
 
-def retry_job(stage: Stage, attempt: int, failed: Sequence[str]) -> BatchJob:
+def retry_jobs(stage: Stage, attempt: int, failed: Sequence[str]) -> list[BatchJob]:
     """Attempt `attempt` (1, 2 ...) at the goals of a task or impact `stage` whose network
-    failed its gate (the seed and key of `trainer.zoo.run_tasks` / `run_impacts`)."""
+    failed its gate, in two halves (the seeds and keys of `trainer.zoo.run_tasks` /
+    `run_impacts`, `trainer.zoo.retry_halves`)."""
     kind = stage.jobs[0].kind
     offset = IMPACT_SEED_OFFSET if kind == "impact" else 0
     seed = stage.seed + offset + RETRY_SEED_STEP * attempt  # a fresh seed per attempt
-    index = len(stage.jobs) + attempt - 1
-    return BatchJob(kind, _members(failed), seed, index, f"{kind}-retry-{attempt}")
+    index = len(stage.jobs) + 2 * (attempt - 1)
+    return [
+        BatchJob(kind, _members(half), seed + i, index + i, f"{kind}-retry-{attempt}:{i}")
+        for i, half in enumerate(retry_halves(failed))
+    ]
 
 
 def impact_stage(

@@ -43,7 +43,7 @@ from .jobs import (
     BatchOutcome,
     Stage,
     impact_jobs_with_parents,
-    retry_job,
+    retry_jobs,
     train_batch,
 )
 from .once import RegisteredHook
@@ -149,8 +149,10 @@ def run_on_ray(
                     alias = serve_alias if kind == "task" else "production"
                     failed = goals_without(store, env, kind, goals, alias)
                 if failed:
-                    retry = retry_job(stage, attempt, failed)
-                    outcomes += run_jobs([retry], stage.config)
+                    retry = [j for j in retry_jobs(stage, attempt, failed) if j.key not in run.done]
+                    outcomes += run_jobs(retry, stage.config) if retry else []
+                    run.done[f"{kind}-retry-{attempt}"] = []  # its halves are recorded as they end
+                    run.save()
     finally:
         if started_here:
             ray.shutdown()
