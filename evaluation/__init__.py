@@ -1,10 +1,13 @@
 """The experiments: their statistics, plots and reports (`coexist eval --suite ...`).
 
 One folder per suite (`paper/`: the particle experiments, §4.2; `inference/`: online goal
-inference; `cooking/`: the kitchen, §4.4), over the parts they share:
+inference; `cooking/`: the kitchen, §4.4), each with a `command.py` implementing `base.Suite`,
+over the parts they share:
 
 | module       | what                                                                       |
 |--------------|----------------------------------------------------------------------------|
+| `base`       | `Suite`, what a suite implements, and `EvalOptions`, the CLI's options     |
+| `suites`     | `SUITES`: the suites by name (`coexist eval --suite NAME`)                 |
 | `config`     | scenarios, methods, episode counts and seeds of the particle suite          |
 | `backend`    | action distributions from the in-process engine or a server (SDK)          |
 | `rollout`    | paired, vectorised episodes in one batched world (common random numbers)   |

@@ -22,11 +22,12 @@ partner calls gather thousands of rows.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Protocol
 
 import numpy as np
 
+from model_store.store import ModelStore
 from services.engine import ActRequest, InferenceEngine, ModelNotFound
 
 
@@ -52,18 +53,7 @@ MAX_ROWS = 4096  # the engine's and the server's default batch limit
 
 
 def _rows(request: ActRequest, start: int, stop: int) -> ActRequest:
-    return ActRequest(
-        env=request.env,
-        ego_goal=request.ego_goal,
-        observations=np.asarray(request.observations)[start:stop],
-        partners=request.partners,
-        method=request.method,
-        temperature=request.temperature,
-        seed=request.seed,
-        alias=request.alias,
-        versions=request.versions,
-        regret_bound=request.regret_bound,
-    )
+    return replace(request, observations=np.asarray(request.observations)[start:stop])
 
 
 def _first_row(request: ActRequest) -> ActRequest:
@@ -143,6 +133,15 @@ class ServerBackend:
         except NotFound:
             return False
         return True
+
+
+def policy_backend(server: str | None, store: ModelStore | None) -> PolicyBackend:
+    """The server at `server` (`server_backend`), else the in-process engine over `store`."""
+    if server is not None:
+        return server_backend(server)
+    if store is None:
+        raise ValueError("store: the in-process engine needs a model store (or give a server)")
+    return EngineBackend(InferenceEngine(store))
 
 
 def server_backend(url: str) -> ServerBackend:

@@ -18,12 +18,15 @@ busy 2-core machine).
 
 from __future__ import annotations
 
+import tempfile
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 
 import torch
 
+from model_store.sql import SqlModelStore
 from model_store.store import ModelStore
 from trainer.config import ImpactConfig, JointConfig, TaskConfig
 from trainer.learners import train_impacts, train_joint, train_tasks
@@ -65,6 +68,25 @@ def train_tiny_zoo(
         return _train(store, ego_goals, partner_goals, combos, env, partner_alias)
     finally:
         torch.set_num_threads(threads)
+
+
+@contextmanager
+def tiny_zoo_store(
+    ego_goals: Sequence[str],
+    partner_goals: Sequence[str],
+    combos: Sequence[Sequence[str]],
+    *,
+    partner_alias: str = "partners",
+) -> Iterator[SqlModelStore]:
+    """A temporary SQLite store holding a tiny zoo for these goals (`train_tiny_zoo`); the
+    store and its folder are gone when the block ends."""
+    with tempfile.TemporaryDirectory(prefix="coexist-eval-") as tmp:
+        store = SqlModelStore(f"sqlite:///{tmp}/models.db")
+        try:
+            train_tiny_zoo(store, ego_goals, partner_goals, combos, partner_alias=partner_alias)
+            yield store
+        finally:
+            store.close()
 
 
 def _train(

@@ -107,3 +107,20 @@ def test_the_trainer_names_no_environment_outside_its_folders() -> None:
             if pattern.search(line) or re.search(r"isinstance\([^)]*(Cooking|Particle)", line):
                 offenders.append(f"{f.relative_to(ROOT)}:{n}: {line.strip()}")
     assert offenders == []
+
+
+def test_the_evaluation_and_its_command_test_no_environment_or_suite_name() -> None:
+    """`evaluation/`'s shared modules and `cli/evaluate.py` neither compare a name with an
+    environment's or a suite's nor test a type against an environment's: the CLI finds a suite
+    through `evaluation.suites.SUITES`, and each suite lives in its own folder."""
+    envs = [p.name for p in (ROOT / "envs").iterdir() if (p / "__init__.py").exists()]
+    suites = [p.parent.name for p in (ROOT / "evaluation").glob("*/command.py")]
+    names = "|".join(envs + suites)
+    pattern = re.compile(rf"[=!]=\s*[\"']({names})[\"']|[\"']({names})[\"']\s*[=!]=")
+    files = [*(ROOT / "evaluation").glob("*.py"), ROOT / "cli" / "evaluate.py"]
+    offenders = []
+    for f in files:
+        for n, line in enumerate(f.read_text().splitlines(), 1):
+            if pattern.search(line) or re.search(r"isinstance\([^)]*(Cooking|Particle)", line):
+                offenders.append(f"{f.relative_to(ROOT)}:{n}: {line.strip()}")
+    assert suites and offenders == []

@@ -1,7 +1,7 @@
 """The cooking experiment's files (paper Fig. 9) and its section in the paper report.
 
-`run_cooking_suite` is what `coexist eval --suite cooking` runs: the paired episodes of
-`evaluation.cooking.suite` through the in-process engine (or a server), then these files in `out`
+`write_cooking_report` is how `coexist eval --suite cooking` (`evaluation.cooking.command`)
+writes the results of the paired episodes of `evaluation.cooking.suite`: these files in `out`
 (`reports/cooking` by default; the hand-written `README.md` there is never touched):
 
 | file               | content                                                            |
@@ -23,7 +23,6 @@ from __future__ import annotations
 import json
 import os
 import time
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -154,30 +153,15 @@ def update_paper_report(report: Path, section: str) -> bool:
     return True
 
 
-def run_cooking_suite(
-    backend: Any,
-    out: Path,
-    *,
-    command: str,
-    episodes: int = 100,
-    seed: int = 0,
-    max_steps: int = 400,
-    alias: str = "production",
-    partner_alias: str = "partners",
-    progress: Callable[[int, int], None] | None = None,
-) -> tuple[CookingResults, Path | None]:
-    """Evaluate, write the files of `out`, refresh the paper report's section; returns the
-    results and the paper report it updated (None when there is none beside `out`)."""
-    start = time.perf_counter()
-    results = evaluate_cooking(
-        backend, episodes=episodes, seed=seed, max_steps=max_steps, alias=alias,
-        partner_alias=partner_alias, progress=progress,
-    )  # fmt: skip
-    wall_s = time.perf_counter() - start
-    write_cooking_files(results, out, command=command, backend=backend.description, wall_s=wall_s)
+def write_cooking_report(
+    results: CookingResults, out: Path, *, command: str, backend: str, wall_s: float
+) -> Path | None:
+    """The files of `out`, and the paper report's section refreshed; returns the paper report
+    it updated (None when there is none beside `out`)."""
+    write_cooking_files(results, out, command=command, backend=backend, wall_s=wall_s)
     report = out.resolve().parent / PAPER_REPORT
     section = cooking_section(out.resolve(), report.parent)
-    return results, (report if update_paper_report(report, section) else None)
+    return report if update_paper_report(report, section) else None
 
 
 def main(argv: list[str]) -> None:

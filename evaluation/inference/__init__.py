@@ -8,4 +8,5 @@
 | `tables`   | markdown tables                                                   |
 | `plots`    | the figures (matplotlib)                                          |
 | `report`   | the report's files and its section in the paper report            |
+| `command`  | `coexist eval --suite inference`: the options, the run, the report |
 """

@@ -88,7 +88,6 @@ class ValueConfig:
             seed=self.seed,
             alias=self.alias,
             partner_alias=self.partner_alias,
-            env=self.env,
         )
 
 

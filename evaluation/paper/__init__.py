@@ -10,4 +10,5 @@
 | `tables`     | markdown tables                                                            |
 | `report`     | REPORT.md, results.json and the figures                                    |
 | `suite`      | everything in order                                                        |
+| `command`    | `coexist eval --suite paper`: the options, the run, the report             |
 """

@@ -61,7 +61,7 @@ class SuiteResult:
 
 def has_joint_network(backend: PolicyBackend, scenario: Scenario, config: SuiteConfig) -> bool:
     probe = ActRequest(
-        env=config.env,
+        env=config.ENV,
         ego_goal=scenario.ego_goal,
         observations=np.full((1, 4 * scenario.n_agents), 0.5, dtype=np.float32),
         partners=tuple(PartnerSpec(j, goal=g) for j, g in enumerate(scenario.partner_goals, 1)),
@@ -80,13 +80,13 @@ def missing_networks(
     for s in scenarios:
         obs = np.full((1, 4 * s.n_agents), 0.5, dtype=np.float32)
         partners = tuple(PartnerSpec(j, goal=g) for j, g in enumerate(s.partner_goals, 1))
-        probe = ActRequest(config.env, s.ego_goal, obs, partners, method="aail", alias=config.alias)
+        probe = ActRequest(config.ENV, s.ego_goal, obs, partners, method="aail", alias=config.alias)
         if not backend.has_models(probe):
             missing.append(f"{s.combo}: ego task or impact networks @{config.alias}")
         for goal in s.partner_goals:
-            probe = ActRequest(config.env, goal, obs, method="sl", alias=config.partner_alias)
+            probe = ActRequest(config.ENV, goal, obs, method="sl", alias=config.partner_alias)
             if not backend.has_models(probe):
-                missing.append(f"{config.env}/task/{goal}@{config.partner_alias}")
+                missing.append(f"{config.ENV}/task/{goal}@{config.partner_alias}")
     return sorted(set(missing))
 
 
@@ -147,7 +147,7 @@ def run_suite(
             seed=config.seed,
             alias=config.alias,
             partner_alias=config.partner_alias,
-            env=config.env,
+            env=config.ENV,
             progress=progress(label, config.max_steps) if progress else None,
             regret_bound=config.regret_bound,
         )
@@ -173,14 +173,14 @@ def run_suite(
         non_aligned.ego_goal,
         non_aligned.partner_goals[0],
         alias=config.alias,
-        env=config.env,
+        env=config.ENV,
     )
     result.wall_s["direction fields"] = time.perf_counter() - start
     if store is not None:
-        versions = registered_versions(store, config.env)
+        versions = registered_versions(store, config.ENV)
         log = read_log(timing_log) if timing_log is not None else []
         result.training = training_costs(versions, log)
-        result.curves = _curves(store, config.env)
+        result.curves = _curves(store, config.ENV)
         result.gates = gate_verdicts(store, {m for _, m in result.models})
     return result
 

@@ -112,7 +112,7 @@ def ensure_open(core: SessionCore) -> Plan[Opened]:
     return core.opened
 
 
-def _step(
+def step(
     core: SessionCore,
     observation: Any = None,
     *,
@@ -148,21 +148,6 @@ def _step(
     return SessionStep(**{f.name: getattr(action, f.name) for f in fields(Action)}, step=t)
 
 
-def step(
-    core: SessionCore,
-    observation: Any = None,
-    *,
-    state: Any = None,
-    ego_index: int = 0,
-    observed: Observed = None,
-) -> Plan[SessionStep]:
-    """One step: `observed` = the inferred partners' actions since the previous step (`{1: 3}`;
-    None as an action: the server recovers it from the observations)."""
-    return (
-        yield from _step(core, observation, state=state, ego_index=ego_index, observed=observed)
-    )
-
-
 def act(
     core: SessionCore,
     observation: Any = None,
@@ -172,9 +157,7 @@ def act(
     observed: Observed = None,
 ) -> Plan[Action]:
     """`step`, answered as a plain `Action` (beliefs included where a partner is inferred)."""
-    answer = yield from _step(
-        core, observation, state=state, ego_index=ego_index, observed=observed
-    )
+    answer = yield from step(core, observation, state=state, ego_index=ego_index, observed=observed)
     return answer if core.opened is not None and core.opened.kind == "rest" else as_action(answer)
 
 

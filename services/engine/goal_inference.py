@@ -169,7 +169,7 @@ def _log_likelihoods(
     """`boltzmann_log_likelihoods(q_GPA.transpose(1, 0, 2), actions_P, α, validate=False)` in
     the forward's (G, P, A) layout: compiled (`policy.belief_compiled.compiled_log_softmax`),
     else the same arithmetic in numpy with fewer calls (`_scaled`); equal within the tolerance
-    of tests/services/test_goal_likelihoods.py."""
+    of tests/services/engine/test_goal_likelihoods.py."""
     table = compiled_log_softmax(q_GPA, alpha)  # z - log_norm, compiled
     if table is not None:
         if len(actions_P) == 1:

@@ -19,8 +19,8 @@ first request a handler serves, every inclusion of the route in the app
 dependant): if any inclusion adds a dependency, that handler keeps FastAPI's path for good.
 FastAPI versions without `iter_route_contexts` copy an included route with the inclusion's
 dependencies merged into its own dependant, which the build-time check reads.
-tests/services/test_sessions_lean_route.py checks that included dependencies (also nested) still
-run and that both paths answer alike.
+tests/services/rest/test_sessions_lean_route.py checks that included dependencies (also nested)
+still run and that both paths answer alike.
 """
 
 from __future__ import annotations

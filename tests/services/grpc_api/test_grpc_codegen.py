@@ -7,7 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 COMMITTED = ROOT / "services" / "grpc_api" / "gen"
 COMMITTED_SDK = ROOT / "sdk" / "coexist_client" / "gen"
 

@@ -107,7 +107,7 @@ def serve_console(store_url: str, data_dir: Path, *, admin: str, read: str) -> I
 def screenshot_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """`COEXIST_SCREENSHOT_DIR` (relative to the repository) or a temporary directory."""
     if SCREENSHOT_DIR:
-        return Path(__file__).resolve().parents[2] / SCREENSHOT_DIR
+        return Path(__file__).resolve().parents[3] / SCREENSHOT_DIR
     return tmp_path_factory.mktemp("console_screenshots")
 
 

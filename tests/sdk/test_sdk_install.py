@@ -43,7 +43,7 @@ def test_the_sdk_wheel_works_alone_against_a_real_server(tmp_path: Path) -> None
         with Client(server.http_url) as client:  # before the script promotes a version 2
             want = client.act("particle", "a2", OBS, partners={1: "b3"}, seed=7)
         done = subprocess.run(
-            [str(python), str(REPO / "tests" / "services" / "sdk_install_script.py"),
+            [str(python), str(REPO / "tests" / "sdk" / "sdk_install_script.py"),
              server.http_url, server.grpc_target, ADMIN_TOKEN],
             capture_output=True, text=True, timeout=120, check=False, cwd=tmp_path,
         )  # fmt: skip

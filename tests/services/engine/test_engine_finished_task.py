@@ -9,6 +9,7 @@ from collections.abc import Iterator
 import numpy as np
 import pytest
 import torch
+from zoo_fixtures import ZOO_ALPHA, random_weights
 
 from envs.cooking.batched import BatchedCookingWorld
 from envs.cooking.domain import COOKING
@@ -18,7 +19,6 @@ from model_store.naming import impact_model_name, task_model_name
 from model_store.sql import SqlModelStore
 from policy.qnet import QNetSpec, QNetwork
 from services.engine import ActRequest, InferenceEngine, PartnerSpec
-from tests.services.conftest import ZOO_ALPHA, random_weights
 
 SPEC = QNetSpec(obs_dim=COOKING.pair_obs_dim, n_actions=5, hidden=(16,))
 EGO, PARTNER = "TomatoLettuceSalad", "CarrotBanana"

@@ -1,7 +1,7 @@
 """The engine's one path on every request layout (single rows and batches, announced goals and
 distributions, impact networks shared between partners, mixed architectures) against the
-naive reference of tests/services/test_engine_reference.py; the same errors and counters; the
-layout memo's bound; thread safety."""
+naive reference of tests/services/engine/test_engine_reference.py; the same errors and
+counters; the layout memo's bound; thread safety."""
 
 from __future__ import annotations
 
