@@ -94,7 +94,7 @@ def evaluate(
     ] = None,
     regret_bound: Annotated[
         float | None,
-        typer.Option(min=0.0, help="AAIL-B's ε (default: half the task network's training α)."),
+        typer.Option(min=0.0, help="AAIL-B's ε (default: twice the task network's training α)."),
     ] = None,
     pair_episodes: Annotated[
         int | None, typer.Option(min=1, help="Episodes per pair. Default: 20 (--fast: 3).")

@@ -51,7 +51,7 @@ def run(
     regret_bound: Annotated[
         float | None,
         typer.Option(
-            min=0.0, help="aail_bounded's ε (default: half the task network's training α)."
+            min=0.0, help="aail_bounded's ε (default: twice the task network's training α)."
         ),
     ] = None,
     infer: Annotated[

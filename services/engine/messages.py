@@ -48,7 +48,7 @@ class ActRequest:
     partners: tuple[PartnerSpec, ...] = ()
     method: Method = DEFAULT_METHOD
     temperature: float | None = None  # default: the task (or joint) model's training α
-    regret_bound: float | None = None  # aail_bounded's ε; default: half the task model's α
+    regret_bound: float | None = None  # aail_bounded's ε; default: twice the task model's α
     seed: int | None = None  # seeds the sampled action(s); one stream over the B rows
     alias: str = DEFAULT_ALIAS  # the alias every model is resolved by
     versions: Mapping[str, int] = field(default_factory=dict)  # pinned versions by model name

@@ -40,7 +40,7 @@ METHOD_HELP = (
 )
 REGRET_BOUND_HELP = (
     "aail_bounded only: ε >= 0, in the task network's Q units; actions whose task Q is more "
-    "than ε below the best keep their task-policy probability (default: half the task "
+    "than ε below the best keep their task-policy probability (default: twice the task "
     "model's training α)"
 )
 

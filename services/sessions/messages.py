@@ -45,7 +45,7 @@ class SessionSettings:
     partners: tuple[SessionPartner, ...] = ()
     method: Method = DEFAULT_METHOD
     temperature: float | None = None  # of the act pass (default: the task model's training α)
-    regret_bound: float | None = None  # aail_bounded's ε (default: half the task model's α)
+    regret_bound: float | None = None  # aail_bounded's ε (default: twice the task model's α)
     seed: int | None = None  # step t samples with seed + t
     alias: str = DEFAULT_ALIAS
     versions: Mapping[str, int] = field(default_factory=dict)

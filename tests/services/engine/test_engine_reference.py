@@ -48,7 +48,7 @@ def reference(
     regret_bound: float | None = None,
 ):
     """(probs, task entropy, task weight, partner weights) of one row, computed naively;
-    aail_bounded's ε defaults to half of `alpha` (the engine's: half the task model's α)."""
+    aail_bounded's ε defaults to twice `alpha` (the engine's: twice the task model's α)."""
     blocks = obs_D.reshape(-1, 4)
     ego, others = blocks[0], list(blocks[1:]) or [PHANTOM]
     if method == "jl":
@@ -245,7 +245,7 @@ def test_temperature_from_request_lineage_or_default(tiny_zoo) -> None:
     ):
         [result] = engine.act(
             ActRequest("particle", goal, obs, _specs(partners), temperature=temperature)
-        )  # the default method, aail_bounded: ε is half the task model's α whatever the temperature
+        )  # the default method, aail_bounded: ε is twice the task model's α whatever the temperature
         model_alpha = 0.02 if goal == "b3" else tiny_zoo.alpha
         ref = reference(
             tiny_zoo.store,
