@@ -132,6 +132,16 @@ class BatchedParticleWorld:
         self._steps_B[mask_B] = 0
         return self.observe()
 
+    def place(self, mask_B: np.ndarray, agent: int, states_M4: np.ndarray) -> np.ndarray:
+        """Put `agent` of the masked worlds in the states `states_M4` (one row per masked world,
+        in order); their step counters and the other agents are kept. The observations after."""
+        mask_B = np.asarray(mask_B, dtype=bool)
+        states_M4 = np.asarray(states_M4, dtype=np.float64)
+        if states_M4.shape != (int(mask_B.sum()), STATE_DIM):
+            raise ValueError(f"states_M4: expected shape ({int(mask_B.sum())}, {STATE_DIM})")
+        self._state_BN4[mask_B, agent] = states_M4
+        return self.observe()
+
     def step(self, actions_BN: np.ndarray) -> StepResult:
         """Advance every world one step with the actions of every agent, shape (B, N)."""
         self._state_BN4 = step_state(self._state_BN4, actions_BN)

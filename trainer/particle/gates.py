@@ -10,6 +10,12 @@ goal with the scripted controller (deterministic, so every run below sees the sa
   `return_slack`) of the scripted straight-to-target controller's on the same starts. Greedy,
   because this compares what the network *learned* with a deterministic controller; sampling
   noise at α is measured by the success rate and reported (`sampled_own_target_return`).
+- walls (`wall_check`): from a 6 × 6 grid of starts, with the other agent resting in each
+  corner and at each wall's middle, the sampled policy must reach the target area within
+  `eval_steps` in every episode (`wall_success_threshold`). A partner resting in a corner is
+  rare among random starts but common among real partners (one heading for a corner cell); task
+  networks that had not seen it stopped short of their target for whole episodes, and the
+  random-start episodes above passed them.
 
 Impact gate (per partner goal h), two checks that must both pass:
 - helps: on seeded random starts the partner acts with its task network; the partner's mean
@@ -52,15 +58,16 @@ class TaskGate:
     scripted_own_target_return: float
     passed: bool
     sampled_own_target_return: float = float("nan")
+    wall_success: float = float("nan")  # `wall_check`: share of its episodes that reach
     FAILURE_NOTE: ClassVar[str] = ""
 
     def metrics(self) -> dict[str, Any]:
         return asdict(self)
 
     def summary_cells(self) -> list[str]:
-        """Success rate, own-target return, the scripted controller's."""
+        """Success rate (and on the wall check), own-target return, the scripted controller's."""
         return [
-            f"{self.success_rate:.0%}",
+            f"{self.success_rate:.0%}, walls {self.wall_success:.0%}",
             f"{self.own_target_return:.2f} (own target)",
             f"{self.scripted_own_target_return:.2f} (scripted)",
         ]
@@ -118,6 +125,35 @@ def _run(
     return returns_BN[:, 0], returns_BN[:, 1], own_B, reached_B
 
 
+WALL_GRID = 6  # starts per side of `wall_check`'s grid
+WALL_PARTNER_XY = np.array(
+    [(0, 0), (1, 0), (0, 1), (1, 1), (0.5, 0), (1, 0.5), (0.5, 1), (0, 0.5)], dtype=np.float64
+)  # the corners and the walls' middles
+
+
+def wall_check(goals: Sequence[int], policy: EgoPolicy, steps: int) -> np.ndarray:
+    """Share of `wall_check` episodes (module docstring) in which the ego reaches its target,
+    per goal, (G,). `policy` acts for the ego of G × 288 worlds (goal-major: the ego of goal g
+    in rows g × 288 ...); the other agent rests whatever `policy` returns for it."""
+    grid = np.linspace(0.05, 0.95, WALL_GRID)
+    ego_S2 = np.array([(x, y) for x in grid for y in grid])
+    n_eps = len(ego_S2) * len(WALL_PARTNER_XY)
+    starts_E24 = np.zeros((n_eps, 2, 4))
+    starts_E24[:, 0, :2] = np.repeat(ego_S2, len(WALL_PARTNER_XY), axis=0)
+    starts_E24[:, 1, :2] = np.tile(WALL_PARTNER_XY, (len(ego_S2), 1))
+    goal_B = np.repeat(np.asarray(goals), n_eps)
+    goals_BN = np.stack([goal_B, goal_B], axis=1)  # the resting partner's goal does not matter
+    world = BatchedParticleWorld(goals_BN, max_steps=steps + 1)
+    world.reset(np.tile(starts_E24, (len(goals), 1, 1)))
+    reached_B = np.zeros(len(goal_B), dtype=bool)
+    for _ in range(steps):
+        actions_BN = np.array(policy(world.state, observations(world.state)))
+        actions_BN[:, 1] = 0  # the partner rests
+        world.step(actions_BN)
+        reached_B |= in_target(world.state, goals_BN)[:, 0]
+    return reached_B.reshape(len(goals), n_eps).mean(axis=1)
+
+
 def task_gates(
     nets: StackedQNet, goals: Sequence[int], config: TaskConfig, seed: int
 ) -> list[TaskGate]:
@@ -143,6 +179,12 @@ def task_gates(
     def scripted(state_BN4: np.ndarray, obs_BND: np.ndarray) -> np.ndarray:
         return scripted_actions(state_BN4, goals_BN)
 
+    def on_walls(state_BN4: np.ndarray, obs_BND: np.ndarray) -> np.ndarray:
+        q = _grouped_q(nets, PARTICLE.task_views(obs_BND[:, 0], 2)[:, 0], n_nets)
+        acts = sample_boltzmann_t(q, config.alpha, generator).numpy().reshape(-1)
+        return np.stack([acts, np.zeros_like(acts)], axis=1)
+
+    walls = wall_check(goals, on_walls, config.eval_steps)
     ret, _, sampled_own, reached = _run(world, goals_BN, starts, config.eval_steps, learned(False))
     _, _, own, _ = _run(world, goals_BN, starts, config.eval_steps, learned(True))
     _, _, ref, _ = _run(world, goals_BN, starts, config.eval_steps, scripted)
@@ -152,7 +194,8 @@ def task_gates(
         success, own_mean, ref_mean = reached[part].mean(), own[part].mean(), ref[part].mean()
         allowed = max(config.return_margin * abs(ref_mean), config.return_slack)
         close_enough = own_mean >= ref_mean - allowed
-        passed = bool(success >= config.success_threshold and close_enough)
+        on_walls_ok = walls[g] >= config.wall_success_threshold
+        passed = bool(success >= config.success_threshold and close_enough and on_walls_ok)
         gates.append(
             TaskGate(
                 goal=GOAL_IDS[goal],
@@ -162,6 +205,7 @@ def task_gates(
                 scripted_own_target_return=float(ref_mean),
                 passed=passed,
                 sampled_own_target_return=float(sampled_own[part].mean()),
+                wall_success=float(walls[g]),
             )
         )
     return gates

@@ -47,6 +47,20 @@ class _EpisodeTracker:
         return out
 
 
+def wall_states(rng: np.random.Generator, n: int) -> np.ndarray:
+    """`n` resting states on the world's walls, (n, 4): a uniform point of a uniform side, or
+    (with probability 1/3) a uniform corner; velocity zero."""
+    states_N4 = np.zeros((n, 4))
+    along_N, side_N = rng.random(n), rng.integers(0, 4, n)
+    corner_N = rng.random(n) < 1 / 3
+    along_N = np.where(corner_N, np.round(along_N), along_N)
+    wall_N = (side_N % 2).astype(np.float64)  # sides 0, 1: x on the wall; 2, 3: y on the wall
+    x_wall_N = side_N < 2
+    states_N4[:, 0] = np.where(x_wall_N, wall_N, along_N)
+    states_N4[:, 1] = np.where(x_wall_N, along_N, wall_N)
+    return states_N4
+
+
 class ParticleTaskRollout:
     """Ego (agent 0) learns goal g; agent 1 heads for a random goal so its position varies."""
 
@@ -66,8 +80,19 @@ class ParticleTaskRollout:
             axis=1,
         )
         self.world = BatchedParticleWorld(self.goals_BN, max_steps=config.episode_steps, seed=seed)
-        self.obs_BND = self.world.reset()
+        self.world.reset()
+        self.resting_B = np.zeros(n_envs, dtype=bool)
+        self.obs_BND = self._rest_some_on_walls(np.ones(n_envs, dtype=bool))
         self.tracker = _EpisodeTracker(self.n_nets, self.envs_per_net)
+
+    def _rest_some_on_walls(self, fresh_B: np.ndarray) -> np.ndarray:
+        """Of the freshly started worlds, `partner_wall_prob` get a partner resting on a wall
+        (`TaskConfig.partner_wall_prob`); the observations after."""
+        self.resting_B[fresh_B] = (
+            self.rng.random(int(fresh_B.sum())) < self.config.partner_wall_prob
+        )
+        rows_B = fresh_B & self.resting_B
+        return self.world.place(rows_B, 1, wall_states(self.rng, int(rows_B.sum())))
 
     def _views(self, obs_BND: np.ndarray) -> np.ndarray:
         views_B8 = PARTICLE.task_views(obs_BND[:, 0], 2)[:, 0]
@@ -82,7 +107,8 @@ class ParticleTaskRollout:
             return np.asarray(self.rng.integers(0, PARTICLE.n_actions, n_envs))
         acts_B = scripted_actions(self.world.state, self.goals_BN)[:, 1]
         explore = self.rng.random(n_envs) < self.config.partner_random_prob
-        return np.where(explore, self.rng.integers(0, PARTICLE.n_actions, n_envs), acts_B)
+        acts_B = np.where(explore, self.rng.integers(0, PARTICLE.n_actions, n_envs), acts_B)
+        return np.where(self.resting_B, 0, acts_B)  # action 0: rest
 
     def step(self, actions_GE: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         actions_BN = np.stack([actions_GE.reshape(-1), self._partner_actions()], axis=1)
@@ -94,7 +120,8 @@ class ParticleTaskRollout:
         if done_B.any():
             self.goals_BN[done_B, 1] = self.rng.integers(0, N_GOALS, int(done_B.sum()))
             self.world.set_goals(self.goals_BN)
-            self.obs_BND = self.world.reset_where(done_B)
+            self.world.reset_where(done_B)
+            self.obs_BND = self._rest_some_on_walls(done_B)
         else:
             self.obs_BND = result.next_obs_BND
         shape = (self.n_nets, self.envs_per_net)
