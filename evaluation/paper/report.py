@@ -56,6 +56,7 @@ from evaluation.paper.tables import (
 )
 from evaluation.stats import compare_cells, summarise_cell
 from evaluation.targets import Target, targets_of
+from policy.regret_bound import DEFAULT_EPSILON_PER_ALPHA
 
 DISCUSSION = "discussion.md"
 SECTIONS = (
@@ -152,7 +153,7 @@ def _setup(result: SuiteResult, command: str) -> str:
     }
     with_jl = len({s.combo for s in units if result.jl_available[s.name]})
     bound = (
-        "the engine's default (the task network's α)"
+        f"the engine's default ({DEFAULT_EPSILON_PER_ALPHA:g} × the task network's α)"
         if cfg.regret_bound is None
         else f"{cfg.regret_bound:g}"
     )
