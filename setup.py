@@ -1,6 +1,7 @@
 """The compiled kernels, all optional (without a C compiler the install goes on and the numpy
 reference of each runs instead):
 
+- `policy._blend_row`, the blend of eqs. 8-10 (policy/_blend_row.c; `policy.blend`);
 - `policy._belief_row`, a session's belief update and views and the goal likelihoods' table
   (policy/_belief_row.c; `policy.belief_compiled`);
 - `policy._row_forward`, a stack of small MLPs on a few rows, AVX2 and FMA chosen at run time
@@ -23,6 +24,6 @@ setup(
             libraries=["m"],
             optional=True,
         )
-        for name in ("_belief_row", "_row_forward")
+        for name in ("_blend_row", "_belief_row", "_row_forward")
     ]
 )

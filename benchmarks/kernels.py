@@ -5,6 +5,7 @@ Run: `OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/kernels.py [--calls 150
 
 | kernel  | C file                  | numpy reference instead                               |
 |---------|-------------------------|-------------------------------------------------------|
+| blend   | `policy/_blend_row.c`   | `policy.blend`'s vectorised path (`COMPILED` off)     |
 | forward | `policy/_row_forward.c` | `policy.row_forward.numpy_row_forward` (stacked matmul)|
 | belief  | `policy/_belief_row.c`  | `policy.belief`, `belief_views`, `goal_inference`'s numpy lines |
 
@@ -14,8 +15,7 @@ client waits for it), on the session benchmarks' store (every particle network, 
 at the trainer's size, `benchmarks/session_scene.py`). The variants run call by call in turn
 (all compiled, then each kernel off), so a burst of load from a neighbour on a shared machine
 hits all of them alike; each figure is the median of `--calls` calls. A kernel whose numpy
-reference costs less than 10 % more on every case is not worth its C (issue 18): the blend's
-kernel went by this rule (`docs/performance.md`).
+reference costs less than 10 % more on every case is not worth its C (issue 18).
 """
 
 from __future__ import annotations
@@ -36,15 +36,17 @@ sys.path.insert(0, str(ROOT))
 from session_scene import EGO_GOAL, PARTNER_GOALS, build_store, episode  # noqa: E402
 
 import policy.belief_compiled as belief_kernel  # noqa: E402
+import policy.blend as blend_kernel  # noqa: E402
 import policy.row_forward as forward_kernel  # noqa: E402
 import services.engine.networks as networks  # noqa: E402
 
-VARIANTS = ("all compiled", "forward", "belief")
+VARIANTS = ("all compiled", "blend", "forward", "belief")
 Call = Callable[[int], object]
 
 
 def use(variant: str, belief_extension: object) -> None:
     """Every kernel on, then the one named by `variant` off (its numpy reference runs)."""
+    blend_kernel.COMPILED = variant != "blend"
     forward_kernel.COMPILED = networks.ROW_FORWARD = variant != "forward"
     belief_kernel._EXTENSION = None if variant == "belief" else belief_extension
 

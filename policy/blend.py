@@ -46,20 +46,23 @@ under the goal probabilities. Soft Q is linear in the reward for a fixed policy,
 Q of the expected impact reward; it is our choice (the paper only says the framework "allows to
 probabilistically combine policies").
 
-One implementation: numpy over the whole batch (`blend_vectorised`). A compiled per-row kernel
-used to sit beside it; measured on a quiet machine it saved nothing on a single act, a session
-step or a 256-row batch (`benchmarks/kernels.py`, `docs/performance.md`), so it went.
-`aail_bounded`'s bound (eq. R1) is `policy.regret_bound.bound_rows`.
+Two implementations of the same maths: `blend_vectorised`, numpy over the whole batch, is the
+reference; `policy/_blend_row.c` (built by setup.py) computes each row's steps in C loops, where
+numpy's per-call overhead would otherwise dominate the few numbers of a row. `blend` takes the
+compiled kernel where it is built (`COMPILED`), for any batch, else the reference; the two
+agree within 1e-9 (tests/policy/test_blend_compiled.py). `aail_bounded`'s bound (eq. R1) is
+numpy in both (`policy.regret_bound.bound_rows`).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike
 
+from policy._kernels import load_kernel
 from policy._validate import (
     PROB_SUM_TOL,
     alpha_array,
@@ -70,7 +73,13 @@ from policy._validate import (
 from policy.maths import boltzmann, js_distance, normalized_entropy, task_weight
 from policy.regret_bound import bound_rows, check_regret_bound
 
+# policy/_blend_row.c, built by setup.py where a C compiler exists
+_kernel: Any = load_kernel("_blend_row")
+
+COMPILED: bool = _kernel is not None
+
 __all__ = [
+    "COMPILED",
     "FLAT_STD_RTOL",
     "METHODS",
     "BlendMethod",
@@ -204,9 +213,15 @@ def blend_checked(
     """`blend` on inputs it would accept, already in its working form: finite float64 Q-values
     (B, A) and (B, P, A) (masked slots zero), a bool mask (B, P), positive temperatures (B,)
     and, for `aail_bounded` only, ε >= 0 per row (B,). For a caller that checked them (the
-    inference engine validates each request once)."""
+    inference engine validates each request once); compiled when `COMPILED`."""
     base: BlendMethod = "aail" if method == "aail_bounded" else method
-    result = _vectorised(base, q_task_BA, q_impact_BPA, mask_BP, alpha_B[:, None], normalise)
+    if COMPILED:
+        result = BlendResult(
+            *_kernel.blend_rows(base, q_task_BA, q_impact_BPA, alpha_B, mask_BP, normalise)
+        )
+    else:
+        alpha_B1 = alpha_B[:, None]
+        result = _vectorised(base, q_task_BA, q_impact_BPA, mask_BP, alpha_B1, normalise)
     if epsilon_B is None:
         return result
     return _bounded(result, q_task_BA, alpha_B[:, None], epsilon_B)

@@ -1,0 +1,418 @@
+/* policy._blend_row: SL / NAIL / AAIL (paper §3.3, eqs. 8-10) of B rows in one call, compiled:
+ * `policy.blend.blend`'s kernel.
+ *
+ * Why C: the blend of one row is a few hundred double operations over vectors of a handful of
+ * actions; numpy spends ~40 calls on them, and its per-call overhead, not the arithmetic, then
+ * sets a single act's latency. Here every row is plain loops over doubles and libm.
+ *
+ * The semantics (standardisation and scale rule, the Σw = 0 fallback, rows without partners,
+ * one action) are `policy.blend`'s vectorised numpy path, the reference, documented there; the
+ * steps below follow it function by function. The sums run in plain order and exp, log, log2
+ * and pow are libm's, so the results differ from numpy's by rounding:
+ * tests/policy/test_blend_compiled.py holds them to the reference within 1e-9 on random rows
+ * and rows near the corner cases (flat Q-vectors, equal policies, underflowing probabilities).
+ *
+ * Inputs are trusted (`policy.blend` checks them: finite, alpha > 0, A >= 1); masked partner
+ * slots are never read.
+ */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#include <math.h>
+#include <string.h>
+#define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
+#include <numpy/arrayobject.h>
+
+#define FLAT_STD_RTOL 1e-12 /* policy.blend.FLAT_STD_RTOL */
+
+static double sum(const double *x, Py_ssize_t n) {
+    double total = 0.0;
+    for (Py_ssize_t i = 0; i < n; i++) total += x[i];
+    return total;
+}
+
+/* x[i] = f(x[i]) for a libm function f */
+static void apply(double (*f)(double), double *x, Py_ssize_t n) {
+    for (Py_ssize_t i = 0; i < n; i++) x[i] = f(x[i]);
+}
+
+static double first_max(const double *x, Py_ssize_t n) {
+    double best = x[0];
+    for (Py_ssize_t i = 1; i < n; i++)
+        if (x[i] > best) best = x[i];
+    return best;
+}
+
+static double first_min(const double *x, Py_ssize_t n) {
+    double best = x[0];
+    for (Py_ssize_t i = 1; i < n; i++)
+        if (x[i] < best) best = x[i];
+    return best;
+}
+
+static double py_max2(double a, double b) { return b > a ? b : a; } /* max(a, b) */
+static double py_min2(double a, double b) { return b < a ? b : a; } /* min(a, b) */
+
+/* ---- the steps of the blend, B rows at a time --------------------------------------------
+ * Each step runs over every row; per row the operations are those of `policy.blend`'s
+ * functions named below (and of `policy.maths`, which they call). */
+
+enum { SL, NAIL, AAIL };
+
+typedef struct {
+    Py_ssize_t B, P, n;
+    int method, normalise;
+    const double *q_task;   /* (B, n) */
+    const double *q_impact; /* (B, P, n): masked rows are never read */
+    const double *alpha;    /* (B,) */
+    const char *mask;       /* (B, P) */
+    double *q, *probs, *entropy, *weight, *partner_weights; /* out: (B, n) (B, n) (B) (B) (B, P) */
+} Batch;
+
+typedef struct { /* working memory, one block */
+    Py_ssize_t *active, *policy_at, *pair_at; /* per row: active slots, first policy, first JS pair */
+    double *policies;                         /* the Boltzmann policies: task, then active impacts */
+    double *p_once, *p_twice, *logs;          /* (B, n) (B, n) (B, 2n) */
+    double *h_eq9;                            /* (B) */
+    double *num, *ratio;                      /* JS terms: per row 2 k n each */
+    double *z, *scales;                       /* one row's z-scores ((P + 1) n) and scales (P) */
+} Work;
+
+/* `maths.boltzmann` (eq. 2) before its exp: out = (q - max q) / alpha, `count` vectors of n */
+static void boltzmann_inputs(const double *q, Py_ssize_t count, Py_ssize_t n, double alpha,
+                             double *out) {
+    for (Py_ssize_t v = 0; v < count; v++) {
+        const double *row = q + v * n;
+        double top = first_max(row, n);
+        for (Py_ssize_t a = 0; a < n; a++) out[v * n + a] = (row[a] - top) / alpha;
+    }
+}
+
+static void boltzmann_finish(double *e, Py_ssize_t count, Py_ssize_t n) {
+    for (Py_ssize_t v = 0; v < count; v++, e += n) {
+        double total = sum(e, n);
+        for (Py_ssize_t a = 0; a < n; a++) e[a] = e[a] / total;
+    }
+}
+
+/* p divided by its sum, into `out` (as `maths` renormalises probabilities) */
+static void renormalised(const double *p, Py_ssize_t n, double *out) {
+    double total = sum(p, n);
+    for (Py_ssize_t a = 0; a < n; a++) out[a] = total == 1.0 ? p[a] : p[a] / total;
+}
+
+/* `maths.normalized_entropy` of p, given logs[a] = log(p[a] > 0 ? p[a] : 1) */
+static double entropy_finish(const double *p, const double *logs, Py_ssize_t n, double log_n) {
+    double h = 0.0;
+    for (Py_ssize_t a = 0; a < n; a++) h -= p[a] > 0 ? p[a] * logs[a] : 0.0;
+    return py_min2(py_max2(h / log_n, 0.0), 1.0);
+}
+
+/* `blend.standardise`: z into `z`, the scale returned; z = 0 and scale 0 when flat */
+static double standardise(const double *q, Py_ssize_t n, double *z, double *squares) {
+    double magnitude = py_max2(first_max(q, n), -first_min(q, n));
+    double divisor = magnitude > 0 ? magnitude : 1.0;
+    for (Py_ssize_t a = 0; a < n; a++) z[a] = q[a] / divisor;
+    double mean = sum(z, n) / n;
+    for (Py_ssize_t a = 0; a < n; a++) {
+        z[a] = z[a] - mean; /* the deviations */
+        squares[a] = z[a] * z[a];
+    }
+    double std = sqrt(sum(squares, n) / n);
+    if (std <= FLAT_STD_RTOL) {
+        for (Py_ssize_t a = 0; a < n; a++) z[a] = 0.0;
+        return 0.0;
+    }
+    for (Py_ssize_t a = 0; a < n; a++) z[a] = z[a] / std;
+    return std * magnitude;
+}
+
+/* step 1: the Boltzmann policies of the task and (aail) of each active impact */
+static int policies_step(const Batch *t, Work *w) {
+    Py_ssize_t n = t->n, at = 0;
+    for (Py_ssize_t b = 0; b < t->B; b++) {
+        w->policy_at[b] = at;
+        boltzmann_inputs(t->q_task + b * n, 1, n, t->alpha[b], w->policies + at);
+        at += n;
+        if (t->method != AAIL) continue;
+        for (Py_ssize_t s = 0; s < t->P; s++)
+            if (t->mask[b * t->P + s]) {
+                boltzmann_inputs(t->q_impact + (b * t->P + s) * n, 1, n, t->alpha[b],
+                                 w->policies + at);
+                at += n;
+            }
+    }
+    apply(exp, w->policies, at);
+    boltzmann_finish(w->policies, at / n, n);
+    return 0;
+}
+
+/* step 2: the task policy's normalised entropy, and eq. 9's (aail) on it renormalised twice */
+static int entropy_step(const Batch *t, Work *w) {
+    Py_ssize_t n = t->n;
+    double log_n = log((double)n);
+    for (Py_ssize_t b = 0; b < t->B; b++) {
+        double *once = w->p_once + b * n, *twice = w->p_twice + b * n, *logs = w->logs + 2 * b * n;
+        renormalised(w->policies + w->policy_at[b], n, once); /* as normalized_entropy sees it */
+        renormalised(once, n, twice);                         /* as eq. 9's task_weight sees it */
+        for (Py_ssize_t a = 0; a < n; a++) {
+            logs[a] = once[a] > 0 ? once[a] : 1.0;
+            logs[n + a] = twice[a] > 0 ? twice[a] : 1.0;
+        }
+    }
+    apply(log, w->logs, 2 * t->B * n);
+    for (Py_ssize_t b = 0; b < t->B; b++) {
+        const double *logs = w->logs + 2 * b * n;
+        t->entropy[b] = n > 1 ? entropy_finish(w->p_once + b * n, logs, n, log_n) : 0.0;
+        w->h_eq9[b] = n > 1 ? entropy_finish(w->p_twice + b * n, logs + n, n, log_n) : 0.0;
+    }
+    return 0;
+}
+
+/* step 3 (aail): eq. 10, the JS distance of the task policy to each active impact policy
+ * (`maths.js_distance`), into partner_weights' active slots; then the weights ŵ */
+static int js_step(const Batch *t, Work *w) {
+    Py_ssize_t n = t->n, P = t->P, at = 0;
+    for (Py_ssize_t b = 0; b < t->B; b++) {
+        Py_ssize_t k = w->active[b], half = k * n;
+        const double *p = w->p_once + b * n;
+        double *num = w->num + at, *den = w->ratio + at; /* num = p_rep + q_flat, den = m + m */
+        w->pair_at[b] = at;
+        for (Py_ssize_t v = 0; v < k; v++) /* the impact policies, renormalised */
+            renormalised(w->policies + w->policy_at[b] + (v + 1) * n, n, num + half + v * n);
+        for (Py_ssize_t i = 0; i < half; i++) {
+            num[i] = p[i % n];
+            den[i] = den[half + i] = 0.5 * (num[i] + num[half + i]);
+        }
+        int regular = half == 0 || (first_min(num, 2 * half) > 0 && first_min(den, half) > 0);
+        for (Py_ssize_t i = 0; i < 2 * half; i++) {
+            if (regular)
+                den[i] = num[i] / den[i];
+            else /* numpy: 1 where the numerator is 0 (the term is 0), inf where m underflowed */
+                den[i] = num[i] > 0 ? (den[i] > 0 ? num[i] / den[i] : Py_HUGE_VAL) : 1.0;
+        }
+        at += 2 * half;
+    }
+    apply(log2, w->ratio, at);
+    for (Py_ssize_t b = 0; b < t->B; b++) {
+        Py_ssize_t k = w->active[b], half = k * n, next = 0;
+        double *terms = w->ratio + w->pair_at[b];
+        const double *num = w->num + w->pair_at[b];
+        for (Py_ssize_t i = 0; i < 2 * half; i++) /* x log2(x / m), 0 where x = 0 */
+            terms[i] = num[i] > 0 ? num[i] * terms[i] : 0.0;
+        double *weights = t->partner_weights + b * P;
+        for (Py_ssize_t s = 0; s < P; s++) {
+            weights[s] = 0.0;
+            if (!t->mask[b * P + s]) continue;
+            double kl_p = sum(terms + next * n, n), kl_q = sum(terms + half + next * n, n);
+            weights[s] = sqrt(py_min2(py_max2(0.5 * kl_p + 0.5 * kl_q, 0.0), 1.0));
+            next++;
+        }
+        double total = sum(weights, P);
+        for (Py_ssize_t s = 0; s < P; s++) {
+            if (total > 0)
+                weights[s] = weights[s] / total;
+            else /* every impact policy equals the task policy: equal shares */
+                weights[s] = t->mask[b * P + s] ? 1.0 / (k > 1 ? k : 1) : 0.0;
+        }
+    }
+    return 0;
+}
+
+/* step 4: the blended Q of each row: sl the task's,  nail the raw mean, aail eq. 8
+ * on standardised (`blend._aail`) or raw Q-vectors */
+static void blend_step(const Batch *t, Work *w, const double *power) {
+    Py_ssize_t n = t->n, P = t->P;
+    for (Py_ssize_t b = 0; b < t->B; b++) {
+        const double *q_task = t->q_task + b * n, *q_impact = t->q_impact + b * P * n;
+        const char *mask = t->mask + b * P;
+        double *q = t->q + b * n, *weights = t->partner_weights + b * P;
+        Py_ssize_t k = w->active[b];
+        if (t->method == SL) {
+            memcpy(q, q_task, n * sizeof(double));
+            memset(weights, 0, P * sizeof(double));
+            t->weight[b] = 1.0;
+            continue;
+        }
+        if (t->method == NAIL) {
+            if (n == 1) { /* numpy then sums over the contiguous partner axis: pairwise */
+                for (Py_ssize_t s = 0; s < P; s++) w->scales[s] = mask[s] ? q_impact[s * n] : 0.0;
+                q[0] = sum(w->scales, P);
+            } else { /* numpy adds the partners' vectors one after the other */
+                memset(q, 0, n * sizeof(double));
+                for (Py_ssize_t s = 0; s < P; s++)
+                    if (mask[s])
+                        for (Py_ssize_t a = 0; a < n; a++) q[a] = q[a] + q_impact[s * n + a];
+            }
+            for (Py_ssize_t a = 0; a < n; a++) q[a] = (q_task[a] + q[a]) / (1.0 + k);
+            for (Py_ssize_t s = 0; s < P; s++) weights[s] = mask[s] ? 1.0 / (k > 1 ? k : 1) : 0.0;
+            t->weight[b] = 1.0 / (1.0 + k);
+            continue;
+        }
+        /* eq. 9, w_t = 1 - |A|^H / |A|; the task alone without an active partner */
+        double w_t = k > 0 ? (n > 1 ? 1.0 - power[b] / n : 1.0) : 1.0;
+        t->weight[b] = w_t;
+        if (!t->normalise) { /* Q_C = w_t Q_t + (1 - w_t) Σ_i ŵ_i Q_i */
+            for (Py_ssize_t a = 0; a < n; a++) {
+                double mixed = 0.0; /* Σ_i ŵ_i Q_i */
+                for (Py_ssize_t s = 0; s < P; s++)
+                    if (mask[s]) mixed += weights[s] * q_impact[s * n + a];
+                q[a] = w_t * q_task[a] + (1.0 - w_t) * mixed;
+            }
+            continue;
+        }
+        double *z_task = w->z, *z_impact = w->z + n, *squares = q; /* q: scratch until the end */
+        double s_task = standardise(q_task, n, z_task, squares);
+        for (Py_ssize_t s = 0; s < P; s++) /* masked slots: z = 0 and scale 0 */
+            w->scales[s] = mask[s] ? weights[s] * standardise(q_impact + s * n, n,
+                                                              z_impact + s * n, squares)
+                                   : weights[s] * 0.0;
+        double s_blend = w_t * s_task + (1.0 - w_t) * sum(w->scales, P);
+        for (Py_ssize_t a = 0; a < n; a++) {
+            double mixed = 0.0; /* Σ_i ŵ_i z_i, partners in order */
+            for (Py_ssize_t s = 0; s < P; s++)
+                if (mask[s]) mixed += weights[s] * z_impact[s * n + a];
+            q[a] = s_blend * (w_t * z_task[a] + (1.0 - w_t) * mixed);
+        }
+    }
+}
+
+/* step 5: the final policy, Boltzmann of the blended Q (sl: the task policy itself) */
+static int probs_step(const Batch *t, Work *w) {
+    Py_ssize_t n = t->n;
+    for (Py_ssize_t b = 0; b < t->B; b++) {
+        if (t->method == SL)
+            memcpy(t->probs + b * n, w->policies + w->policy_at[b], n * sizeof(double));
+        else
+            boltzmann_inputs(t->q + b * n, 1, n, t->alpha[b], t->probs + b * n);
+    }
+    if (t->method == SL) return 0;
+    apply(exp, t->probs, t->B * n);
+    boltzmann_finish(t->probs, t->B, n);
+    return 0;
+}
+
+/* the whole blend of a batch; 0, or -1 with a Python error set */
+static int blend_batch(const Batch *t) {
+    Py_ssize_t B = t->B, P = t->P, n = t->n, pairs = 0;
+    Py_ssize_t *counts = PyMem_Malloc(3 * (B + 1) * sizeof(Py_ssize_t));
+    if (counts == NULL) {
+        PyErr_NoMemory();
+        return -1;
+    }
+    Work w = {counts, counts + B + 1, counts + 2 * (B + 1)};
+    Py_ssize_t vectors = 0;
+    for (Py_ssize_t b = 0; b < B; b++) {
+        w.active[b] = 0;
+        for (Py_ssize_t s = 0; s < P; s++) w.active[b] += t->mask[b * P + s] != 0;
+        vectors += t->method == AAIL ? w.active[b] + 1 : 1;
+        pairs += w.active[b];
+    }
+    if (t->method != AAIL) pairs = 0;
+    /* policies (vectors n), p_once, p_twice (2 B n), logs (2 B n), h_eq9 + power (2 B),
+       num, ratio (4 pairs n), z ((P + 1) n), scales (P) */
+    Py_ssize_t size = vectors * n + 4 * B * n + 2 * B + 4 * pairs * n + (P + 1) * n + P + 1;
+    double *memory = PyMem_Malloc(size * sizeof(double));
+    int status = -1;
+    if (memory == NULL) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    w.policies = memory;
+    w.p_once = w.policies + vectors * n;
+    w.p_twice = w.p_once + B * n;
+    w.logs = w.p_twice + B * n;
+    w.h_eq9 = w.logs + 2 * B * n;
+    double *power = w.h_eq9 + B;
+    w.num = power + B;
+    w.ratio = w.num + 2 * pairs * n;
+    w.z = w.ratio + 2 * pairs * n;
+    w.scales = w.z + (P + 1) * n;
+    if (policies_step(t, &w) < 0 || entropy_step(t, &w) < 0) goto done;
+    if (t->method == AAIL) {
+        for (Py_ssize_t b = 0; b < B; b++) power[b] = pow((double)n, w.h_eq9[b]); /* |A|^H */
+        if (js_step(t, &w) < 0) goto done;
+    }
+    blend_step(t, &w, power);
+    status = probs_step(t, &w);
+done:
+    PyMem_Free(memory);
+    PyMem_Free(counts);
+    return status;
+}
+
+/* ---- Python objects in and out ------------------------------------------------------------ */
+
+static int method_code(const char *method) {
+    if (strcmp(method, "sl") == 0) return SL;
+    if (strcmp(method, "nail") == 0) return NAIL;
+    if (strcmp(method, "aail") == 0) return AAIL;
+    PyErr_Format(PyExc_ValueError, "method: expected sl, nail or aail, got %s", method);
+    return -1;
+}
+
+static PyArrayObject *float64_array(PyObject *obj, int ndim, const char *what) {
+    PyArrayObject *array = (PyArrayObject *)PyArray_FROMANY(obj, NPY_DOUBLE, ndim, ndim,
+                                                            NPY_ARRAY_IN_ARRAY);
+    if (array == NULL) PyErr_Format(PyExc_ValueError, "%s: expected a %d-d float array", what, ndim);
+    return array;
+}
+
+/* blend_rows(method, q_task_BA, q_impact_BPA, alpha_B, mask_BP, normalise)
+   -> (q_BA, probs_BA, task_entropy_B, task_weight_B, partner_weights_BP), float64 arrays */
+static PyObject *blend_rows(PyObject *self, PyObject *args) {
+    const char *method_name;
+    PyObject *objs[4];
+    int normalise;
+    if (!PyArg_ParseTuple(args, "sOOOOp", &method_name, &objs[0], &objs[1], &objs[2], &objs[3],
+                          &normalise))
+        return NULL;
+    int method = method_code(method_name);
+    if (method < 0) return NULL;
+    PyArrayObject *q_task = float64_array(objs[0], 2, "q_task_BA");
+    PyArrayObject *q_impact = q_task ? float64_array(objs[1], 3, "q_impact_BPA") : NULL;
+    PyArrayObject *alpha = q_impact ? float64_array(objs[2], 1, "alpha_B") : NULL;
+    PyArrayObject *mask = alpha ? (PyArrayObject *)PyArray_FROMANY(objs[3], NPY_BOOL, 2, 2,
+                                                                   NPY_ARRAY_IN_ARRAY)
+                                : NULL;
+    PyObject *out[5] = {NULL}, *result = NULL;
+    if (mask == NULL) goto done;
+    npy_intp B = PyArray_DIM(q_task, 0), n = PyArray_DIM(q_task, 1), P = PyArray_DIM(q_impact, 1);
+    if (n < 1 || PyArray_DIM(q_impact, 0) != B || PyArray_DIM(q_impact, 2) != n ||
+        PyArray_DIM(alpha, 0) != B || PyArray_DIM(mask, 0) != B || PyArray_DIM(mask, 1) != P) {
+        PyErr_SetString(PyExc_ValueError,
+                        "expected shapes (B, A), (B, P, A), (B,), (B, P) with A >= 1");
+        goto done;
+    }
+    npy_intp shapes[5][2] = {{B, n}, {B, n}, {B, 0}, {B, 0}, {B, P}};
+    for (int i = 0; i < 5; i++) {
+        out[i] = PyArray_SimpleNew(i == 2 || i == 3 ? 1 : 2, shapes[i], NPY_DOUBLE);
+        if (out[i] == NULL) goto done;
+    }
+    Batch t = {B, P, n, method, normalise,
+               PyArray_DATA(q_task), PyArray_DATA(q_impact), PyArray_DATA(alpha),
+               PyArray_DATA(mask)};
+    double **outputs[5] = {&t.q, &t.probs, &t.entropy, &t.weight, &t.partner_weights};
+    for (int i = 0; i < 5; i++) *outputs[i] = PyArray_DATA((PyArrayObject *)out[i]);
+    if (B > 0 && blend_batch(&t) < 0) goto done;
+    result = PyTuple_Pack(5, out[0], out[1], out[2], out[3], out[4]);
+done:
+    for (int i = 0; i < 5; i++) Py_XDECREF(out[i]);
+    Py_XDECREF(q_task);
+    Py_XDECREF(q_impact);
+    Py_XDECREF(alpha);
+    Py_XDECREF(mask);
+    return result;
+}
+
+static PyMethodDef methods[] = {
+    {"blend_rows", blend_rows, METH_VARARGS,
+     "blend_rows(method, q_task_BA, q_impact_BPA, alpha_B, mask_BP, normalise) -> 5 arrays"},
+    {NULL, NULL, 0, NULL},
+};
+
+static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_blend_row", NULL, -1, methods};
+
+PyMODINIT_FUNC PyInit__blend_row(void) {
+    import_array();
+    return PyModule_Create(&module);
+}

@@ -1,0 +1,210 @@
+"""policy._blend_row, `policy.blend.blend`'s compiled kernel, against `blend_vectorised`, the
+numpy reference: every field within 1e-9 (probabilities, entropies, weights absolute and
+relative, the blended Q relative) on random, copied, flat, huge and tiny inputs; on
+ill-conditioned inputs (near copies, nearly flat task vectors), where the JS distances or the
+z-scores are made of rounding and neither implementation's digits mean anything, the
+well-conditioned fields within 1e-9 and valid distributions; hand-computed edge cases; bad
+shapes refused."""
+
+from __future__ import annotations
+
+import importlib
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
+blend_module = importlib.import_module("policy.blend")  # `policy.blend` is also the function
+blend, blend_vectorised = blend_module.blend, blend_module.blend_vectorised
+maths = importlib.import_module("policy.maths")
+boltzmann, js_distance = maths.boltzmann, maths.js_distance
+
+FIELDS = ("probs_BA", "task_entropy_B", "task_weight_B", "partner_weights_BP")
+TOL = 1e-9
+compiled = pytest.mark.skipif(not blend_module.COMPILED, reason="policy._blend_row not built")
+
+
+def test_the_compiled_blend_is_built_here() -> None:
+    """setup.py builds it wherever a C compiler is found (CI has one); without it every blend
+    takes the numpy reference, whose per-call overhead sets a single act's latency."""
+    assert blend_module.COMPILED, "policy._blend_row missing: pip install -e . again"
+
+
+def _assert_close(got, want, alpha=None, fields=FIELDS, q: bool = True, scale=None) -> None:
+    """Every field within `TOL`; except, with `alpha`, the policy of a row whose blended Q
+    differs by more than `TOL` α (ties at a tiny temperature: Boltzmann is discontinuous in Q
+    there, so a rounding of the Q decides) is checked as Boltzmann(Q, α) of the kernel's own Q."""
+    steady_B = np.ones(len(got.q_BA), dtype=bool)
+    if alpha is not None:
+        alpha_B = np.broadcast_to(np.asarray(alpha, dtype=np.float64), steady_B.shape)
+        gap_B = np.abs(got.q_BA - want.q_BA).max(axis=1, initial=0.0)
+        steady_B = gap_B <= TOL * alpha_B
+        with np.errstate(all="ignore"):
+            own = boltzmann(got.q_BA[~steady_B], alpha_B[~steady_B])
+        np.testing.assert_allclose(got.probs_BA[~steady_B], own, rtol=TOL, atol=TOL)
+    for field in fields:
+        g, w = getattr(got, field), getattr(want, field)
+        if field == "probs_BA":
+            g, w = g[steady_B], w[steady_B]
+        np.testing.assert_allclose(g, w, rtol=TOL, atol=TOL, err_msg=field)
+    if q:  # relative to the blended Q, or to the inputs' scale where the blend cancels them
+        scale = np.abs(got.q_BA).max(initial=0.0) if scale is None else scale
+        np.testing.assert_allclose(got.q_BA, want.q_BA, rtol=TOL, atol=TOL * scale, err_msg="q_BA")
+
+
+def _rows(result, keep: np.ndarray) -> SimpleNamespace:
+    return SimpleNamespace(**{f: getattr(result, f)[keep] for f in (*FIELDS, "q_BA")})
+
+
+@st.composite
+def cases(draw, shapes=("random", "copies", "flat"), max_rows: int = 8):
+    """Q-vectors with the structure the maths must survive: copies of the task vector (Σw =
+    0), flat vectors, huge and tiny magnitudes (or, `shapes`, the ill-conditioned ones); masks;
+    a scalar or per-row temperature."""
+    n_rows = draw(st.integers(1, max_rows))
+    n_slots = draw(st.integers(0, 8))
+    n_act = draw(st.integers(1, 12))
+    exponent = draw(st.sampled_from([-300, -12, 0, 0, 3, 300]))
+    elems = st.floats(-10.0, 10.0, allow_nan=False, allow_infinity=False)
+    q_task = draw(arrays(np.float64, (n_rows, n_act), elements=elems)) * 10.0**exponent
+    q_impact = draw(arrays(np.float64, (n_rows, n_slots, n_act), elements=elems)) * 10.0**exponent
+    shape = draw(st.sampled_from(shapes))
+    if shape == "copies":
+        q_impact[:] = q_task[:, None, :]
+    elif shape == "near copies":  # their JS distances to the task policy are mostly rounding
+        nudge = draw(st.sampled_from([1e-13, 1e-11, 1e-9]))
+        q_impact[:] = q_task[:, None, :] * (1 + nudge * np.arange(1, n_slots + 1))[:, None]
+    elif shape == "flat":
+        q_task[:] = q_task[:, :1]
+    elif shape == "near flat":
+        q_task[:] = 1.0 + 1e-11 * q_task / (np.abs(q_task).max() or 1.0)
+    mask = draw(arrays(np.bool_, (n_rows, n_slots)))
+    alpha: float | np.ndarray = draw(st.sampled_from([1e-300, 1e-9, 0.02, 1.0, 1e6]))
+    if draw(st.booleans()):
+        alpha = draw(arrays(np.float64, (n_rows,), elements=st.floats(1e-3, 10.0)))
+    return q_task, q_impact, mask, alpha
+
+
+@compiled
+@settings(max_examples=300, deadline=None)
+@given(
+    case=cases(),
+    method=st.sampled_from(["sl", "nail", "aail"]),
+    normalise=st.booleans(),
+)
+def test_compiled_equals_the_reference(case, method: str, normalise: bool) -> None:
+    q_task, q_impact, mask, alpha = case
+    with np.errstate(all="ignore"):
+        want = blend_vectorised(method, q_task, q_impact, alpha, mask, normalise=normalise)
+    got = blend(method, q_task, q_impact, alpha, mask, normalise=normalise)
+    scale = max(np.abs(q_task).max(initial=0.0), np.abs(q_impact).max(initial=0.0))
+    # rows whose impact policies are all within rounding of the task policy (a huge α flattens
+    # them): their JS distances, hence ŵ and the blend, are rounding in both implementations
+    alpha_B1 = np.broadcast_to(np.asarray(alpha, dtype=np.float64), q_task.shape[:1])[:, None]
+    with np.errstate(all="ignore"):
+        pi_task = boltzmann(q_task, alpha_B1[:, 0])
+        pi_impact = boltzmann(q_impact, alpha_B1) if q_impact.size else q_impact
+        jsd = js_distance(pi_task[:, None, :], pi_impact) if q_impact.size else q_impact[..., 0]
+    rounding_B = (
+        ((jsd > 0) & (jsd < 1e-4) & mask).any(axis=1)
+        if method == "aail"
+        else mask[:, 0:0].any(axis=1)
+    )
+    keep = ~rounding_B
+    _assert_close(_rows(got, keep), _rows(want, keep), alpha_B1[keep, 0], scale=scale)
+    np.testing.assert_allclose(got.probs_BA.sum(axis=1), 1.0, rtol=0, atol=1e-12)
+
+
+@compiled
+@settings(max_examples=200, deadline=None)
+@given(case=cases(shapes=("near copies", "near flat")), method=st.sampled_from(["nail", "aail"]))
+def test_ill_conditioned_rows_stay_valid(case, method: str) -> None:
+    q_task, q_impact, mask, alpha = case
+    got = blend(method, q_task, q_impact, alpha, mask)
+    want = blend_vectorised(method, q_task, q_impact, alpha, mask)
+    _assert_close(got, want, fields=("task_entropy_B", "task_weight_B"), q=False)
+    assert np.isfinite(got.q_BA).all() and (got.probs_BA >= 0).all()
+    np.testing.assert_allclose(got.probs_BA.sum(axis=1), 1.0, rtol=0, atol=1e-12)
+    active = mask.any(axis=1)
+    np.testing.assert_allclose(got.partner_weights_BP.sum(axis=1)[active], 1.0, atol=1e-12)
+    assert (got.partner_weights_BP[~mask] == 0).all()
+
+
+@compiled
+@pytest.mark.parametrize("n_actions", [129, 300])
+def test_many_actions(n_actions: int) -> None:
+    rng = np.random.default_rng(n_actions)
+    for slots in (0, 1, 3):
+        q_task, q_impact = (
+            rng.normal(size=(2, n_actions)) * 3,
+            rng.normal(size=(2, slots, n_actions)),
+        )
+        for method in ("sl", "nail", "aail"):
+            want = blend_vectorised(method, q_task, q_impact, 0.5)
+            _assert_close(blend(method, q_task, q_impact, 0.5), want)
+
+
+def test_masked_slots_are_never_read() -> None:
+    q_task = [[0.0, 1.0, 3.0]]
+    q_impact = [[[np.nan, 0.0, np.inf], [2.0, 0.0, 1.0]]]
+    got = blend("aail", q_task, q_impact, 0.5, [[False, True]])
+    assert got.partner_weights_BP.tolist() == [[0.0, 1.0]]
+    reference = blend_vectorised("aail", q_task, np.nan_to_num(q_impact), 0.5, [[False, True]])
+    _assert_close(got, reference)
+
+
+def test_edge_cases_by_hand() -> None:
+    q = [[0.0, 1.0, 2.0]]
+    # Σw = 0: every impact policy equals the task policy -> equal shares, the task's policy
+    same = blend("aail", q, [[q[0], q[0]]], 1.0)
+    assert same.partner_weights_BP.tolist() == [[0.5, 0.5]]
+    np.testing.assert_allclose(same.probs_BA, blend("sl", q, np.zeros((1, 0, 3)), 1.0).probs_BA)
+    # no partner: w_t = 1 and Q_C = Q_t - mean, the SL policy
+    alone = blend("aail", q, np.zeros((1, 0, 3)), 1.0)
+    assert alone.task_weight_B[0] == 1.0
+    np.testing.assert_allclose(alone.q_BA[0], [-1.0, 0.0, 1.0], rtol=1e-12, atol=1e-15)
+    # one action: certain policy, zero entropy, w_t = 1 by definition
+    one = blend("aail", [[5.0]], [[[2.0]]], 1e-9)
+    assert (one.probs_BA[0].tolist(), one.task_entropy_B[0], one.task_weight_B[0]) == (
+        [1.0],
+        0.0,
+        1.0,
+    )
+    # a flat impact vector has z = 0 and scale 0: Q_C = (w_t s_t)(w_t z_t) = w_t² (Q_t - mean)
+    flat = blend("aail", q, [[[7.0, 7.0, 7.0]]], 1.0)
+    w_t = flat.task_weight_B[0]
+    assert flat.partner_weights_BP.tolist() == [[1.0]] and 0 < w_t < 1
+    np.testing.assert_allclose(flat.q_BA[0], [w_t**2 * x for x in [-1.0, 0.0, 1.0]], rtol=1e-12)
+    # huge Q and a tiny temperature give a one-hot policy without overflow or NaN
+    huge = blend("aail", [[1e300, -1e300, 0.0]], [[[-1e300, 1e300, 0.0]]], 1e-300)
+    assert np.isfinite(huge.q_BA).all() and sorted(huge.probs_BA[0]) == [0.0, 0.0, 1.0]
+    empty = blend("aail", np.zeros((0, 3)), np.zeros((0, 2, 3)), 1.0)
+    assert empty.probs_BA.shape == (0, 3) and empty.partner_weights_BP.shape == (0, 2)
+
+
+def test_js_distance_with_an_underflowed_mixture() -> None:
+    """p = 5e-324 against q = 0: m = (p + q) / 2 rounds to 0; numpy then divides by 0 (a
+    distance of 1), and so must the kernel, without raising."""
+    q_task = np.array([[0.0, -745.0 - 0.13]])  # exp gives the smallest subnormal for action 1
+    q_impact = np.array([[[0.0, -1e6]]])
+    with np.errstate(divide="ignore"):
+        reference = blend_vectorised("aail", q_task, q_impact, 1.0)
+    _assert_close(blend("aail", q_task, q_impact, 1.0), reference)
+
+
+@compiled
+def test_kernel_shapes_are_checked() -> None:
+    rows = importlib.import_module("policy._blend_row").blend_rows
+    q_task, q_impact = np.zeros((2, 3)), np.zeros((2, 1, 3))
+    alpha, mask = np.ones(2), np.ones((2, 1), bool)
+    with pytest.raises(ValueError, match="shapes"):
+        rows("aail", q_task, np.zeros((2, 1, 4)), alpha, mask, True)
+    with pytest.raises(ValueError, match="shapes"):
+        rows("aail", q_task, q_impact, np.ones(3), mask, True)
+    with pytest.raises(ValueError, match="q_task_BA"):
+        rows("aail", np.zeros(3), q_impact, alpha, mask, True)
+    with pytest.raises(ValueError, match="method"):
+        rows("xail", q_task, q_impact, alpha, mask, True)
