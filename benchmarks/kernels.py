@@ -21,6 +21,7 @@ reference costs less than 10 % more on every case is not worth its C (issue 18).
 from __future__ import annotations
 
 import argparse
+import importlib
 import statistics
 import sys
 import tempfile
@@ -35,10 +36,13 @@ sys.path.insert(0, str(ROOT))
 
 from session_scene import EGO_GOAL, PARTNER_GOALS, build_store, episode  # noqa: E402
 
-import policy.belief_compiled as belief_kernel  # noqa: E402
-import policy.blend as blend_kernel  # noqa: E402
-import policy.row_forward as forward_kernel  # noqa: E402
 import services.engine.networks as networks  # noqa: E402
+
+# The modules themselves: `import policy.blend as m` would bind the function `policy.blend`
+# that policy/__init__.py exports under the module's name, and switch nothing.
+blend_kernel = importlib.import_module("policy.blend")
+forward_kernel = importlib.import_module("policy.row_forward")
+belief_kernel = importlib.import_module("policy.belief_compiled")
 
 VARIANTS = ("all compiled", "blend", "forward", "belief")
 Call = Callable[[int], object]
@@ -46,9 +50,10 @@ Call = Callable[[int], object]
 
 def use(variant: str, belief_extension: object) -> None:
     """Every kernel on, then the one named by `variant` off (its numpy reference runs)."""
-    blend_kernel.COMPILED = variant != "blend"
-    forward_kernel.COMPILED = networks.ROW_FORWARD = variant != "forward"
-    belief_kernel._EXTENSION = None if variant == "belief" else belief_extension
+    setattr(blend_kernel, "COMPILED", variant != "blend")  # noqa: B010
+    setattr(forward_kernel, "COMPILED", variant != "forward")  # noqa: B010
+    networks.ROW_FORWARD = variant != "forward"
+    setattr(belief_kernel, "_EXTENSION", None if variant == "belief" else belief_extension)  # noqa: B010
 
 
 def cases(url: str) -> dict[str, tuple[Call, int]]:
