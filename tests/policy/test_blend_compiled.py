@@ -108,8 +108,12 @@ def test_compiled_equals_the_reference(case, method: str, normalise: bool) -> No
         pi_task = boltzmann(q_task, alpha_B1[:, 0])
         pi_impact = boltzmann(q_impact, alpha_B1) if q_impact.size else q_impact
         jsd = js_distance(pi_task[:, None, :], pi_impact) if q_impact.size else q_impact[..., 0]
+    # (an exact copy of the task's Q-vector is not rounding: both must give it distance 0; a
+    # policy that only rounds to the task's, e.g. under a huge α, may come out 0 in one and
+    # 1e-17 in the other, which turns an equal share of ŵ into all-or-nothing)
+    exact_copy_BP = (q_impact == q_task[:, None, :]).all(axis=2)
     rounding_B = (
-        ((jsd > 0) & (jsd < 1e-4) & mask).any(axis=1)
+        ((jsd < 1e-4) & mask & ~exact_copy_BP).any(axis=1)
         if method == "aail"
         else mask[:, 0:0].any(axis=1)
     )
