@@ -11,16 +11,18 @@ git clone --quiet "$repo" "$clone"
 cd "$clone"
 body='{"env": "particle", "ego_goal": "a2", "observation": [0.1, 0.5, 0, 0, 0.7, 0.6, 0, 0],
        "partners": [{"index": 1, "goal": "b3"}], "seed": 7}'
-start=$(date +%s.%N)
+ms() { echo $(( $(date +%s%N) / 1000000 )); }  # milliseconds since the epoch
+seconds() { printf "%d.%03d" $(( $1 / 1000 )) $(( $1 % 1000 )); }
+start=$(ms)
 setsid make serve >"$work/serve.log" 2>&1 &
 server=$!
 trap 'kill -- -$server 2>/dev/null || true' EXIT
 installed=""
 while true; do
-  now=$(date +%s.%N)
+  now=$(ms)
   if [[ -z "$installed" && -f .venv/.installed-serve ]]; then
-    installed=$(echo "$now - $start" | bc)
-    echo "installed after ${installed} s"
+    installed=$(( now - start ))
+    echo "installed after $(seconds $installed) s"
   fi
   if curl -sf -X POST 127.0.0.1:8000/v1/act -H 'content-type: application/json' -d "$body" \
       >"$work/first_act.json" 2>/dev/null; then
@@ -29,7 +31,7 @@ while true; do
   if ! kill -0 $server 2>/dev/null; then echo "make serve exited; see $work/serve.log"; exit 1; fi
   sleep 1
 done
-total=$(echo "$(date +%s.%N) - $start" | bc)
-echo "first /v1/act answered after ${total} s (training: $(echo "$total - $installed" | bc) s)"
+total=$(( $(ms) - start ))
+echo "first /v1/act answered after $(seconds $total) s (training: $(seconds $(( total - ${installed:-0} ))) s)"
 cat "$work/first_act.json"; echo
 pkill -f "$clone/.venv/bin/coexist serve" || true

@@ -88,15 +88,23 @@ class TaskConfig(SoftQConfig):
     partner_wall_prob: float = 0.25
     """Share of training episodes in which the other agent instead rests on a wall or in a
     corner for the whole episode. Partners end up there (a partner population's agent heading
-    for a corner cell rests in the corner); a partner that never rested there in training made 9
-    of 35 task networks stop short of their target from some starts (`task_gates`' wall check).
-    The task reward does not depend on the other agent, so this only widens what the network
-    sees."""
+    for a corner cell rests in the corner); task networks that never saw it stopped short of
+    their target beside it (`task_gates`' wall check; `reports/paper/discussion.md`). The task
+    reward does not depend on the other agent, so this only widens what the network sees."""
     success_threshold: float = 0.95
     """Gate: share of evaluation episodes that must reach the target area."""
     wall_success_threshold: float = 1.0
     """Gate: share of the wall check's episodes (`trainer.particle.gates.wall_check`: grid
     starts, the other agent resting on a wall) that must reach the target area."""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        for name in ("partner_random_prob", "partner_wall_prob", "success_threshold",
+                     "wall_success_threshold"):  # fmt: skip
+            value = getattr(self, name)
+            if not 0.0 <= value <= 1.0:
+                raise ValueError(f"{name}: expected a share in [0, 1], got {value}")
+
     return_margin: float = 0.15
     """Gate: the mean own-target return may be at most this fraction of the scripted controller's
     |return| (or `return_slack`, whichever is larger) below the scripted controller's."""

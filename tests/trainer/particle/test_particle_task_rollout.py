@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from envs.particle.goals import goal_index
 from trainer.config import TaskConfig
@@ -29,3 +30,10 @@ def test_a_resting_partner_stays_on_its_wall_for_the_episode() -> None:
         rollout.step(np.zeros((1, 64), dtype=np.int64))
     np.testing.assert_allclose(rollout.world.state[resting_B, 1, :2], start_xy)
     assert not np.allclose(rollout.world.state[~resting_B, 1, :2], 0.0)
+
+
+def test_shares_outside_zero_to_one_are_refused_by_name() -> None:
+    with pytest.raises(ValueError, match="partner_wall_prob: expected a share in"):
+        TaskConfig(partner_wall_prob=1.5)
+    with pytest.raises(ValueError, match="wall_success_threshold: expected a share in"):
+        TaskConfig(wall_success_threshold=-0.1)
