@@ -89,8 +89,10 @@ class TaskConfig(SoftQConfig):
     """Share of training episodes in which the other agent instead rests on a wall or in a
     corner for the whole episode. Partners end up there (a partner population's agent heading
     for a corner cell rests in the corner); task networks that never saw it stopped short of
-    their target beside it (`task_gates`' wall check; `reports/paper/discussion.md`). The task
-    reward does not depend on the other agent, so this only widens what the network sees."""
+    their target beside it (`task_gates`' wall check; `reports/paper/discussion.md`). The other
+    agent moves on its own, so where it rests changes the task reward's second term (its
+    distance to the ego's influence area) but not which action is best: this only widens what
+    the network sees."""
     success_threshold: float = 0.95
     """Gate: share of evaluation episodes that must reach the target area."""
     wall_success_threshold: float = 1.0

@@ -146,31 +146,33 @@ def run_tasks(
         failed = goals_without(store, env, "task", goals, serve_alias)
         if key in run.done or not failed:
             continue
-        halves = retry_halves(failed)
         retry_jobs = [
             BatchJob(
-                f"task retry {attempt}: {','.join(half)}",
+                f"task retry {attempt}.{i + 1}: {','.join(goals)}",
                 config.total_steps,
                 train_tasks,
-                (half, config),
-                {"seed": seed + 7919 * attempt + i},  # a fresh seed per attempt, deterministic
+                (goals, config),
+                {"seed": seed + 7919 * attempt + i},  # a fresh seed per candidate, deterministic
             )
-            for i, half in enumerate(halves)
+            for i, goals in enumerate(retry_batches(failed))
         ]
         trained = train_batches(retry_jobs, workers=workers, progress=progress)
         for i, batch in enumerate(trained):
             versions = publish_batch(store, batch, env=env, serve_alias=serve_alias)
             run.record(f"{key}:{i}", versions)
             batches.append(batch)
-        run.record(key, [])  # its halves' versions are recorded under their own keys
+        run.record(key, [])  # its batches' versions are recorded under their own keys
     return batches
 
 
-def retry_halves(failed: Sequence[str]) -> list[list[str]]:
-    """The goals of a gate retry as two batches (one when a single goal failed): with two
-    workers the halves train at once instead of one batch leaving a core idle. The split
-    depends on the failed goals alone, so the networks never depend on the number of workers."""
-    return chunked(list(failed), (len(failed) + 1) // 2) if failed else []
+def retry_batches(failed: Sequence[str]) -> list[list[str]]:
+    """The batches of a gate retry: two, each holding every failed goal, trained with two seeds,
+    so an attempt gives each failed goal two candidates (with two workers at once, so the second
+    costs no wall time). Why: a goal whose first network failed can fail again with the next
+    seed (a fresh `make serve` once failed `e1`'s wall check four times in a row, one candidate
+    per attempt), and a goal without a network is a goal the server cannot serve. The batches
+    depend on the failed goals alone, so the networks never depend on the number of workers."""
+    return [list(failed), list(failed)] if failed else []
 
 
 def run_impacts(
@@ -218,13 +220,18 @@ def run_impacts(
             continue
         retry_seed = seed + 1000 + 7919 * attempt  # a fresh seed per attempt, still deterministic
         retry = [
-            (half, retry_seed + i, f"impact retry {attempt}: {','.join(half)}", f"{key}:{i}")
-            for i, half in enumerate(retry_halves(failed))
+            (
+                goals,
+                retry_seed + i,
+                f"impact retry {attempt}.{i + 1}: {','.join(goals)}",
+                f"{key}:{i}",
+            )
+            for i, goals in enumerate(retry_batches(failed))
         ]
         batches += _impact_batches(
             store, retry, config, run=run, progress=progress, env=env, workers=workers
         )
-        run.record(key, [])  # its halves' versions are recorded under their own keys
+        run.record(key, [])  # its batches' versions are recorded under their own keys
     return batches
 
 

@@ -12,7 +12,7 @@ through the store as safetensors only).
 |------------|--------------------------------------|----------------------------|--------------------|
 | task       | up to `goals_per_batch` goals        | seed + batch index         | `task:a2,b3`       |
 | task retry | the goals whose network failed its   | seed + 7919 x attempt + i  | `task-retry-1:0`   |
-|            | gate, in two halves i (none: no job) |                            | `task-retry-1:1`   |
+|            | gate, twice: candidates i = 0, 1     |                            | `task-retry-1:1`   |
 | impact     | up to `goals_per_batch` goals        | seed + 1000 + batch index  | `impact:a2,b3`     |
 | impact retry | as the task retry                  | seed + 1000 + 7919 x attempt + i | `impact-retry-1:0` |
 | joint      | every combination of one size        | seed + 2000 + size         | `joint:a2+b3;c+c4` |
@@ -41,7 +41,7 @@ from trainer.zoo import (
     goals_without,
     load_task_nets,
     production_parents_required,
-    retry_halves,
+    retry_batches,
     warn_unserved_parents,
 )
 
@@ -98,15 +98,15 @@ def task_stage(
 
 def retry_jobs(stage: Stage, attempt: int, failed: Sequence[str]) -> list[BatchJob]:
     """Attempt `attempt` (1, 2 ...) at the goals of a task or impact `stage` whose network
-    failed its gate, in two halves (the seeds and keys of `trainer.zoo.run_tasks` /
-    `run_impacts`, `trainer.zoo.retry_halves`)."""
+    failed its gate, as two batches of candidates (the seeds and keys of `trainer.zoo.run_tasks` /
+    `run_impacts`, `trainer.zoo.retry_batches`)."""
     kind = stage.jobs[0].kind
     offset = IMPACT_SEED_OFFSET if kind == "impact" else 0
     seed = stage.seed + offset + RETRY_SEED_STEP * attempt  # a fresh seed per attempt
     index = len(stage.jobs) + 2 * (attempt - 1)
     return [
-        BatchJob(kind, _members(half), seed + i, index + i, f"{kind}-retry-{attempt}:{i}")
-        for i, half in enumerate(retry_halves(failed))
+        BatchJob(kind, _members(goals), seed + i, index + i, f"{kind}-retry-{attempt}:{i}")
+        for i, goals in enumerate(retry_batches(failed))
     ]
 
 
