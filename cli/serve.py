@@ -128,3 +128,12 @@ def _bootstrap(store_url: str, data_dir: Path, steps: int | None) -> None:
             if impacts:
                 batches += run_impacts(store, impacts, impact_cfg, **common)
         print_summary(batches, console)
+        for kind in ("task", "impact"):
+            unserved = goals_without(store, "particle", kind, GOAL_IDS, "production")
+            if unserved:  # every attempt failed: say so, and how to fill the gap
+                console.print(
+                    f"[bold yellow]warning:[/bold yellow] no {kind} network passed its gates "
+                    f"for {', '.join(unserved)}; requests that need one are refused. Train "
+                    f"another: coexist train {kind} --goals {','.join(unserved)} --seed 1 "
+                    f"--store-url {store_url}"
+                )

@@ -84,11 +84,17 @@ def test_serve_refuses_the_default_token_outside_dev_mode(tmp_path: Path) -> Non
 
 
 @pytest.mark.slow
-def test_bootstrap_trains_the_missing_zoo_once(tmp_path: Path) -> None:
+def test_bootstrap_trains_the_missing_zoo_once(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     from cli.serve import _bootstrap
 
     url = f"sqlite:///{tmp_path / 'models.db'}"
     _bootstrap(url, tmp_path, steps=60)
+    # 60 steps pass no gate: the first run says which goals it cannot serve and how to fix it
+    said = " ".join(capsys.readouterr().out.split())
+    assert "no task network passed its gates for a0, a1" in said
+    assert "coexist train task --goals a0,a1," in said
     with SqlModelStore(url) as store:
         names = [m.name for m in store.list_models(page_size=100).items]
         assert len(names) == 70
