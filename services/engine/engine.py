@@ -155,8 +155,10 @@ class InferenceEngine:
         batch, n_actions = checked.obs_BD.shape[0], domain.n_actions
         if method == "jl":
             q_task_BA = q_members[0]
-        else:  # the task Q averaged over the K task views (one per other agent)
-            q_task_BA = q_members[0].reshape(batch, -1, n_actions).mean(axis=1)
+        else:  # the task Q averaged over the K task views (one per other agent): np.mean's
+            # float32 sum and division, without its Python wrapper (the same bits)
+            views = q_members[0].shape[0] // batch
+            q_task_BA = np.add.reduce(q_members[0].reshape(batch, views, n_actions), axis=1) / views
         q_task_BA = q_task_BA.astype(np.float64)
         epsilon_B, finished_B = aail_bounded_guard(request, group, checked)
         if finished_B is not None:  # R3: nothing left to earn, the exact task Q is flat
@@ -480,15 +482,19 @@ def _impact_q(
             q_BPA = np.einsum("pg,bpga->bpa", probs_PG, q_BPGA)
             for i, position in enumerate(positions):
                 per_partner[position] = q_BPA[:, i]
-    return np.stack(per_partner, axis=1, dtype=np.float64)  # type: ignore[arg-type]  # all set
+    # np.stack(per_partner, axis=1)'s values from one np.array (np.stack's Python steps cost
+    # more than the arithmetic at a few rows); a copy only where B > 1 makes the transpose strided
+    q_PBA = np.array(per_partner, dtype=np.float64)
+    return np.ascontiguousarray(q_PBA.transpose(1, 0, 2))
 
 
 def sample_actions(probs_BA: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """One action per row drawn from `probs_BA` by inverse CDF (one uniform per row, in order):
     the first action whose cumulative probability exceeds u, so a p = 0 action is never drawn."""
-    cdf_BA = np.cumsum(probs_BA, axis=1)
+    # the ufuncs' own methods: cumsum's and sum's work without their Python wrappers
+    cdf_BA = np.add.accumulate(probs_BA, axis=1)
     u_B1 = rng.random((probs_BA.shape[0], 1)) * cdf_BA[:, -1:]
-    return np.minimum((cdf_BA <= u_B1).sum(axis=1), probs_BA.shape[1] - 1)
+    return np.minimum(np.add.reduce(cdf_BA <= u_B1, axis=1), probs_BA.shape[1] - 1)
 
 
 def aail_bounded_guard(
