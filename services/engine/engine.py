@@ -164,20 +164,27 @@ class InferenceEngine:
         if finished_B is not None:  # R3: nothing left to earn, the exact task Q is flat
             flat_BA = np.broadcast_to(q_task_BA.mean(axis=1, keepdims=True), q_task_BA.shape)
             q_task_BA = np.where(finished_B[:, None], flat_BA, q_task_BA)
-        blend_method: BlendMethod = "sl"
-        q_impact_BPA = np.zeros((batch, 0, n_actions))  # sl, jl: the task/joint network alone
         if method in ("nail", "aail", "aail_bounded"):
-            blend_method = method
+            blend_method: BlendMethod = method
             q_impact_BPA = _impact_q(checked, q_members, layout)
+        else:  # sl, jl: the task/joint network alone
+            blend_method = "sl"
+            q_impact_BPA = np.zeros((batch, 0, n_actions))
         if not (np.isfinite(q_task_BA).all() and np.isfinite(q_impact_BPA).all()):
             raise InvalidRequest("observations", "values so large that the Q-values overflow")
         temperature = request.temperature or group.nets[0].alpha or DEFAULT_TEMPERATURE
+        # every partner slot is used, one temperature for all rows (filled in place: np.ones
+        # and np.full are Python wrappers around the same two steps)
+        mask_BP = np.empty(q_impact_BPA.shape[:2], dtype=bool)
+        mask_BP.fill(True)
+        alpha_B = np.empty(batch)
+        alpha_B.fill(float(temperature))
         blended = blend_checked(
             blend_method,
             q_task_BA,
             q_impact_BPA,
-            np.ones(q_impact_BPA.shape[:2], dtype=bool),
-            np.full(batch, float(temperature)),
+            mask_BP,
+            alpha_B,
             domain.blend_normalisation == "standardise",
             epsilon_B,
         )
@@ -212,7 +219,7 @@ class InferenceEngine:
             checked.runtime.domain.name,
             request.method,
             request.ego_goal,
-            tuple((p.index, p.goals, p.probs is None) for p in checked.partners),
+            checked.partners_key,
         )
         plan = self._member_plans.get(key)
         if plan is None:
@@ -377,8 +384,8 @@ class Layout(NamedTuple):
 def _layout(checked: CheckedRequest, members: Sequence[Member], group: StackedGroup) -> Layout:
     """The layout of this request's partners over the group's members, remembered on the
     group (with a belief over 35 goals and 4 partners: 140 slots and 141 models)."""
-    partners = tuple((p.index, p.goals, p.probs is None) for p in checked.partners)
-    key = ("layout", tuple(members), partners)  # an announced goal is not a distribution over it
+    # an announced goal is not a distribution over it (`partners_key` tells them apart)
+    key = ("layout", tuple(members), checked.partners_key)
     layout: Layout | None = group.memo.get(key)
     if layout is not None:
         return layout
