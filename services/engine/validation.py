@@ -54,12 +54,13 @@ class CheckedRequest:
     def partners_key(self) -> tuple[tuple[int, tuple[str, ...], bool], ...]:
         """Per partner (index, goals, announced): what the partners fix of a request's networks
         and layout (the engine's look-ups by request shape), built on first use. Not a
-        functools.cached_property: Python 3.11's takes a lock on every read."""
+        functools.cached_property: Python 3.11's computes under one lock shared by every
+        instance, and every request (from any thread) makes a new instance."""
         key = self.__dict__.get("_partners_key")
         if key is None:
             key = tuple([(p.index, p.goals, p.probs is None) for p in self.partners])
             object.__setattr__(self, "_partners_key", key)  # frozen: set once, as a cache
-        return key  # type: ignore[no-any-return]
+        return key
 
 
 def _is_int(value: object) -> bool:
