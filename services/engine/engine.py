@@ -48,6 +48,7 @@ Hot reload: `refresh()` (or the daemon thread of `start_refresh_thread`, every
 from __future__ import annotations
 
 import logging
+import math
 import threading
 from collections.abc import Mapping, Sequence
 from typing import NamedTuple
@@ -170,7 +171,12 @@ class InferenceEngine:
         else:  # sl, jl: the task/joint network alone
             blend_method = "sl"
             q_impact_BPA = np.zeros((batch, 0, n_actions))
-        if not (np.isfinite(q_task_BA).all() and np.isfinite(q_impact_BPA).all()):
+        # every value is a float32 network output or a mean or probability-weighted mix of
+        # some, so |q| <= float32's maximum where finite and a float64 sum cannot overflow: the
+        # sum is finite exactly when every value is (NaN and inf carry through it)
+        if not math.isfinite(
+            np.add.reduce(q_task_BA, axis=None) + np.add.reduce(q_impact_BPA, axis=None)
+        ):
             raise InvalidRequest("observations", "values so large that the Q-values overflow")
         temperature = request.temperature or group.nets[0].alpha or DEFAULT_TEMPERATURE
         # every partner slot is used, one temperature for all rows (filled in place: np.ones
