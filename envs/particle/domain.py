@@ -32,6 +32,7 @@ real robot's measured states the nearest prediction is a best guess, not a proof
 
 from __future__ import annotations
 
+import functools
 from typing import Any
 
 import numpy as np
@@ -60,6 +61,17 @@ COAST = (1.0 - DAMPING) / DAMPING
 SAME_PREDICTION_ATOL = 1e-9  # `recover_action`: predictions closer than this are one state
 PHANTOM_4 = np.array([0.5, 0.5, 0.0, 0.0], dtype=np.float32)
 _FEATURES = ("x", "y", "vx", "vy")
+
+
+@functools.cache
+def _pair_columns(n_agents: int) -> np.ndarray:
+    """(N-1, 8) column indices of the pair views [ego, other_j], j = 1..N-1 (N >= 2)."""
+    ego_4 = np.arange(STATE_DIM)
+    columns = np.array(
+        [np.concatenate([ego_4, j * STATE_DIM + ego_4]) for j in range(1, n_agents)], np.intp
+    )
+    columns.flags.writeable = False  # shared by every call
+    return columns
 
 
 class ParticleDomain:
@@ -91,14 +103,19 @@ class ParticleDomain:
         owners = ["self"] + [f"other{j}" for j in range(1, n_agents)]
         return [f"{owner}.{feature}" for owner in owners for feature in _FEATURES]
 
-    def _blocks(self, obs_BD: np.ndarray, n_agents: int) -> np.ndarray:
-        """Observation split into agent blocks, shape (B, N, 4)."""
+    def _checked(self, obs_BD: np.ndarray, n_agents: int) -> np.ndarray:
+        """The observation as an array of shape (B, 4N), else a ValueError."""
         dim = self.obs_dim(n_agents)
         obs_BD = np.asarray(obs_BD)
         if obs_BD.ndim != 2 or obs_BD.shape[1] != dim:
             raise ValueError(
                 f"obs_BD: expected shape (B, {dim}) for {n_agents} agents, got {obs_BD.shape}"
             )
+        return obs_BD
+
+    def _blocks(self, obs_BD: np.ndarray, n_agents: int) -> np.ndarray:
+        """Observation split into agent blocks, shape (B, N, 4)."""
+        obs_BD = self._checked(obs_BD, n_agents)
         return obs_BD.reshape(obs_BD.shape[0], n_agents, STATE_DIM)
 
     def _check_partner(self, n_agents: int, partner: int) -> None:
@@ -108,20 +125,19 @@ class ParticleDomain:
             )
 
     def task_views(self, obs_BD: np.ndarray, n_agents: int) -> np.ndarray:
-        blocks_BN4 = self._blocks(obs_BD, n_agents)
-        batch = blocks_BN4.shape[0]
-        ego_B14 = blocks_BN4[:, :1, :]
         if n_agents == 1:
-            others_BK4 = np.broadcast_to(PHANTOM_4.astype(blocks_BN4.dtype), (batch, 1, STATE_DIM))
-        else:
-            others_BK4 = blocks_BN4[:, 1:, :]
-        ego_BK4 = np.broadcast_to(ego_B14, others_BK4.shape)
-        return np.concatenate([ego_BK4, others_BK4], axis=-1)
+            blocks_BN4 = self._blocks(obs_BD, n_agents)
+            batch = blocks_BN4.shape[0]
+            phantom_BK4 = np.broadcast_to(PHANTOM_4.astype(blocks_BN4.dtype), (batch, 1, STATE_DIM))
+            return np.concatenate([blocks_BN4[:, :1, :], phantom_BK4], axis=-1)
+        # views of other agents are selections of the observation's columns: one take (the
+        # same values as slicing the blocks and concatenating, in fewer numpy calls)
+        return self._checked(obs_BD, n_agents).take(_pair_columns(n_agents), axis=1)
 
     def impact_view(self, obs_BD: np.ndarray, n_agents: int, partner: int) -> np.ndarray:
-        blocks_BN4 = self._blocks(obs_BD, n_agents)
+        obs_BD = self._checked(obs_BD, n_agents)
         self._check_partner(n_agents, partner)
-        return np.concatenate([blocks_BN4[:, 0], blocks_BN4[:, partner]], axis=-1)
+        return obs_BD.take(_pair_columns(n_agents)[partner - 1], axis=1)
 
     def partner_view(self, obs_BD: np.ndarray, n_agents: int, partner: int) -> np.ndarray:
         blocks_BN4 = self._blocks(obs_BD, n_agents)

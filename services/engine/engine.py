@@ -48,6 +48,7 @@ Hot reload: `refresh()` (or the daemon thread of `start_refresh_thread`, every
 from __future__ import annotations
 
 import logging
+import math
 import threading
 from collections.abc import Mapping, Sequence
 from typing import NamedTuple
@@ -155,27 +156,41 @@ class InferenceEngine:
         batch, n_actions = checked.obs_BD.shape[0], domain.n_actions
         if method == "jl":
             q_task_BA = q_members[0]
-        else:  # the task Q averaged over the K task views (one per other agent)
-            q_task_BA = q_members[0].reshape(batch, -1, n_actions).mean(axis=1)
+        else:  # the task Q averaged over the K task views (one per other agent): np.mean's
+            # float32 sum and division, without its Python wrapper (the same bits)
+            views = q_members[0].shape[0] // batch
+            q_task_BA = np.add.reduce(q_members[0].reshape(batch, views, n_actions), axis=1) / views
         q_task_BA = q_task_BA.astype(np.float64)
         epsilon_B, finished_B = aail_bounded_guard(request, group, checked)
         if finished_B is not None:  # R3: nothing left to earn, the exact task Q is flat
             flat_BA = np.broadcast_to(q_task_BA.mean(axis=1, keepdims=True), q_task_BA.shape)
             q_task_BA = np.where(finished_B[:, None], flat_BA, q_task_BA)
-        blend_method: BlendMethod = "sl"
-        q_impact_BPA = np.zeros((batch, 0, n_actions))  # sl, jl: the task/joint network alone
         if method in ("nail", "aail", "aail_bounded"):
-            blend_method = method
+            blend_method: BlendMethod = method
             q_impact_BPA = _impact_q(checked, q_members, layout)
-        if not (np.isfinite(q_task_BA).all() and np.isfinite(q_impact_BPA).all()):
+        else:  # sl, jl: the task/joint network alone
+            blend_method = "sl"
+            q_impact_BPA = np.zeros((batch, 0, n_actions))
+        # every value is a float32 network output or a mean or probability-weighted mix of
+        # some, so |q| <= float32's maximum where finite and a float64 sum cannot overflow: the
+        # sum is finite exactly when every value is (NaN and inf carry through it)
+        if not math.isfinite(
+            np.add.reduce(q_task_BA, axis=None) + np.add.reduce(q_impact_BPA, axis=None)
+        ):
             raise InvalidRequest("observations", "values so large that the Q-values overflow")
         temperature = request.temperature or group.nets[0].alpha or DEFAULT_TEMPERATURE
+        # every partner slot is used, one temperature for all rows (filled in place: np.ones
+        # and np.full are Python wrappers around the same two steps)
+        mask_BP = np.empty(q_impact_BPA.shape[:2], dtype=bool)
+        mask_BP.fill(True)
+        alpha_B = np.empty(batch)
+        alpha_B.fill(float(temperature))
         blended = blend_checked(
             blend_method,
             q_task_BA,
             q_impact_BPA,
-            np.ones(q_impact_BPA.shape[:2], dtype=bool),
-            np.full(batch, float(temperature)),
+            mask_BP,
+            alpha_B,
             domain.blend_normalisation == "standardise",
             epsilon_B,
         )
@@ -210,7 +225,7 @@ class InferenceEngine:
             checked.runtime.domain.name,
             request.method,
             request.ego_goal,
-            tuple((p.index, p.goals, p.probs is None) for p in checked.partners),
+            checked.partners_key,
         )
         plan = self._member_plans.get(key)
         if plan is None:
@@ -375,8 +390,8 @@ class Layout(NamedTuple):
 def _layout(checked: CheckedRequest, members: Sequence[Member], group: StackedGroup) -> Layout:
     """The layout of this request's partners over the group's members, remembered on the
     group (with a belief over 35 goals and 4 partners: 140 slots and 141 models)."""
-    partners = tuple((p.index, p.goals, p.probs is None) for p in checked.partners)
-    key = ("layout", tuple(members), partners)  # an announced goal is not a distribution over it
+    # an announced goal is not a distribution over it (`partners_key` tells them apart)
+    key = ("layout", tuple(members), checked.partners_key)
     layout: Layout | None = group.memo.get(key)
     if layout is not None:
         return layout
@@ -480,15 +495,19 @@ def _impact_q(
             q_BPA = np.einsum("pg,bpga->bpa", probs_PG, q_BPGA)
             for i, position in enumerate(positions):
                 per_partner[position] = q_BPA[:, i]
-    return np.stack(per_partner, axis=1, dtype=np.float64)  # type: ignore[arg-type]  # all set
+    # np.stack(per_partner, axis=1)'s values from one np.array (np.stack's Python steps cost
+    # more than the arithmetic at a few rows); a copy only where B > 1 makes the transpose strided
+    q_PBA = np.array(per_partner, dtype=np.float64)
+    return np.ascontiguousarray(q_PBA.transpose(1, 0, 2))
 
 
 def sample_actions(probs_BA: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """One action per row drawn from `probs_BA` by inverse CDF (one uniform per row, in order):
     the first action whose cumulative probability exceeds u, so a p = 0 action is never drawn."""
-    cdf_BA = np.cumsum(probs_BA, axis=1)
+    # the ufuncs' own methods: cumsum's and sum's work without their Python wrappers
+    cdf_BA = np.add.accumulate(probs_BA, axis=1)
     u_B1 = rng.random((probs_BA.shape[0], 1)) * cdf_BA[:, -1:]
-    return np.minimum((cdf_BA <= u_B1).sum(axis=1), probs_BA.shape[1] - 1)
+    return np.minimum(np.add.reduce(cdf_BA <= u_B1, axis=1), probs_BA.shape[1] - 1)
 
 
 def aail_bounded_guard(

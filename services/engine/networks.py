@@ -173,16 +173,16 @@ def build_group(nets: Sequence[LoadedNet]) -> StackedGroup:
     return StackedGroup(tuple(nets), partitions)
 
 
-def _forward_members(part: Partition, x_GRD: np.ndarray, starts: list[int]) -> np.ndarray:
-    """Members at positions `starts` of the partition (consecutive) on x (G', R, D)."""
+def _forward_members(part: Partition, x_GRD: np.ndarray, start: int, count: int) -> np.ndarray:
+    """Members `start` .. `start + count - 1` of the partition on x (count, R, D)."""
     rows, activation = x_GRD.shape[1], part.spec.activation
     if ROW_FORWARD and rows <= ROW_FORWARD_MAX_ROWS:
-        return row_forward(x_GRD, part.row_weights, starts[0], len(starts), activation)
+        return row_forward(x_GRD, part.row_weights, start, count, activation)
     if rows <= STACK_MAX_ROWS:
-        return numpy_row_forward(x_GRD, part.row_weights, starts[0], len(starts), activation)
+        return numpy_row_forward(x_GRD, part.row_weights, start, count, activation)
     return np.concatenate([
-        numpy_row_forward(x_GRD[i : i + 1], part.row_weights, g, 1, activation)
-        for i, g in enumerate(starts)
+        numpy_row_forward(x_GRD[i : i + 1], part.row_weights, start + i, 1, activation)
+        for i in range(count)
     ])  # fmt: skip
 
 
@@ -198,8 +198,11 @@ def forward_group(group: StackedGroup, inputs: Sequence[np.ndarray]) -> list[np.
             while end < len(part.members) and inputs[part.members[end]].shape[0] == rows:
                 end += 1
             same = part.members[g:end]
-            x_GRD = inputs[same[0]][None] if len(same) == 1 else np.stack([inputs[j] for j in same])
-            q_GRA = _forward_members(part, x_GRD, list(range(g, end)))
+            if len(same) == 1:
+                x_GRD = inputs[same[0]][None]
+            else:  # np.stack's result, from one concatenate (np.stack's Python steps cost more)
+                x_GRD = np.concatenate([inputs[j] for j in same]).reshape(len(same), rows, -1)
+            q_GRA = _forward_members(part, x_GRD, g, end - g)
             for i, j in enumerate(same):
                 outputs[j] = q_GRA[i]
             g = end
