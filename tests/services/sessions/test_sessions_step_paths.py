@@ -89,7 +89,11 @@ def test_steps_without_evidence_keep_the_belief_and_its_views(engine: InferenceE
     session.replace_settings(settings(blend_max_goals=1))
     narrow = session.step(random_observation(rng))
     assert sum(m.role == "impact" for m in narrow.result.models) == 1
-    assert narrow.beliefs[0].top == quiet.beliefs[0].top
+    # the same belief: the same goals in the same order, their probabilities to rounding (with
+    # numpy 2.4.6 the last bit of one differed: exact float equality was never the claim)
+    narrow_top, quiet_top = narrow.beliefs[0].top, quiet.beliefs[0].top
+    assert [goal for goal, _ in narrow_top] == [goal for goal, _ in quiet_top]
+    assert [p for _, p in narrow_top] == pytest.approx([p for _, p in quiet_top], rel=1e-12)
 
 
 def _written(settings: SessionSettings, answer: Any) -> dict[str, Any]:
