@@ -166,13 +166,17 @@ def run_tasks(
 
 
 def retry_batches(failed: Sequence[str]) -> list[list[str]]:
-    """The batches of a gate retry: two, each holding every failed goal, trained with two seeds,
-    so an attempt gives each failed goal two candidates (with two workers at once, so the second
-    costs no wall time). Why: a goal whose first network failed can fail again with the next
-    seed (a fresh `make serve` once failed `e1`'s wall check four times in a row, one candidate
-    per attempt), and a goal without a network is a goal the server cannot serve. The batches
-    depend on the failed goals alone, so the networks never depend on the number of workers."""
-    return [list(failed), list(failed)] if failed else []
+    """The batches of a gate retry: the failed goals in two halves (one batch per worker), each
+    goal twice in its batch: two candidates per goal and attempt, with their own initial weights
+    and experience, trained side by side. Why: a goal whose first network failed can fail again
+    with the next seed (a fresh `make serve` once failed `e1`'s wall check on all four attempts
+    of one candidate each), and a goal without a network is a goal the server cannot serve.
+    Both candidates of a goal sit in one batch, so they register in member order on every
+    backend (the second, when both pass, gets the alias). The batches depend on the failed
+    goals alone, so the networks never depend on the number of workers."""
+    if not failed:
+        return []
+    return [half + half for half in chunked(list(failed), (len(failed) + 1) // 2)]
 
 
 def run_impacts(

@@ -112,14 +112,18 @@ def test_goals_that_fail_their_gate_are_retrained_once_with_a_new_seed(tmp_path:
     store = SqlModelStore(f"sqlite:///{tmp_path / 'models.db'}")
     run = RunState.open(tmp_path / "run", "fp", resume=False)
     # 5 training steps cannot pass the gate: every goal fails, is retried once (two candidates
-    # each, one batch per seed, trainer.zoo.retry_batches), and fails again
+    # each, in two batches: trainer.zoo.retry_batches), and fails again
     cfg = replace(TaskConfig(), **{**TINY, "total_steps": 5, "warmup_steps": 1})
     batches = run_tasks(
         store, ["a2", "b3"], cfg, seed=1, goals_per_batch=2, run=run,
         progress=_no_progress, gate_retries=1,
     )  # fmt: skip
     assert [b.seed for b in batches] == [1, 1 + 7919, 1 + 7919 + 1]
-    assert [b.goals for b in batches] == [[("a2",), ("b3",)]] * 3
+    assert [b.goals for b in batches] == [
+        [("a2",), ("b3",)],
+        [("a2",), ("a2",)],
+        [("b3",), ("b3",)],
+    ]
     v3 = store.resolve("particle/task/b3@latest")
     assert v3.version == 3 and v3.lineage.seed == 1 + 7919 + 1
     assert "production" not in store.get_model("particle/task/b3").aliases
@@ -132,7 +136,9 @@ def test_goals_that_fail_their_gate_are_retrained_once_with_a_new_seed(tmp_path:
     store.close()
 
 
-def test_a_retry_trains_two_candidates_of_every_failed_goal_whatever_the_workers() -> None:
-    assert retry_batches(["a2"]) == [["a2"], ["a2"]]
-    assert retry_batches(["a2", "b3", "c"]) == [["a2", "b3", "c"], ["a2", "b3", "c"]]
+def test_a_retry_trains_two_candidates_of_every_failed_goal_in_one_batch_whatever_the_workers() -> (
+    None
+):
+    assert retry_batches(["a2"]) == [["a2", "a2"]]
+    assert retry_batches(["a2", "b3", "c"]) == [["a2", "b3", "a2", "b3"], ["c", "c"]]
     assert retry_batches([]) == []

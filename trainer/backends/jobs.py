@@ -12,7 +12,7 @@ through the store as safetensors only).
 |------------|--------------------------------------|----------------------------|--------------------|
 | task       | up to `goals_per_batch` goals        | seed + batch index         | `task:a2,b3`       |
 | task retry | the goals whose network failed its   | seed + 7919 x attempt + i  | `task-retry-1:0`   |
-|            | gate, twice: candidates i = 0, 1     |                            | `task-retry-1:1`   |
+|            | gate, twice each, in two halves i    |                            | `task-retry-1:1`   |
 | impact     | up to `goals_per_batch` goals        | seed + 1000 + batch index  | `impact:a2,b3`     |
 | impact retry | as the task retry                  | seed + 1000 + 7919 x attempt + i | `impact-retry-1:0` |
 | joint      | every combination of one size        | seed + 2000 + size         | `joint:a2+b3;c+c4` |

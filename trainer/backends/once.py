@@ -15,7 +15,8 @@ version forever. Two pieces make publishing idempotent:
 |                  | exclusive `flock` on `<database>.publish.lock` next to the file         |
 
 Under the lock, a member whose model already has a version marked with the job key is not
-registered again: that version is returned instead. Two attempts finishing together take the
+registered again: that version is returned instead (a model twice in one batch, a gate retry's
+two candidates, is matched occurrence by occurrence). Two attempts finishing together take the
 lock in turn, and the second finds the first one's versions. A holder that dies releases the
 lock with its connection (PostgreSQL) or its open file (SQLite). The aliases of a version are set
 in the same transaction that registers it, so a reused version already carries them; the gate tag
@@ -71,12 +72,15 @@ def publish_lock(store_url: str, job_key: str) -> Iterator[None]:
 
 class _RegisterOnce:
     """The store as `publish_batch` sees it, except that `register_version` returns the version
-    already marked with the job key, if there is one. Everything else passes through."""
+    already marked with the job key, if there is one: the k-th call for a model (a goal twice
+    in one batch: a gate retry's two candidates, `trainer.zoo.retry_batches`) gets the k-th
+    marked version. Everything else passes through."""
 
     def __init__(self, store: ModelStore, job_key: str, on_register: RegisteredHook | None):
         self._store = store
         self._job_key = job_key
         self._on_register = on_register
+        self._calls: dict[str, int] = {}  # model name -> register_version calls so far
 
     def __getattr__(self, attribute: str) -> Any:
         return getattr(self._store, attribute)
@@ -84,9 +88,15 @@ class _RegisterOnce:
     def register_version(
         self, name: str, *, spec: dict, weights: bytes, lineage: Lineage, aliases: Sequence[str]
     ) -> ModelVersion:
-        for existing in self._store.list_versions(name):
-            if existing.lineage.config.get(JOB_CONFIG_KEY) == self._job_key:
-                return existing
+        nth = self._calls.get(name, 0)
+        self._calls[name] = nth + 1
+        marked = [
+            v
+            for v in self._store.list_versions(name)
+            if v.lineage.config.get(JOB_CONFIG_KEY) == self._job_key
+        ]
+        if nth < len(marked):
+            return sorted(marked, key=lambda v: v.version)[nth]
         version = self._store.register_version(
             name, spec=spec, weights=weights, lineage=lineage, aliases=aliases
         )

@@ -92,6 +92,20 @@ def test_attempts_finishing_together_register_each_network_once(
     assert again == [["particle/task/a2/2", "particle/task/b3/2"]] * ATTEMPTS
 
 
+def test_a_goal_twice_in_one_batch_is_two_networks_registered_once_each(
+    store_url: str,
+) -> None:
+    # a gate retry's batch holds each failed goal twice (trainer.zoo.retry_batches)
+    config = replace(TaskConfig(), total_steps=20, warmup_steps=5, envs_per_net=2, hidden=(8,))
+    twice = train_tasks(["a2", "a2"], config, seed=4, evaluate=False)
+    results = _publish_together(store_url, twice, "run-c/task-retry-1:0")
+    assert results == [["particle/task/a2/1", "particle/task/a2/2"]] * ATTEMPTS
+    with SqlModelStore(store_url) as store:
+        versions = sorted(store.list_versions("particle/task/a2"), key=lambda v: v.version)
+        assert [v.version for v in versions] == [1, 2]
+        assert versions[0].sha256 != versions[1].sha256  # two candidates, not one copied
+
+
 def test_the_publish_lock_excludes_a_second_holder(tmp_path: Path) -> None:
     url = f"sqlite:///{tmp_path / 'models.db'}"
     SqlModelStore(url).close()
