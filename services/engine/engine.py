@@ -173,10 +173,11 @@ class InferenceEngine:
             q_impact_BPA = np.zeros((batch, 0, n_actions))
         # every value is a float32 network output or a mean or probability-weighted mix of
         # some, so |q| <= float32's maximum where finite and a float64 sum cannot overflow: the
-        # sum is finite exactly when every value is (NaN and inf carry through it)
-        if not math.isfinite(
-            np.add.reduce(q_task_BA, axis=None) + np.add.reduce(q_impact_BPA, axis=None)
-        ):
+        # sum is finite exactly when every value is (NaN and inf carry through it; +inf and
+        # -inf together make a NaN, which numpy would warn about on the way to this error)
+        with np.errstate(invalid="ignore"):
+            total = np.add.reduce(q_task_BA, axis=None) + np.add.reduce(q_impact_BPA, axis=None)
+        if not math.isfinite(total):
             raise InvalidRequest("observations", "values so large that the Q-values overflow")
         temperature = request.temperature or group.nets[0].alpha or DEFAULT_TEMPERATURE
         # every partner slot is used, one temperature for all rows (filled in place: np.ones
