@@ -99,6 +99,13 @@ class TaskConfig(SoftQConfig):
     """Gate: share of the wall check's episodes (`trainer.particle.gates.wall_check`: grid
     starts, the other agent resting on a wall) that must reach the target area."""
 
+    return_margin: float = 0.15
+    """Gate: the mean own-target return may be at most this fraction of the scripted controller's
+    |return| (or `return_slack`, whichever is larger) below the scripted controller's."""
+    return_slack: float = 0.3
+    """Gate: absolute slack of the return comparison, in distance x steps per episode (0.3 over a
+    200-step episode is 0.0015 of extra distance per step: sampling noise near the border)."""
+
     def __post_init__(self) -> None:
         super().__post_init__()
         for name in ("partner_random_prob", "partner_wall_prob", "success_threshold",
@@ -106,13 +113,6 @@ class TaskConfig(SoftQConfig):
             value = getattr(self, name)
             if not 0.0 <= value <= 1.0:
                 raise ValueError(f"{name}: expected a share in [0, 1], got {value}")
-
-    return_margin: float = 0.15
-    """Gate: the mean own-target return may be at most this fraction of the scripted controller's
-    |return| (or `return_slack`, whichever is larger) below the scripted controller's."""
-    return_slack: float = 0.3
-    """Gate: absolute slack of the return comparison, in distance x steps per episode (0.3 over a
-    200-step episode is 0.0015 of extra distance per step: sampling noise near the border)."""
 
 
 @dataclass(frozen=True)

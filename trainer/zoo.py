@@ -148,11 +148,11 @@ def run_tasks(
             continue
         retry_jobs = [
             BatchJob(
-                f"task retry {attempt}.{i + 1}: {','.join(goals)}",
+                retry_label("task", attempt, i, goals),
                 config.total_steps,
                 train_tasks,
                 (goals, config),
-                {"seed": seed + 7919 * attempt + i},  # a fresh seed per candidate, deterministic
+                {"seed": seed + 7919 * attempt + i},  # a fresh seed per batch, deterministic
             )
             for i, goals in enumerate(retry_batches(failed))
         ]
@@ -177,6 +177,13 @@ def retry_batches(failed: Sequence[str]) -> list[list[str]]:
     if not failed:
         return []
     return [half + half for half in chunked(list(failed), (len(failed) + 1) // 2)]
+
+
+def retry_label(kind: str, attempt: int, index: int, goals: Sequence[str]) -> str:
+    """The progress label of a retry batch: its goals once each (the batch holds each twice)."""
+    return (
+        f"{kind} retry {attempt}.{index + 1}: {','.join(dict.fromkeys(goals))} (2 candidates each)"
+    )
 
 
 def run_impacts(
@@ -227,7 +234,7 @@ def run_impacts(
             (
                 goals,
                 retry_seed + i,
-                f"impact retry {attempt}.{i + 1}: {','.join(goals)}",
+                retry_label("impact", attempt, i, goals),
                 f"{key}:{i}",
             )
             for i, goals in enumerate(retry_batches(failed))
