@@ -102,6 +102,12 @@ def grpc_timers() -> tuple[Callable[[int], float], Callable[[int], float]]:
         def send_initial_metadata(self, metadata: Any) -> None:
             pass
 
+        def trailing_metadata(self) -> None:
+            return None
+
+        def set_trailing_metadata(self, metadata: Any) -> None:
+            pass
+
         def code(self) -> None:
             return None
 

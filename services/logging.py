@@ -22,7 +22,8 @@ writes one access line per request when the response is complete: at INFO, or DE
 probes `/healthz`, `/readyz` and `/metrics` (a load balancer polls them every few seconds).
 `route` is the path template (`/v1/registry/models/{name}/-/versions`), `path` the raw path.
 gRPC calls get the same treatment from `services.grpc_api.request_ids` (id in the call's
-`x-request-id` metadata, echoed as initial metadata, access lines with `method` "GRPC").
+`x-request-id` metadata, echoed in a unary call's trailers or a stream's initial metadata,
+access lines with `method` "GRPC").
 """
 
 from __future__ import annotations

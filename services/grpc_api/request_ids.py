@@ -7,7 +7,10 @@
 |                      | rule as HTTP: 1-128 characters from `A-Za-z0-9._:-`), else a new one  |
 | id on log lines      | `services.logging.request_id_var` is set while the handler runs (for  |
 |                      | a stream: while each of its steps runs), so every line has it         |
-| id out               | initial metadata `x-request-id`, sent before the first response       |
+| id out               | `x-request-id` metadata: for a unary call in the trailing metadata    |
+|                      | (sent with the answer and the status, beside an error's               |
+|                      | `coexist-field`), for a stream in the initial metadata, before the    |
+|                      | first answer                                                          |
 | access line          | logger `coexist.access`, one per call when it ends: `method` "GRPC",  |
 |                      | `route` the full method (`/coexist.v1.PolicyService/Act`), `status`   |
 |                      | the status code name (`OK`, `INVALID_ARGUMENT` ...), `duration_ms`;   |
@@ -15,6 +18,12 @@
 | metrics              | with `metrics`: `coexist_grpc_requests_total{method, code}` and       |
 |                      | `coexist_grpc_request_seconds{method}` (`services.metrics`)           |
 | trace                | with `tracer`: one server span per call (`services.tracing`)          |
+
+Why unary calls echo the id in the trailers: grpcio sends initial metadata set by a handler
+(`send_initial_metadata`) as a write of its own ahead of the answer, which costs a unary call a
+measurable share of its latency (`benchmarks/serving.py`, docs/performance.md); the trailers
+travel in the answer's own write. A stream's id comes first, so a client can correlate it with
+the logs while the stream is still open.
 
 A load balancer or client that forwards one id through every hop (envoy does with
 `x-request-id`) therefore gets the same id in the HTTP and gRPC logs of every replica.
@@ -75,10 +84,9 @@ class _Observed:
         self.route, self.metrics, self.tracer = route, metrics, tracer
 
     def begin(self, context: grpc.ServicerContext, attach: bool) -> tuple[str, Any]:
-        """The call's id (echoed now, as initial metadata) and its span (None: tracing off),
-        made the thread's current span with `attach`."""
+        """The call's id and its span (None: tracing off), made the thread's current span with
+        `attach`."""
         request_id = request_id_from(context.invocation_metadata())
-        context.send_initial_metadata(((REQUEST_ID_HEADER, request_id),))
         if self.tracer is None:
             return request_id, None
         return request_id, self.tracer.grpc_span(self.route, request_id, attach=attach)
@@ -103,6 +111,9 @@ class _Observed:
                 failed = False
                 return response
             finally:
+                # after the handler: kept beside the trailing metadata an error set
+                echoed = (*(context.trailing_metadata() or ()), (REQUEST_ID_HEADER, request_id))
+                context.set_trailing_metadata(echoed)
                 self.end(context, failed, start, span)
                 request_id_var.reset(token)
 
@@ -112,6 +123,7 @@ class _Observed:
         def call(request: Any, context: grpc.ServicerContext) -> Iterator[Any]:
             start = time.perf_counter()
             request_id, span = self.begin(context, attach=False)
+            context.send_initial_metadata(((REQUEST_ID_HEADER, request_id),))
             failed = True
             responses = behaviour(request, context)
             try:

@@ -9,8 +9,8 @@ kind of machine, /work/shared/PERF-NOTES.md), serving
 | `grpc.reflection.v1alpha...`     | server reflection (grpcurl, grpc_cli list and describe)  |
 
 Every call goes through `request_ids.RequestIdInterceptor`: the caller's `x-request-id` (or a
-new one) is on every log line written while serving it, comes back as initial metadata, and
-each call ends with one access line, as HTTP requests do (`services.logging`).
+new one) is on every log line written while serving it, comes back in the metadata (a unary
+call's trailers, a stream's initial metadata), and each call ends with one access line, as HTTP requests do (`services.logging`).
 
     server = build_grpc_server(engine, port=0)     # port 0: the OS picks; see server.port
     server.start(); ...; server.stop(grace=5.0)    # health -> NOT_SERVING, then drain

@@ -1,5 +1,6 @@
 """gRPC request ids: the caller's `x-request-id` (or a new one) on every log line written while
-a call is served, echoed as initial metadata, and one access line per call with its status."""
+a call is served, echoed (a unary call's in its trailing metadata, a stream's in its initial
+metadata), and one access line per call with its status."""
 
 from __future__ import annotations
 
@@ -51,7 +52,8 @@ def _request(env: str = "particle") -> pb.ActRequest:
 
 def test_a_callers_id_is_echoed_and_on_every_line(live: LiveServer, captured: io.StringIO) -> None:
     _, call = live.stub.Act.with_call(_request(), metadata=(("x-request-id", "robot-7.s:3"),))
-    assert ("x-request-id", "robot-7.s:3") in call.initial_metadata()
+    assert ("x-request-id", "robot-7.s:3") in call.trailing_metadata()
+    assert "x-request-id" not in dict(call.initial_metadata())  # no write of its own
     records = _records(captured)
     handler = [r for r in records if r["logger"] == "coexist.test.grpc_handler"]
     assert handler and all(r["request_id"] == "robot-7.s:3" for r in handler)
@@ -64,7 +66,7 @@ def test_a_callers_id_is_echoed_and_on_every_line(live: LiveServer, captured: io
 def test_a_missing_or_unsafe_id_is_replaced(live: LiveServer, captured: io.StringIO) -> None:
     for metadata in ((), (("x-request-id", "bad id with spaces"),)):
         _, call = live.stub.Act.with_call(_request(), metadata=metadata)
-        echoed = dict(call.initial_metadata())["x-request-id"]
+        echoed = dict(call.trailing_metadata())["x-request-id"]
         assert len(echoed) == 32 and int(echoed, 16) >= 0
     ids = [r["request_id"] for r in _records(captured) if r["logger"] == "coexist.access"]
     assert len(ids) == 2 and ids[0] != ids[1]
@@ -74,6 +76,8 @@ def test_a_failed_call_logs_its_status_code(live: LiveServer, captured: io.Strin
     with pytest.raises(grpc.RpcError) as info:
         live.stub.Act(_request(env="nowhere"), metadata=(("x-request-id", "bad-env"),))
     assert info.value.code() == grpc.StatusCode.INVALID_ARGUMENT
+    trailers = dict(info.value.trailing_metadata())  # the id beside the error's field
+    assert trailers["x-request-id"] == "bad-env" and trailers["coexist-field"] == "env"
     [access] = [r for r in _records(captured) if r["logger"] == "coexist.access"]
     assert access["request_id"] == "bad-env" and access["status"] == "INVALID_ARGUMENT"
     assert access["level"] == "INFO"
