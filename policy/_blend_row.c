@@ -1,4 +1,5 @@
-/* policy._blend_row: SL / NAIL / AAIL (paper §3.3, eqs. 8-10) of B rows in one call, compiled:
+/* policy._blend_row: SL / NAIL / AAIL (paper §3.3, eqs. 8-10) of B rows in one call, and AAIL's
+ * policy bounded by ε (eq. R1 of `policy.regret_bound`, method aail_bounded), compiled:
  * `policy.blend.blend`'s kernel.
  *
  * Why C: the blend of one row is a few hundred double operations over vectors of a handful of
@@ -65,6 +66,7 @@ typedef struct {
     const double *q_impact; /* (B, P, n): masked rows are never read */
     const double *alpha;    /* (B,) */
     const char *mask;       /* (B, P) */
+    const double *epsilon;  /* (B,) ε of eq. R1, or NULL: no bound */
     double *q, *probs, *entropy, *weight, *partner_weights; /* out: (B, n) (B, n) (B) (B) (B, P) */
 } Batch;
 
@@ -291,6 +293,30 @@ static int probs_step(const Batch *t, Work *w) {
     return 0;
 }
 
+/* step 6 (aail_bounded): eq. R1 (`regret_bound.bound_rows`): the actions within ε of the
+ * task's best Q share the task policy's mass on them as the blend says, every other action
+ * keeps its task probability; the task policy itself where the blend puts nothing on them */
+static void bound_step(const Batch *t, const Work *w) {
+    Py_ssize_t n = t->n;
+    for (Py_ssize_t b = 0; b < t->B; b++) {
+        const double *q = t->q_task + b * n, *task = w->policies + w->policy_at[b];
+        double *probs = t->probs + b * n;
+        double lowest = first_max(q, n) - t->epsilon[b]; /* S_ε: q >= max q - ε */
+        double task_mass = 0.0, blend_mass = 0.0;
+        for (Py_ssize_t a = 0; a < n; a++)
+            if (q[a] >= lowest) {
+                task_mass += task[a];
+                blend_mass += probs[a];
+            }
+        if (!(blend_mass > 0.0)) {
+            memcpy(probs, task, n * sizeof(double));
+            continue;
+        }
+        for (Py_ssize_t a = 0; a < n; a++)
+            probs[a] = q[a] >= lowest ? task_mass * (probs[a] / blend_mass) : task[a];
+    }
+}
+
 /* the whole blend of a batch; 0, or -1 with a Python error set */
 static int blend_batch(const Batch *t) {
     Py_ssize_t B = t->B, P = t->P, n = t->n, pairs = 0;
@@ -334,6 +360,7 @@ static int blend_batch(const Batch *t) {
     }
     blend_step(t, &w, power);
     status = probs_step(t, &w);
+    if (status == 0 && t->epsilon != NULL) bound_step(t, &w);
 done:
     PyMem_Free(memory);
     PyMem_Free(counts);
@@ -357,30 +384,39 @@ static PyArrayObject *float64_array(PyObject *obj, int ndim, const char *what) {
     return array;
 }
 
-/* blend_rows(method, q_task_BA, q_impact_BPA, alpha_B, mask_BP, normalise)
-   -> (q_BA, probs_BA, task_entropy_B, task_weight_B, partner_weights_BP), float64 arrays */
+/* blend_rows(method, q_task_BA, q_impact_BPA, alpha_B, mask_BP, normalise[, epsilon_B])
+   -> (q_BA, probs_BA, task_entropy_B, task_weight_B, partner_weights_BP), float64 arrays;
+   with epsilon_B (B,) (not None) the probabilities are bounded by eq. R1 (aail only) */
 static PyObject *blend_rows(PyObject *self, PyObject *args) {
     const char *method_name;
-    PyObject *objs[4];
+    PyObject *objs[4], *epsilon_obj = Py_None;
     int normalise;
-    if (!PyArg_ParseTuple(args, "sOOOOp", &method_name, &objs[0], &objs[1], &objs[2], &objs[3],
-                          &normalise))
+    if (!PyArg_ParseTuple(args, "sOOOOp|O", &method_name, &objs[0], &objs[1], &objs[2],
+                          &objs[3], &normalise, &epsilon_obj))
         return NULL;
     int method = method_code(method_name);
     if (method < 0) return NULL;
+    if (epsilon_obj != Py_None && method != AAIL) {
+        PyErr_SetString(PyExc_ValueError, "epsilon_B: bounds the aail blend only");
+        return NULL;
+    }
     PyArrayObject *q_task = float64_array(objs[0], 2, "q_task_BA");
     PyArrayObject *q_impact = q_task ? float64_array(objs[1], 3, "q_impact_BPA") : NULL;
     PyArrayObject *alpha = q_impact ? float64_array(objs[2], 1, "alpha_B") : NULL;
     PyArrayObject *mask = alpha ? (PyArrayObject *)PyArray_FROMANY(objs[3], NPY_BOOL, 2, 2,
                                                                    NPY_ARRAY_IN_ARRAY)
                                 : NULL;
+    PyArrayObject *epsilon = NULL;
     PyObject *out[5] = {NULL}, *result = NULL;
     if (mask == NULL) goto done;
+    if (epsilon_obj != Py_None && (epsilon = float64_array(epsilon_obj, 1, "epsilon_B")) == NULL)
+        goto done;
     npy_intp B = PyArray_DIM(q_task, 0), n = PyArray_DIM(q_task, 1), P = PyArray_DIM(q_impact, 1);
     if (n < 1 || PyArray_DIM(q_impact, 0) != B || PyArray_DIM(q_impact, 2) != n ||
-        PyArray_DIM(alpha, 0) != B || PyArray_DIM(mask, 0) != B || PyArray_DIM(mask, 1) != P) {
+        PyArray_DIM(alpha, 0) != B || PyArray_DIM(mask, 0) != B || PyArray_DIM(mask, 1) != P ||
+        (epsilon != NULL && PyArray_DIM(epsilon, 0) != B)) {
         PyErr_SetString(PyExc_ValueError,
-                        "expected shapes (B, A), (B, P, A), (B,), (B, P) with A >= 1");
+                        "expected shapes (B, A), (B, P, A), (B,), (B, P)[, (B,)] with A >= 1");
         goto done;
     }
     npy_intp shapes[5][2] = {{B, n}, {B, n}, {B, 0}, {B, 0}, {B, P}};
@@ -390,7 +426,7 @@ static PyObject *blend_rows(PyObject *self, PyObject *args) {
     }
     Batch t = {B, P, n, method, normalise,
                PyArray_DATA(q_task), PyArray_DATA(q_impact), PyArray_DATA(alpha),
-               PyArray_DATA(mask)};
+               PyArray_DATA(mask), epsilon == NULL ? NULL : PyArray_DATA(epsilon)};
     double **outputs[5] = {&t.q, &t.probs, &t.entropy, &t.weight, &t.partner_weights};
     for (int i = 0; i < 5; i++) *outputs[i] = PyArray_DATA((PyArrayObject *)out[i]);
     if (B > 0 && blend_batch(&t) < 0) goto done;
@@ -401,12 +437,14 @@ done:
     Py_XDECREF(q_impact);
     Py_XDECREF(alpha);
     Py_XDECREF(mask);
+    Py_XDECREF(epsilon);
     return result;
 }
 
 static PyMethodDef methods[] = {
     {"blend_rows", blend_rows, METH_VARARGS,
-     "blend_rows(method, q_task_BA, q_impact_BPA, alpha_B, mask_BP, normalise) -> 5 arrays"},
+     "blend_rows(method, q_task_BA, q_impact_BPA, alpha_B, mask_BP, normalise[, epsilon_B]) "
+     "-> 5 arrays"},
     {NULL, NULL, 0, NULL},
 };
 

@@ -9,5 +9,6 @@ def blend_rows(
     alpha_B: Any,
     mask_BP: Any,
     normalise: bool,
+    epsilon_B: Any = None,
     /,
 ) -> tuple[Any, Any, Any, Any, Any]: ...

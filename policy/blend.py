@@ -51,7 +51,7 @@ reference; `policy/_blend_row.c` (built by setup.py) computes each row's steps i
 numpy's per-call overhead would otherwise dominate the few numbers of a row. `blend` takes the
 compiled kernel where it is built (`COMPILED`), for any batch, else the reference; the two
 agree within 1e-9 (tests/policy/test_blend_compiled.py). `aail_bounded`'s bound (eq. R1) is
-numpy in both (`policy.regret_bound.bound_rows`).
+`policy.regret_bound.bound_rows` on the numpy path and a last step of the same kernel.
 """
 
 from __future__ import annotations
@@ -215,16 +215,17 @@ def blend_checked(
     and, for `aail_bounded` only, ε >= 0 per row (B,). For a caller that checked them (the
     inference engine validates each request once); compiled when `COMPILED`."""
     base: BlendMethod = "aail" if method == "aail_bounded" else method
-    if COMPILED:
-        result = BlendResult(
-            *_kernel.blend_rows(base, q_task_BA, q_impact_BPA, alpha_B, mask_BP, normalise)
+    if COMPILED:  # the bound (eq. R1) in the same call
+        return BlendResult(
+            *_kernel.blend_rows(
+                base, q_task_BA, q_impact_BPA, alpha_B, mask_BP, normalise, epsilon_B
+            )
         )
-    else:
-        alpha_B1 = alpha_B[:, None]
-        result = _vectorised(base, q_task_BA, q_impact_BPA, mask_BP, alpha_B1, normalise)
+    alpha_B1 = alpha_B[:, None]
+    result = _vectorised(base, q_task_BA, q_impact_BPA, mask_BP, alpha_B1, normalise)
     if epsilon_B is None:
         return result
-    return _bounded(result, q_task_BA, alpha_B[:, None], epsilon_B)
+    return _bounded(result, q_task_BA, alpha_B1, epsilon_B)
 
 
 def _epsilon(

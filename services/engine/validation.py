@@ -266,27 +266,59 @@ def check_request(request: ActRequest, max_batch: int) -> CheckedRequest:
     return CheckedRequest(runtime, obs_BD, n_agents, partners)
 
 
-# A transport that converts a client's repeated settings once (`services.grpc_api.repeated`)
-# passes the same partners tuple on every call: its check is kept, keyed by the tuple's identity
-# (the entry holds the tuple, so the id cannot be reused while the entry lives).
-_CHECKED_PARTNERS: dict[tuple[int, str, int], tuple[object, tuple[CheckedPartner, ...]]] = {}
+# Checked partners are kept, so that a client sending the same partners on every call has them
+# checked once: by the tuple's identity where a transport passes the same tuple each time
+# (`services.grpc_api.repeated`; the entry holds the tuple, so the id cannot be reused while the
+# entry lives), and by their content where that is plain ints and goal names (a REST body makes
+# new PartnerSpecs on every call). Only announced goals are kept: a goal_probs mapping could be
+# edited between calls (so could a list, hence tuples only by identity).
+_CHECKED_PARTNERS: dict[tuple[object, ...], tuple[object, tuple[CheckedPartner, ...]]] = {}
 PARTNERS_MEMO_MAX = 256
+
+
+def _content_key(partners: object) -> tuple[tuple[int, str], ...] | None:
+    """(index, goal) per partner when each is a PartnerSpec with an `int` index and an announced
+    `str` goal (then nothing else decides its check), else None."""
+    if type(partners) is not tuple and type(partners) is not list:
+        return None
+    key = []
+    for partner in partners:
+        if (
+            type(partner) is not PartnerSpec
+            or type(partner.index) is not int  # exactly int: True == 1 would share a key
+            or type(partner.goal) is not str
+            or partner.goal_probs is not None
+        ):
+            return None
+        key.append((partner.index, partner.goal))
+    return tuple(key)
+
+
+def _remember(key: tuple[object, ...], entry: tuple[object, tuple[CheckedPartner, ...]]) -> None:
+    if len(_CHECKED_PARTNERS) >= PARTNERS_MEMO_MAX:
+        _CHECKED_PARTNERS.clear()
+    _CHECKED_PARTNERS[key] = entry
 
 
 def _remembered_partners(
     partners: object, runtime: EnvRuntime, n_agents: int
 ) -> tuple[CheckedPartner, ...]:
-    key = (id(partners), runtime.domain.name, n_agents)
-    hit = _CHECKED_PARTNERS.get(key)
+    env = runtime.domain.name
+    by_identity = (id(partners), env, n_agents)
+    hit = _CHECKED_PARTNERS.get(by_identity)
     if hit is not None and hit[0] is partners:
         return hit[1]
+    content = _content_key(partners)
+    by_content = None if content is None else (content, env, n_agents)
+    if by_content is not None:
+        hit = _CHECKED_PARTNERS.get(by_content)
+        if hit is not None:
+            return hit[1]
     checked = check_partners(partners, runtime, n_agents)
-    # kept only when nothing in it can change: a tuple of announced goals (a goal_probs
-    # mapping could be edited between calls; a list could be)
+    if by_content is not None:
+        _remember(by_content, (None, checked))
     if type(partners) is tuple and all(c.probs is None for c in checked):
-        if len(_CHECKED_PARTNERS) >= PARTNERS_MEMO_MAX:
-            _CHECKED_PARTNERS.clear()
-        _CHECKED_PARTNERS[key] = (partners, checked)
+        _remember(by_identity, (partners, checked))
     return checked
 
 

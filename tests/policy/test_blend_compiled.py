@@ -1,5 +1,6 @@
 """policy._blend_row, `policy.blend.blend`'s compiled kernel, against `blend_vectorised`, the
-numpy reference: every field within 1e-9 (probabilities, entropies, weights absolute and
+numpy reference (also for aail_bounded, whose bound, eq. R1, is the kernel's last step): every
+field within 1e-9 (probabilities, entropies, weights absolute and
 relative, the blended Q relative) on random, copied, flat, huge and tiny inputs; on
 ill-conditioned inputs (near copies, nearly flat task vectors), where the JS distances or the
 z-scores are made of rounding and neither implementation's digits mean anything, the
@@ -21,6 +22,7 @@ blend_module = importlib.import_module("policy.blend")  # `policy.blend` is also
 blend, blend_vectorised = blend_module.blend, blend_module.blend_vectorised
 maths = importlib.import_module("policy.maths")
 boltzmann, js_distance = maths.boltzmann, maths.js_distance
+bound_rows = importlib.import_module("policy.regret_bound").bound_rows
 
 FIELDS = ("probs_BA", "task_entropy_B", "task_weight_B", "partner_weights_BP")
 TOL = 1e-9
@@ -123,6 +125,42 @@ def test_compiled_equals_the_reference(case, method: str, normalise: bool) -> No
 
 
 @compiled
+@settings(max_examples=300, deadline=None)
+@given(
+    case=cases(shapes=("random", "copies", "flat")),
+    epsilon=st.sampled_from([0.0, 1e-12, 0.02, 0.5, 5.0, 1e300, "per row"]),
+)
+def test_the_bound_equals_the_reference(case, epsilon) -> None:
+    """aail_bounded: aail's fields, with its policy π_C bounded by eq. R1 as
+    `regret_bound.bound_rows` bounds it (ε = 0: the task policy on the rows without ties; a
+    huge ε: π_C). π_C itself is held to the reference by the tests above."""
+    q_task, q_impact, mask, alpha = case
+    if epsilon == "per row":
+        epsilon = np.random.default_rng(len(q_task)).choice([0.0, 0.02, 1.0], len(q_task))
+    got = blend("aail_bounded", q_task, q_impact, alpha, mask, regret_bound=epsilon)
+    aail = blend("aail", q_task, q_impact, alpha, mask)
+    for field in ("q_BA", "task_entropy_B", "task_weight_B", "partner_weights_BP"):
+        np.testing.assert_array_equal(getattr(got, field), getattr(aail, field))
+    alpha_B = np.broadcast_to(np.asarray(alpha, dtype=np.float64), q_task.shape[:1])
+    epsilon_B = np.broadcast_to(np.asarray(epsilon, dtype=np.float64), q_task.shape[:1])
+    with np.errstate(all="ignore"):
+        want = bound_rows(aail.probs_BA, q_task, boltzmann(q_task, alpha_B), epsilon_B)
+    np.testing.assert_allclose(got.probs_BA, want, rtol=TOL, atol=TOL)
+    np.testing.assert_allclose(got.probs_BA.sum(axis=1), 1.0, rtol=0, atol=1e-12)
+
+
+@compiled
+def test_the_bound_where_the_blend_puts_nothing_on_the_best_actions() -> None:
+    """π_C(S_ε) = 0 (underflow): π_B is the task policy, in both implementations."""
+    q_task, q_impact = np.array([[0.0, 1e-3]]), np.array([[[1e6, 0.0]]])  # an unsure task
+    got = blend("aail_bounded", q_task, q_impact, 1.0, regret_bound=0.0)
+    want = blend_vectorised("aail_bounded", q_task, q_impact, 1.0, regret_bound=0.0)
+    assert blend("aail", q_task, q_impact, 1.0).probs_BA[0, 1] == 0.0  # nothing on S_0 = {1}
+    np.testing.assert_allclose(got.probs_BA, boltzmann(q_task, 1.0), rtol=0, atol=1e-15)
+    np.testing.assert_allclose(got.probs_BA, want.probs_BA, rtol=0, atol=1e-15)
+
+
+@compiled
 @settings(max_examples=200, deadline=None)
 @given(case=cases(shapes=("near copies", "near flat")), method=st.sampled_from(["nail", "aail"]))
 def test_ill_conditioned_rows_stay_valid(case, method: str) -> None:
@@ -212,3 +250,7 @@ def test_kernel_shapes_are_checked() -> None:
         rows("aail", np.zeros(3), q_impact, alpha, mask, True)
     with pytest.raises(ValueError, match="method"):
         rows("xail", q_task, q_impact, alpha, mask, True)
+    with pytest.raises(ValueError, match="shapes"):
+        rows("aail", q_task, q_impact, alpha, mask, True, np.zeros(3))
+    with pytest.raises(ValueError, match="aail blend only"):
+        rows("nail", q_task, q_impact, alpha, mask, True, np.zeros(2))

@@ -1,5 +1,6 @@
-"""services.engine.validation: the check of a partners tuple a transport passes again on every
-call is kept (by identity), and only where nothing in it can change."""
+"""services.engine.validation: the check of the partners a client sends again on every call is
+kept (by the tuple's identity, or by the partners' content: int indices and announced goals),
+and only where nothing in it can change."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ import numpy as np
 import pytest
 
 from services.engine import ActRequest, InvalidRequest, PartnerSpec
-from services.engine.validation import check_request
+from services.engine.validation import CheckedPartner, check_request
 
 OBS_3 = np.zeros((1, 12))  # three particle agents
 
@@ -21,15 +22,27 @@ def test_the_same_tuple_of_announced_goals_is_checked_once() -> None:
     first, second = check_request(_request(partners), 8), check_request(_request(partners), 8)
     assert first.partners is second.partners
     other = check_request(_request((PartnerSpec(1, "b3"), PartnerSpec(2, "c0"))), 8)
-    assert other.partners == first.partners
+    assert other.partners is first.partners  # new specs, the same content: kept by content
 
 
-def test_lists_and_goal_distributions_are_checked_every_time() -> None:
+def test_content_decides_and_an_edited_list_is_seen() -> None:
     as_list = [PartnerSpec(1, "b3")]
-    assert (
-        check_request(_request(as_list), 8).partners
-        is not check_request(_request(as_list), 8).partners
-    )
+    assert check_request(_request(as_list), 8).partners == (CheckedPartner(1, ("b3",), None),)
+    as_list[0] = PartnerSpec(1, "zz")
+    with pytest.raises(InvalidRequest, match="unknown goal"):
+        check_request(_request(as_list), 8)
+    as_list[0] = PartnerSpec(2, "b3")
+    assert check_request(_request(as_list), 8).partners == (CheckedPartner(2, ("b3",), None),)
+
+
+def test_an_index_that_only_equals_a_kept_one_is_still_refused() -> None:
+    check_request(_request((PartnerSpec(1, "b3"),)), 8)  # kept: ((1, "b3"),)
+    for index in (True, 1.0):  # == 1 and hash alike, yet not an integer index
+        with pytest.raises(InvalidRequest, match="expected an integer"):
+            check_request(_request((PartnerSpec(index, "b3"),)), 8)  # type: ignore[arg-type]
+
+
+def test_goal_distributions_are_checked_every_time() -> None:
     probs = {"b3": 0.5, "c0": 0.5}
     spec = (PartnerSpec(1, goal_probs=probs),)
     check_request(_request(spec), 8)
