@@ -9,6 +9,7 @@ Run: `OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/engine.py [--repeats 5]
 | sl, batch 1       | ego `a2` in a 5-agent world, 4 partners announced (ignored by SL), seeded|
 | aail, batch 1     | the same with AAIL: task net + 4 impact nets (`b3`, `c1`, `d4`, `e0`)    |
 | aail unseeded     | the same without a seed (no generator to build per request)             |
+| aail_bounded      | the same with the default method, AAIL-B (`policy.regret_bound`)         |
 | blend alone       | `policy.blend.blend("aail", ...)` on the batch-1 shapes (the checked    |
 |                   | entry point: the compiled kernel where it is built, else numpy)         |
 | blend vectorised  | `policy.blend.blend_vectorised`, the numpy reference, same shapes       |
@@ -57,7 +58,7 @@ from services.engine import ActRequest, InferenceEngine, PartnerSpec
 policy_blend = importlib.import_module("policy.blend")
 EGO, PARTNER_GOALS = "a2", ("b3", "c1", "d4", "e0")
 Runs = dict[str, list[list[float]]]  # case -> one list of per-call seconds per repeat
-ROWS = {"sl, batch 256": 256, "aail, batch 256": 256}
+ROWS = {"sl, batch 256": 256, "aail, batch 256": 256, "aail_bounded, batch 256": 256}
 
 
 def build_zoo(store: ModelStore, hidden: tuple[int, ...]) -> None:
@@ -118,11 +119,15 @@ def measure(store_url: str | None, hidden: tuple[int, ...], repeats: int, calls:
                 "sl, batch 1": functools.partial(engine.act, request("sl", 1)),
                 "aail, batch 1": functools.partial(engine.act, request("aail", 1)),
                 "aail unseeded, batch 1": functools.partial(engine.act, request("aail", 1, None)),
+                "aail_bounded, batch 1": functools.partial(engine.act, request("aail_bounded", 1)),
                 **blend_cases(),
             }
             big: dict[str, Callable[[], object]] = {
                 "sl, batch 256": functools.partial(engine.act, request("sl", 256)),
                 "aail, batch 256": functools.partial(engine.act, request("aail", 256)),
+                "aail_bounded, batch 256": functools.partial(
+                    engine.act, request("aail_bounded", 256)
+                ),
             }
             for warm in [*single.values(), *big.values()]:
                 warm()  # the caches
