@@ -279,7 +279,7 @@ PARTNERS_MEMO_MAX = 256
 def _content_key(partners: object) -> tuple[tuple[int, str], ...] | None:
     """(index, goal) per partner when each is a PartnerSpec with an `int` index and an announced
     `str` goal (then nothing else decides its check), else None."""
-    if type(partners) is not tuple and type(partners) is not list:
+    if type(partners) is not tuple:
         return None
     key = []
     for partner in partners:
@@ -308,6 +308,9 @@ def _remembered_partners(
     hit = _CHECKED_PARTNERS.get(by_identity)
     if hit is not None and hit[0] is partners:
         return hit[1]
+    passed_tuple = type(partners) is tuple
+    if type(partners) is list:  # one snapshot for the key and the check alike
+        partners = tuple(partners)
     content = _content_key(partners)
     by_content = None if content is None else (content, env, n_agents)
     if by_content is not None:
@@ -317,7 +320,7 @@ def _remembered_partners(
     checked = check_partners(partners, runtime, n_agents)
     if by_content is not None:
         _remember(by_content, (None, checked))
-    if type(partners) is tuple and all(c.probs is None for c in checked):
+    if passed_tuple and all(c.probs is None for c in checked):
         _remember(by_identity, (partners, checked))
     return checked
 
