@@ -22,6 +22,7 @@ database in its place.
 from __future__ import annotations
 
 import sqlite3
+import time
 from pathlib import Path
 from typing import Any
 from urllib.parse import quote
@@ -34,6 +35,7 @@ from model_store.errors import InvalidArgument, StoreUnavailable
 
 SQLITE_BUSY_TIMEOUT_MS = 15_000
 PG_CONNECT_TIMEOUT_S = 5
+WAL_RETRY_S = 0.01  # between two tries of a new file's WAL switch (`_set_wal`)
 BEGIN_MODE_OPTION = "coexist_sqlite_begin"  # execution option: "IMMEDIATE" for write sessions
 
 
@@ -110,13 +112,28 @@ def _sqlite_engine(url: URL) -> Engine:
 
 def _create_sqlite_file(path: Path) -> None:
     """Create the directory and the database file (in WAL mode) if they do not exist yet."""
+    deadline = time.monotonic() + SQLITE_BUSY_TIMEOUT_MS / 1000
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        conn = sqlite3.connect(path, timeout=SQLITE_BUSY_TIMEOUT_MS / 1000)
-        try:
-            # WAL is a property of the file: set once, every later connection inherits it.
-            conn.execute("PRAGMA journal_mode = WAL")
-        finally:
-            conn.close()
+        while not _set_wal(path, retry=time.monotonic() < deadline):
+            time.sleep(WAL_RETRY_S)
     except (OSError, sqlite3.Error) as exc:
         raise StoreUnavailable(f"cannot open SQLite database {str(path)!r}: {exc}") from None
+
+
+def _set_wal(path: Path, *, retry: bool) -> bool:
+    """Switch the file to WAL (a property of the file: set once, every later connection
+    inherits it); False where another process holds the lock and `retry` allows another try.
+    Two processes opening a new file at once both switch it, and SQLite may refuse one of them
+    "database is locked" at once, without waiting out the busy timeout (it does not wait where
+    waiting could deadlock), so the switch is tried again until the busy timeout has passed."""
+    conn = sqlite3.connect(path, timeout=SQLITE_BUSY_TIMEOUT_MS / 1000)
+    try:
+        conn.execute("PRAGMA journal_mode = WAL")
+        return True
+    except sqlite3.OperationalError as exc:
+        if retry and "locked" in str(exc):
+            return False
+        raise
+    finally:
+        conn.close()

@@ -11,14 +11,17 @@ from __future__ import annotations
 
 import itertools
 import multiprocessing as mp
+import sqlite3
 import threading
 import time
 from typing import Any
 
+import pytest
 from store_fixtures import pg_url, store_url  # noqa: F401
 
-from model_store.errors import AlreadyExists
+from model_store.errors import AlreadyExists, StoreUnavailable
 from model_store.sql import SqlModelStore
+from model_store.sql import engine as sql_engine
 from model_store.testing import qnet_spec, qnet_weights, test_lineage
 
 NAME = "particle/task/a3"
@@ -179,3 +182,35 @@ def test_first_use_by_two_processes_migrates_once(store_url: str) -> None:
     assert len(set(revisions)) == 1
     with SqlModelStore(store_url, auto_migrate=False) as store:
         assert store.get_model(NAME).name == NAME
+
+
+def test_a_new_files_wal_switch_refused_at_once_is_tried_again(
+    tmp_path: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """SQLite may refuse a new file's switch to WAL "database is locked" without waiting while
+    another process switches it (the race of the test above): the store tries again within the
+    busy timeout; a lock that outlasts it is StoreUnavailable."""
+    real_connect, refusals = sqlite3.connect, [2]
+
+    class Refusing:  # a connection whose first WAL switches are refused, as in the race
+        def __init__(self, *args: Any, **kwargs: Any) -> None:
+            self.conn = real_connect(*args, **kwargs)
+
+        def execute(self, sql: str) -> Any:
+            if "journal_mode" in sql and refusals[0] > 0:
+                refusals[0] -= 1
+                raise sqlite3.OperationalError("database is locked")
+            return self.conn.execute(sql)
+
+        def close(self) -> None:
+            self.conn.close()
+
+    monkeypatch.setattr(sql_engine.sqlite3, "connect", Refusing)
+    sql_engine._create_sqlite_file(tmp_path / "models.db")
+    assert refusals == [0]
+    with real_connect(tmp_path / "models.db") as conn:
+        assert conn.execute("PRAGMA journal_mode").fetchone() == ("wal",)
+    refusals[0] = 10**6  # locked for good: refused once the busy timeout has passed
+    monkeypatch.setattr(sql_engine, "SQLITE_BUSY_TIMEOUT_MS", 50)
+    with pytest.raises(StoreUnavailable, match="database is locked"):
+        sql_engine._create_sqlite_file(tmp_path / "other.db")
