@@ -63,7 +63,9 @@ class Domain(Protocol):
         ...
 
     def impact_view(self, obs_BD: np.ndarray, n_agents: int, partner: int) -> np.ndarray:
-        """(ego, partner) view for an impact network, shape (B, pair_obs_dim); partner in 1..N-1."""
+        """(ego, partner) view for an impact network, shape (B, pair_obs_dim); partner in 1..N-1.
+        The same pair as the task view of that agent: `task_views(obs_BD, n_agents)[:, partner -
+        1]` (the inference engine reads the impact views from there, in one pass)."""
         ...
 
     def partner_view(self, obs_BD: np.ndarray, n_agents: int, partner: int) -> np.ndarray:

@@ -461,12 +461,17 @@ def _inputs(
     inputs = [views_BKP.reshape(-1, views_BKP.shape[-1])]
     if len(members) == 1:
         return inputs
-    views = [domain.impact_view(obs_BD, n_agents, p.index) for p in checked.partners]
+    # partner p's impact view is the task view of agent p (`Domain.impact_view`)
+    partners = checked.partners
     joined: dict[tuple[int, ...], np.ndarray] = {}  # members serving the same partners share
     for positions in layout.positions:
         if positions not in joined:
-            blocks = [views[position] for position in positions]
-            joined[positions] = blocks[0] if len(blocks) == 1 else np.concatenate(blocks)
+            if len(positions) == 1:
+                joined[positions] = views_BKP[:, partners[positions[0]].index - 1]
+            else:  # partner after partner, B rows each
+                columns = [partners[position].index - 1 for position in positions]
+                rows_PBF = views_BKP[:, columns].transpose(1, 0, 2)
+                joined[positions] = rows_PBF.reshape(-1, views_BKP.shape[-1])
         inputs.append(joined[positions])
     return inputs
 
