@@ -82,6 +82,7 @@ from services.engine.validation import CheckedRequest, check_request
 log = logging.getLogger(__name__)
 
 MEMBER_PLANS_MAX = 1024  # request shapes remembered (the table is cleared when full)
+CONSTANTS_MAX = 256  # constant arrays remembered (`_constant`; cleared when full)
 LAYOUTS_MAX = 256  # request layouts remembered per stacked group (cleared when full)
 
 
@@ -180,18 +181,13 @@ class InferenceEngine:
         if not math.isfinite(total):
             raise InvalidRequest("observations", "values so large that the Q-values overflow")
         temperature = request.temperature or group.nets[0].alpha or DEFAULT_TEMPERATURE
-        # every partner slot is used, one temperature for all rows (filled in place: np.ones
-        # and np.full are Python wrappers around the same two steps)
-        mask_BP = np.empty(q_impact_BPA.shape[:2], dtype=bool)
-        mask_BP.fill(True)
-        alpha_B = np.empty(batch)
-        alpha_B.fill(float(temperature))
+        # every partner slot is used, one temperature for all rows
         blended = blend_checked(
             blend_method,
             q_task_BA,
             q_impact_BPA,
-            mask_BP,
-            alpha_B,
+            _constant(q_impact_BPA.shape[:2], True),
+            _constant((batch,), float(temperature)),
             domain.blend_normalisation == "standardise",
             epsilon_B,
         )
@@ -505,6 +501,24 @@ def _impact_q(
     # more than the arithmetic at a few rows); a copy only where B > 1 makes the transpose strided
     q_PBA = np.array(per_partner, dtype=np.float64)
     return np.ascontiguousarray(q_PBA.transpose(1, 0, 2))
+
+
+_CONSTANTS: dict[tuple[tuple[int, ...], bool | float, type], np.ndarray] = {}
+
+
+def _constant(shape: tuple[int, ...], value: bool | float) -> np.ndarray:
+    """A read-only array of `shape` filled with `value` (bool or float64), made once per shape
+    and value: the blend's mask and temperatures are the same for every request of a shape,
+    and building them took four numpy calls per act."""
+    key = (shape, value, type(value))  # the type too: True == 1.0 as keys
+    array = _CONSTANTS.get(key)
+    if array is None:
+        array = np.full(shape, value, dtype=bool if type(value) is bool else np.float64)
+        array.flags.writeable = False
+        if len(_CONSTANTS) >= CONSTANTS_MAX:
+            _CONSTANTS.clear()
+        _CONSTANTS[key] = array
+    return array
 
 
 def sample_actions(probs_BA: np.ndarray, rng: np.random.Generator) -> np.ndarray:

@@ -37,22 +37,24 @@ OFFLOAD_BYTES = 1 << 20  # bodies from this size on are parsed in a worker threa
 
 
 def has_huge_scalar(value: Any) -> bool:
-    """Whether a parsed body holds a float >= 2^63 in magnitude outside a vector of numbers."""
-    if isinstance(value, float):
-        return abs(value) >= HUGE
-    if isinstance(value, dict):
-        return any(has_huge_scalar(v) for v in value.values())
-    if isinstance(value, list):
-        if value and isinstance(value[0], int | float):
-            return False  # a vector of numbers: floats either way
-        if (
-            value
-            and isinstance(value[0], list)
-            and value[0]
-            and isinstance(value[0][0], int | float)
-        ):
-            return False  # rows of numbers (observations): no integer field is a matrix
-        return any(has_huge_scalar(v) for v in value)
+    """Whether a parsed body holds a float >= 2^63 in magnitude outside a vector of numbers (a
+    walk with a stack of its own: one call per body, not per value)."""
+    pending = [value]
+    while pending:
+        item = pending.pop()
+        kind = type(item)
+        if kind is float:
+            if abs(item) >= HUGE:
+                return True
+        elif kind is dict:
+            pending.extend(item.values())
+        elif kind is list and item:
+            first = item[0]
+            if isinstance(first, int | float):
+                continue  # a vector of numbers: floats either way
+            if type(first) is list and first and isinstance(first[0], int | float):
+                continue  # rows of numbers (observations): no integer field is a matrix
+            pending.extend(item)
     return False
 
 
