@@ -24,6 +24,7 @@ has the id (`services.logging`).
 from __future__ import annotations
 
 import gc
+import inspect
 import logging
 from collections.abc import AsyncIterator, Sequence
 from contextlib import asynccontextmanager
@@ -154,6 +155,7 @@ def create_app(
         summary="Policy server for multi-agent coexistence (AAIL) and its model registry.",
         version=VERSION,
         lifespan=lifespan,
+        **_without_fastapi_telemetry(),
     )
     app.state.settings = settings
     app.state.store = store
@@ -215,6 +217,17 @@ def create_app(
         app.include_router(router)
     install_console(app)  # last: every other route is matched before a console route is tried
     return app
+
+
+def _without_fastapi_telemetry() -> dict[str, Any]:
+    """FastAPI's own OpenTelemetry instrumentation switched off, where this FastAPI has it (the
+    `telemetry` argument): coexist traces every request itself (`services.tracing`, on the
+    global provider unless given one), so with a global provider configured FastAPI's would add
+    a second server span per request; and FastAPI reads the global providers on every request
+    to decide whether to trace it, off or not."""
+    if "telemetry" not in inspect.signature(FastAPI.__init__).parameters:
+        return {}
+    return {"telemetry": {"tracing": False, "metrics": False, "logs": False}}
 
 
 def _tracer(provider: Any) -> Any:

@@ -120,7 +120,27 @@ def test_without_a_provider_nothing_is_traced(
         assert client.post("/v1/act", json=BODY).status_code == 200
         engine = app.state.engine
         assert not hasattr(engine.act_checked, "coexist_traced")
-    # FastAPI's own telemetry may record spans through a global provider; coexist's none
-    scopes = {s.instrumentation_scope.name for s in exporter.get_finished_spans()
-              if s.instrumentation_scope is not None}  # fmt: skip
-    assert TRACER_NAME not in scopes
+    # nor does FastAPI's own telemetry (off: `services.app._without_fastapi_telemetry`)
+    assert exporter.get_finished_spans() == ()
+
+
+def test_with_a_global_provider_a_request_is_one_server_span(
+    tiny_zoo_store: SqlModelStore, exporter: InMemorySpanExporter
+) -> None:
+    """Tracing on with the operator's global provider: coexist's span, not FastAPI's as well."""
+    from opentelemetry import trace
+
+    provider = TracerProvider()
+    provider.add_span_processor(SimpleSpanProcessor(exporter))
+    settings = Settings(**{**SETTINGS, "grpc_enabled": False, "otel_enabled": True})  # type: ignore[arg-type]
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(trace, "get_tracer_provider", lambda: provider)
+        app = create_app(settings, store=tiny_zoo_store)
+        with TestClient(app) as client:
+            exporter.clear()
+            assert client.post("/v1/act", json=BODY).status_code == 200
+    spans = exporter.get_finished_spans()
+    [server] = [s for s in spans if s.kind == SpanKind.SERVER]
+    assert server.instrumentation_scope is not None
+    assert server.instrumentation_scope.name == TRACER_NAME
+    assert {s.instrumentation_scope.name for s in spans if s.instrumentation_scope} == {TRACER_NAME}
