@@ -215,8 +215,19 @@ def create_app(
 
     for router in [*ROUTERS, *routers]:
         app.include_router(router)
+    _docs_after_the_api(app)
     install_console(app)  # last: every other route is matched before a console route is tried
     return app
+
+
+def _docs_after_the_api(app: FastAPI) -> None:
+    """Move FastAPI's documentation routes (`/openapi.json`, `/docs`, `/redoc`), which it adds
+    first, behind the probes and the APIs: routes are matched in order, and every request tried
+    these four before its own."""
+    docs_paths = {app.openapi_url, app.docs_url, app.redoc_url, app.swagger_ui_oauth2_redirect_url}
+    routes = app.router.routes
+    docs = [route for route in routes if getattr(route, "path", None) in docs_paths]
+    routes[:] = [route for route in routes if route not in docs] + docs
 
 
 def _without_fastapi_telemetry() -> dict[str, Any]:
