@@ -25,6 +25,8 @@ servers measured minutes apart at most, each alone on its CPU.
 | batch      | `POST /v1/act:batch`, 256    | `PolicyService/ActBatch`, 256 rows as | the same x 256 |
 |            | rows, `"format": "columns"`  | `observation_matrix`, COLUMNS answer  |                |
 | batch rows | the same, rows answer        | 256 `Vector`s, ROWS answer            | (c = 1 only)   |
+| act default| the act's body without       | the act's message without `method`    | AAIL-B, c = 1  |
+|            | `method`: the server default |                                       | (informational)|
 
 Targets (issue 5), per transport: act p50 at c=1 <= 2x the no-op p50; act throughput at c=32
 >= 40 % of the no-op's; batch actions/s >= 30x the single-request rate (both at c=1), with the
@@ -120,7 +122,9 @@ def rest_bodies() -> dict[str, bytes]:
     common = {"env": "particle", "ego_goal": EGO, "partners": partners, "method": "aail"}
     act = {**common, "observation": observations(1)[0].tolist()}
     rows = {**common, "observations": observations(BATCH).tolist()}
-    bodies = {"act": act, "batch": {**rows, "format": "columns"}, "batch rows": rows}
+    default = {k: v for k, v in act.items() if k != "method"}  # aail_bounded, what users get
+    bodies = {"act": act, "batch": {**rows, "format": "columns"}, "batch rows": rows,
+              "act default": default}  # fmt: skip
     return {name: json.dumps(body).encode() for name, body in bodies.items()}
 
 
@@ -140,8 +144,10 @@ def grpc_bodies() -> dict[str, bytes]:
                                format=pb.BATCH_FORMAT_COLUMNS)  # fmt: skip
     rows = pb.ActBatchRequest(env="particle", ego_goal=EGO, partners=partners, method="aail",
                               observations=[pb.Vector(values=row) for row in obs_BD])  # fmt: skip
+    default = pb.ActRequest(env="particle", ego_goal=EGO, observation=observations(1)[0],
+                            partners=partners)  # fmt: skip
     messages = {"noop": health_pb2.HealthCheckRequest(), "act": act, "batch": batch,
-                "batch rows": rows}  # fmt: skip
+                "batch rows": rows, "act default": default}  # fmt: skip
 
     def frame(data: bytes) -> bytes:
         return b"\x00" + len(data).to_bytes(4, "big") + data
@@ -165,6 +171,7 @@ def check_payloads(http_port: int, grpc_port: int, rest: dict[str, bytes]) -> No
         return answer
 
     assert len(post("/v1/act", rest["act"])["probs"]) == 5
+    assert post("/v1/act", rest["act default"])["method"] == "aail_bounded"
     columns = post("/v1/act:batch", rest["batch"])
     assert len(columns["actions"]) == len(columns["probs"]) == BATCH, "REST columns"
     assert len(post("/v1/act:batch", rest["batch rows"])["results"]) == BATCH, "REST rows"
@@ -172,6 +179,8 @@ def check_payloads(http_port: int, grpc_port: int, rest: dict[str, bytes]) -> No
         stub = pb_grpc.PolicyServiceStub(channel)
         bodies = grpc_bodies()
         act = pb.ActRequest.FromString(bodies["act"][5:])
+        default = pb.ActRequest.FromString(bodies["act default"][5:])
+        assert stub.Act(default).method == "aail_bounded"
         assert len(stub.Act(act).probs) == 5
         answer = stub.ActBatch(pb.ActBatchRequest.FromString(bodies["batch"][5:])).columns
         assert answer.rows == len(answer.actions) == BATCH, "gRPC columns"
@@ -278,6 +287,8 @@ def coexist_plan(http_port: int, grpc_port: int, duration: float) -> list[Planne
          lambda c, t: run_wrk(http + "/v1/act:batch", rest["batch"], c, duration, t)),
         ("REST", "batch rows", BATCH, one,
          lambda c, t: run_wrk(http + "/v1/act:batch", rest["batch rows"], c, duration, t)),
+        ("REST", "act default", 1, one,
+         lambda c, t: run_wrk(http + "/v1/act", rest["act default"], c, duration, t)),
         ("gRPC", "no-op", 1, both,
          lambda c, t: run_h2load(h2 + HEALTH, grpc_b["noop"], c, duration, t)),
         ("gRPC", "act", 1, both, lambda c, t: run_h2load(h2 + ACT, grpc_b["act"], c, duration, t)),
@@ -285,6 +296,8 @@ def coexist_plan(http_port: int, grpc_port: int, duration: float) -> list[Planne
          lambda c, t: run_h2load(h2 + ACT_BATCH, grpc_b["batch"], c, duration, t)),
         ("gRPC", "batch rows", BATCH, one,
          lambda c, t: run_h2load(h2 + ACT_BATCH, grpc_b["batch rows"], c, duration, t)),
+        ("gRPC", "act default", 1, one,
+         lambda c, t: run_h2load(h2 + ACT, grpc_b["act default"], c, duration, t)),
     ]  # fmt: skip
 
 

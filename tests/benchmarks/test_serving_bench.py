@@ -145,9 +145,9 @@ def test_a_short_real_run_answers_every_request(tmp_path: Path) -> None:
         check=True, timeout=300, cwd=ROOT,
     )  # fmt: skip
     figures = json.loads(out.read_text())
-    # 14 of coexist (batch rows: c = 1) and 4 of the bare servers; 6 + 5 targets
-    assert len(figures["cases"]) == 18 and len(figures["targets"]) == 11
+    # 16 of coexist (batch rows and act default: c = 1) and 4 of the bare servers; 6 + 5 targets
+    assert len(figures["cases"]) == 20 and len(figures["targets"]) == 11
     assert {c["case"] for c in figures["cases"]} == {
-        "no-op", "act", "batch", "batch rows", "floor no-op"
+        "no-op", "act", "batch", "batch rows", "act default", "floor no-op"
     }  # fmt: skip
     assert all(c["failed"] == 0 and c["requests"] > 0 for c in figures["cases"])
