@@ -14,6 +14,7 @@ import multiprocessing as mp
 import sqlite3
 import threading
 import time
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -185,7 +186,7 @@ def test_first_use_by_two_processes_migrates_once(store_url: str) -> None:
 
 
 def test_a_new_files_wal_switch_refused_at_once_is_tried_again(
-    tmp_path: Any, monkeypatch: pytest.MonkeyPatch
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """SQLite may refuse a new file's switch to WAL "database is locked" without waiting while
     another process switches it (the race of the test above): the store tries again within the

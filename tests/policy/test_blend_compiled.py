@@ -1,11 +1,11 @@
 """policy._blend_row, `policy.blend.blend`'s compiled kernel, against `blend_vectorised`, the
-numpy reference (also for aail_bounded, whose bound, eq. R1, is the kernel's last step): every
-field within 1e-9 (probabilities, entropies, weights absolute and
+numpy reference: every field within 1e-9 (probabilities, entropies, weights absolute and
 relative, the blended Q relative) on random, copied, flat, huge and tiny inputs; on
 ill-conditioned inputs (near copies, nearly flat task vectors), where the JS distances or the
 z-scores are made of rounding and neither implementation's digits mean anything, the
 well-conditioned fields within 1e-9 and valid distributions; hand-computed edge cases; bad
-shapes refused."""
+shapes refused. aail_bounded's bound (eq. R1, the kernel's last step) against
+`regret_bound.bound_rows` on the kernel's own blend, within 1e-9."""
 
 from __future__ import annotations
 
