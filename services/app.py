@@ -59,6 +59,7 @@ from services.rest import install_error_handlers as install_act_errors
 from services.rest import router as act_router
 from services.rest import sessions_router
 from services.rest.body_limit import BodyLimit
+from services.rest.lean_route import LeanDispatch
 from services.sessions import SessionStore
 from services.settings import Settings, get_settings
 from services.version import VERSION
@@ -173,7 +174,9 @@ def create_app(
     http_metrics = HttpMetrics(request_registry(registry))
     app.state.grpc_metrics = GrpcMetrics(request_registry(registry))
     scraped = scrape_registry(registry)  # every worker's requests with `--workers N`
-    # Outermost last: request ids, then metrics, then the body limit (pure ASGI, cheap checks).
+    # Outermost last: request ids, then metrics, then the body limit (pure ASGI, cheap checks);
+    # innermost, the direct way of a valid JSON body to the act and session endpoints.
+    app.add_middleware(LeanDispatch)
     app.add_middleware(
         BodyLimit,
         max_bytes=settings.max_body_bytes,

@@ -18,7 +18,8 @@ creating one is refused (501) there; see docs/architecture.md "Sessions". Errors
 first slot could free up) and 501 `sessions_unavailable`.
 
 Speed (a step is the hot route): the routes are `LeanJsonRoute`s, so a valid body reaches its
-handler without FastAPI's dependency solving (`services.rest.lean_route`); a step's answer is
+handler without FastAPI's router and dependency solving (`services.rest.lean_route`, the app's
+`LeanDispatch`); a step's answer is
 /v1/act's `ActResponse` written here, its `models` list (36 entries when the whole belief is
 blended) written once per set of networks (`_models_fragment`).
 """
@@ -62,7 +63,7 @@ from services.sessions import (
     SessionsUnavailable,
 )
 
-# LeanJsonRoute: a valid step (or create) body goes straight to its handler (lean_route)
+# LeanJsonRoute: a valid step (or create) body goes straight to its handler (LeanDispatch)
 router = APIRouter(prefix="/v1/sessions", tags=["sessions"], route_class=LeanJsonRoute)
 
 

@@ -1,6 +1,7 @@
-"""`LeanJsonRoute` (services/rest/lean_route.py): a valid JSON body reaches the endpoint without
-FastAPI's dependency solving, and everything else answers exactly as `FastJsonRoute` does;
-router-level dependencies always run; only endpoints of the supported shape qualify."""
+"""`LeanDispatch` (services/rest/lean_route.py): a valid JSON body for a `LeanJsonRoute` reaches
+the endpoint without FastAPI's router and dependency solving, and everything else answers
+exactly as `FastJsonRoute` does; router-level dependencies always run; only endpoints of the
+supported shape qualify; endpoint errors go to the app's exception handlers."""
 
 from __future__ import annotations
 
@@ -17,7 +18,7 @@ from fastapi.testclient import TestClient
 
 from services.rest import install_error_handlers, lean_route, sessions_router
 from services.rest.json_body import FastJsonRoute
-from services.rest.lean_route import LeanJsonRoute, direct_call
+from services.rest.lean_route import LeanDispatch, LeanJsonRoute, direct_call
 from services.rest.session_schemas import SessionStepBody
 
 
@@ -32,6 +33,7 @@ def _client(route_class: type[FastJsonRoute], **include: Any) -> TestClient:
     app = FastAPI()
     app.include_router(router, **include)
     install_error_handlers(app)
+    app.add_middleware(LeanDispatch)
     return TestClient(app)
 
 
@@ -111,6 +113,7 @@ def test_dependencies_of_an_outer_inclusion_still_run() -> None:
     app = FastAPI()
     app.include_router(outer, dependencies=[Depends(deny)])
     app.include_router(inner)  # the same route included again without: the direct path
+    app.add_middleware(LeanDispatch)
     with TestClient(app) as client:
         body = b'{"observation": [1]}'
         guarded = client.post("/outer/v1/items/x/steps", content=body, headers=JSON)
@@ -171,3 +174,70 @@ def test_the_session_step_and_create_routes_are_direct() -> None:
     }
     assert paths.keys() == {"/v1/sessions/{session_id}/steps", "/v1/sessions"}
     assert all(call is not None for call in paths.values())
+
+
+async def fails(item_id: str, body: SessionStepBody, request: Request) -> Response:
+    if item_id == "http":
+        raise HTTPException(409, "taken")
+    if item_id == "engine":
+        from services.engine import InvalidRequest
+
+        raise InvalidRequest("observation", "not today")
+    raise RuntimeError("unexpected")
+
+
+@pytest.mark.parametrize("item_id", ["http", "engine"])
+def test_endpoint_errors_are_the_apps_exception_handlers(item_id: str) -> None:
+    answers = []
+    for route_class in (LeanJsonRoute, FastJsonRoute):
+        router = APIRouter(prefix="/v1", route_class=route_class)
+        router.add_api_route("/items/{item_id}/steps", fails, methods=["POST"])
+        app = FastAPI()
+        app.include_router(router)
+        install_error_handlers(app)
+        app.add_middleware(LeanDispatch)
+        with TestClient(app) as client:
+            response = client.post(
+                f"/v1/items/{item_id}/steps", content=b'{"observation": [1]}', headers=JSON
+            )
+        answers.append((response.status_code, response.content))
+    assert answers[0] == answers[1] and answers[0][0] in (409, 422)
+
+
+def test_an_unhandled_endpoint_error_propagates() -> None:
+    router = APIRouter(prefix="/v1", route_class=LeanJsonRoute)
+    router.add_api_route("/items/{item_id}/steps", fails, methods=["POST"])
+    app = FastAPI()
+    app.include_router(router)
+    app.add_middleware(LeanDispatch)
+    with TestClient(app, raise_server_exceptions=True) as client, pytest.raises(RuntimeError):
+        client.post("/v1/items/x/steps", content=b'{"observation": [1]}', headers=JSON)
+
+
+def test_an_earlier_route_of_the_same_path_answers() -> None:
+    """FastAPI picks the first route that matches in full: the dispatch never jumps it."""
+
+    async def first(item_id: str) -> dict[str, str]:
+        return {"first": item_id}
+
+    router = APIRouter(prefix="/v1", route_class=LeanJsonRoute)
+    router.add_api_route("/items/{item_id}/steps", echo, methods=["POST"])
+    app = FastAPI()
+    app.add_api_route("/v1/items/{item_id}/steps", first, methods=["POST"])
+    app.include_router(router)
+    app.add_middleware(LeanDispatch)
+    with TestClient(app) as client:
+        response = client.post("/v1/items/x/steps", content=b'{"observation": [1]}', headers=JSON)
+    assert response.json() == {"first": "x"}
+
+
+def test_a_body_in_chunks_is_read_whole(clients: tuple[TestClient, TestClient]) -> None:
+    lean, full = clients
+
+    def chunks() -> Iterator[bytes]:
+        yield b'{"observation": [0.5,'
+        yield b" 1.5]}"
+
+    got = lean.post("/v1/items/x/steps", content=chunks(), headers=JSON)
+    expected = full.post("/v1/items/x/steps", content=b'{"observation": [0.5, 1.5]}', headers=JSON)
+    assert got.status_code == 200 and got.content == expected.content
