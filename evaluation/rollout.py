@@ -36,6 +36,7 @@ from envs.particle.scenarios import start_states
 from envs.particle.world import in_target
 from evaluation.backend import ModelRecord, PolicyBackend
 from evaluation.config import Scenario
+from policy.sampling import sample_actions
 from services.engine import ActRequest, PartnerSpec
 
 ProgressFn = Callable[[int, int], None]  # (step, active rows)
@@ -108,13 +109,6 @@ class EpisodeTally:
             length_E=self.length_B[rows], solved_E=self.solved_B[rows],
             trajectory_TN4=np.stack(self.trajectories[k]),
         )  # fmt: skip
-
-
-def sample_actions(probs_BA: np.ndarray, u_B: np.ndarray) -> np.ndarray:
-    """Inverse-CDF sample per row: the first action whose cumulative probability exceeds u."""
-    cdf_BA = np.cumsum(probs_BA, axis=1)
-    below_BA = cdf_BA <= u_B[:, None] * cdf_BA[:, -1:]
-    return np.minimum(below_BA.sum(axis=1), probs_BA.shape[1] - 1)
 
 
 def uniforms(seed: int, scenario: Scenario, max_steps: int) -> np.ndarray:

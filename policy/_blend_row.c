@@ -13,8 +13,13 @@
  * tests/policy/test_blend_compiled.py holds them to the reference within 1e-9 on random rows
  * and rows near the corner cases (flat Q-vectors, equal policies, underflowing probabilities).
  *
- * Inputs are trusted (`policy.blend` checks them: finite, alpha > 0, A >= 1); masked partner
- * slots are never read.
+ * Inputs are trusted (`policy.blend` checks them: alpha > 0, A >= 1) except for finiteness: a
+ * NaN or infinite Q-value (a network's float32 output overflowed) raises FloatingPointError,
+ * checked in the same pass (`policy.blend.blend_checked`). Masked partner slots are never read.
+ *
+ * `sample_rows` draws one action per row of a policy by inverse CDF from given uniforms, and
+ * its greedy action (`policy.sampling`, whose numpy function is the reference: the same sums in
+ * the same order, so the same actions).
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -317,9 +322,25 @@ static void bound_step(const Batch *t, const Work *w) {
     }
 }
 
+/* whether every Q-value the blend reads is finite (masked slots are not read) */
+static int all_finite(const Batch *t) {
+    Py_ssize_t n = t->n;
+    for (Py_ssize_t i = 0; i < t->B * n; i++)
+        if (!isfinite(t->q_task[i])) return 0;
+    for (Py_ssize_t slot = 0; slot < t->B * t->P; slot++)
+        if (t->mask[slot])
+            for (Py_ssize_t a = 0; a < n; a++)
+                if (!isfinite(t->q_impact[slot * n + a])) return 0;
+    return 1;
+}
+
 /* the whole blend of a batch; 0, or -1 with a Python error set */
 static int blend_batch(const Batch *t) {
     Py_ssize_t B = t->B, P = t->P, n = t->n, pairs = 0;
+    if (!all_finite(t)) {
+        PyErr_SetString(PyExc_FloatingPointError, "a Q-value is NaN or infinite");
+        return -1;
+    }
     Py_ssize_t *counts = PyMem_Malloc(3 * (B + 1) * sizeof(Py_ssize_t));
     if (counts == NULL) {
         PyErr_NoMemory();
@@ -441,7 +462,49 @@ done:
     return result;
 }
 
+/* sample_rows(probs_BA, u_B) -> (actions_B, greedy_B), int64: per row the first action whose
+   cumulative probability exceeds u * (the row's total), at most A - 1, and the first most
+   probable action */
+static PyObject *sample_rows(PyObject *self, PyObject *args) {
+    PyObject *probs_obj, *u_obj, *out[2] = {NULL}, *result = NULL;
+    if (!PyArg_ParseTuple(args, "OO", &probs_obj, &u_obj)) return NULL;
+    PyArrayObject *probs = float64_array(probs_obj, 2, "probs_BA");
+    PyArrayObject *u = probs ? float64_array(u_obj, 1, "u_B") : NULL;
+    if (u == NULL) goto done;
+    npy_intp B = PyArray_DIM(probs, 0), n = PyArray_DIM(probs, 1);
+    if (n < 1 || PyArray_DIM(u, 0) != B) {
+        PyErr_SetString(PyExc_ValueError, "expected shapes (B, A) and (B,) with A >= 1");
+        goto done;
+    }
+    for (int i = 0; i < 2; i++)
+        if ((out[i] = PyArray_SimpleNew(1, &B, NPY_INT64)) == NULL) goto done;
+    const double *p = PyArray_DATA(probs), *uniform = PyArray_DATA(u);
+    npy_int64 *actions = PyArray_DATA((PyArrayObject *)out[0]);
+    npy_int64 *greedy = PyArray_DATA((PyArrayObject *)out[1]);
+    for (npy_intp b = 0; b < B; b++, p += n) {
+        /* numpy's cumsum adds in order, so the cdf here is its cdf, value for value */
+        double threshold = uniform[b] * sum(p, n), cdf = 0.0;
+        npy_int64 below = 0, best = 0;
+        for (npy_intp a = 0; a < n; a++) {
+            cdf += p[a];
+            below += cdf <= threshold;
+            if (p[a] > p[best]) best = a;
+        }
+        actions[b] = below < n - 1 ? below : n - 1;
+        greedy[b] = best;
+    }
+    result = PyTuple_Pack(2, out[0], out[1]);
+done:
+    Py_XDECREF(out[0]);
+    Py_XDECREF(out[1]);
+    Py_XDECREF(probs);
+    Py_XDECREF(u);
+    return result;
+}
+
 static PyMethodDef methods[] = {
+    {"sample_rows", sample_rows, METH_VARARGS,
+     "sample_rows(probs_BA, u_B) -> (actions_B, greedy_B)"},
     {"blend_rows", blend_rows, METH_VARARGS,
      "blend_rows(method, q_task_BA, q_impact_BPA, alpha_B, mask_BP, normalise[, epsilon_B]) "
      "-> 5 arrays"},

@@ -4,7 +4,11 @@
  * Why C: a few rows through many networks are many matrix-vector products per layer. numpy's
  * stacked matmul makes one BLAS call per network and layer and the weights stream from the
  * caches meanwhile; here the whole stack is one loop over the members that reads each weight
- * once per row, with AVX2 and FMA. The GIL is released while it runs.
+ * once per row, with AVX2 and FMA. The GIL is released while a call runs long enough
+ * (RELEASE_GIL_MACS multiply-adds: a session's likelihood pass over every task network) that
+ * other threads should go on meanwhile; a single act's few networks keep it, since a thread
+ * that gives the GIL up waits to get it back behind the server's other threads (gRPC's
+ * pollers), which costs more than the forward itself.
  *
  * Order of operations (fixed, so the results do not depend on the batch or on the other rows):
  * - output o of a layer in a full group of 8 outputs: acc = b[o], then for i = 0 .. I-1
@@ -31,6 +35,7 @@
 #include <numpy/arrayobject.h>
 
 #define MAX_LAYERS 16
+#define RELEASE_GIL_MACS 1e6 /* from this many multiply-adds a call releases the GIL */
 
 #if defined(__x86_64__) && defined(__GNUC__)
 #include <immintrin.h>
@@ -256,9 +261,16 @@ static PyObject *forward(PyObject *self, PyObject *args) {
     const float *x_data = (const float *)PyArray_DATA(x);
     float *out_data = (float *)PyArray_DATA((PyArrayObject *)out);
     int x_members = (int)xs[0], P = (int)xs[1];
-    Py_BEGIN_ALLOW_THREADS
-    run(&s, x_data, x_members, (int)members, P, relu, out_data, buf, (int)width);
-    Py_END_ALLOW_THREADS
+    double macs = 0.0; /* multiply-adds of the whole call */
+    for (int k = 0; k < s.n_layers; k++) macs += (double)s.n_in[k] * s.n_out[k];
+    macs *= (double)members * P;
+    if (macs >= RELEASE_GIL_MACS) { /* long enough that other threads should run meanwhile */
+        Py_BEGIN_ALLOW_THREADS
+        run(&s, x_data, x_members, (int)members, P, relu, out_data, buf, (int)width);
+        Py_END_ALLOW_THREADS
+    } else {
+        run(&s, x_data, x_members, (int)members, P, relu, out_data, buf, (int)width);
+    }
     free(buf);
     Py_DECREF(keep);
     return out;
@@ -267,7 +279,43 @@ fail:
     return NULL;
 }
 
+/* mean_views(q_RA, views) -> (R / views, A) float64: the mean of each block of `views`
+   consecutive rows, summed in float32 in order and divided in float32 (numpy's
+   `np.add.reduce(q.reshape(B, views, A), axis=1) / views`, then float64): a task network's
+   Q-values over the K views of each observation (`services.engine`) */
+static PyObject *mean_views(PyObject *self, PyObject *args) {
+    PyObject *q_obj;
+    Py_ssize_t views;
+    if (!PyArg_ParseTuple(args, "On", &q_obj, &views)) return NULL;
+    PyArrayObject *q = (PyArrayObject *)PyArray_FROMANY(q_obj, NPY_FLOAT32, 2, 2,
+                                                        NPY_ARRAY_IN_ARRAY);
+    if (q == NULL) return NULL;
+    npy_intp rows = PyArray_DIM(q, 0), n = PyArray_DIM(q, 1);
+    if (views < 1 || rows % views != 0) {
+        PyErr_Format(PyExc_ValueError, "views: expected a divisor of the %zd rows, got %zd",
+                     (Py_ssize_t)rows, views);
+        Py_DECREF(q);
+        return NULL;
+    }
+    npy_intp dims[2] = {rows / views, n};
+    PyObject *out = PyArray_SimpleNew(2, dims, NPY_DOUBLE);
+    if (out != NULL) {
+        const float *in = (const float *)PyArray_DATA(q);
+        double *mean = (double *)PyArray_DATA((PyArrayObject *)out);
+        for (npy_intp b = 0; b < dims[0]; b++)
+            for (npy_intp a = 0; a < n; a++) {
+                const float *column = in + b * views * n + a;
+                float total = column[0];
+                for (Py_ssize_t k = 1; k < views; k++) total += column[k * n];
+                mean[b * n + a] = (double)(total / (float)views);
+            }
+    }
+    Py_DECREF(q);
+    return out;
+}
+
 static PyMethodDef methods[] = {
+    {"mean_views", mean_views, METH_VARARGS, "mean_views(q_RA, views) -> (R / views, A) float64"},
     {"forward", forward, METH_VARARGS,
      "forward(x_XPF, layers, start, members, activation) -> (members, P, A) float32"},
     {NULL, NULL, 0, NULL},

@@ -213,7 +213,9 @@ def blend_checked(
     """`blend` on inputs it would accept, already in its working form: finite float64 Q-values
     (B, A) and (B, P, A) (masked slots zero), a bool mask (B, P), positive temperatures (B,)
     and, for `aail_bounded` only, ε >= 0 per row (B,). For a caller that checked them (the
-    inference engine validates each request once); compiled when `COMPILED`."""
+    inference engine validates each request once), except for the Q-values' finiteness: a NaN
+    or infinite Q-value of an unmasked slot raises `FloatingPointError`, found in the same pass
+    over the inputs. Compiled when `COMPILED`."""
     base: BlendMethod = "aail" if method == "aail_bounded" else method
     if COMPILED:  # the bound (eq. R1) in the same call
         return BlendResult(
@@ -221,6 +223,8 @@ def blend_checked(
                 base, q_task_BA, q_impact_BPA, alpha_B, mask_BP, normalise, epsilon_B
             )
         )
+    if not (np.isfinite(q_task_BA).all() and np.isfinite(q_impact_BPA[mask_BP]).all()):
+        raise FloatingPointError("a Q-value is NaN or infinite")
     alpha_B1 = alpha_B[:, None]
     result = _vectorised(base, q_task_BA, q_impact_BPA, mask_BP, alpha_B1, normalise)
     if epsilon_B is None:

@@ -15,6 +15,10 @@ that reads each weight once per row, with AVX2 and FMA; `row_forward` takes it w
 built and the CPU has AVX2 and FMA (`COMPILED`), else the reference. The two differ by float32
 rounding (the order of each sum, documented in the C file): tests/policy/test_row_forward.py
 holds the compiled forward to the reference within 1e-4 relative and absolute.
+
+`mean_views` averages blocks of consecutive output rows (a task network's Q-values over the K
+views of each observation): compiled wherever the module is built (no CPU requirement), the
+same float32 sums in the same order as its reference `numpy_mean_views`, so the same values.
 """
 
 from __future__ import annotations
@@ -28,7 +32,7 @@ from policy._kernels import load_kernel
 
 Layers = Sequence[tuple[np.ndarray, np.ndarray]]
 
-__all__ = ["COMPILED", "numpy_row_forward", "row_forward"]
+__all__ = ["COMPILED", "mean_views", "numpy_mean_views", "numpy_row_forward", "row_forward"]
 
 
 # policy/_row_forward.c, built by setup.py where a C compiler exists
@@ -76,4 +80,21 @@ def row_forward(
         return numpy_row_forward(x_XPF, layers, start, members, activation)
     x = np.ascontiguousarray(x_XPF, dtype=np.float32)
     result: np.ndarray = _extension.forward(x, layers, start, members, activation)
+    return result
+
+
+def numpy_mean_views(q_RA: np.ndarray, views: int) -> np.ndarray:
+    """`mean_views` with numpy: the reference."""
+    rows, n_actions = q_RA.shape
+    return (np.add.reduce(q_RA.reshape(rows // views, views, n_actions), axis=1) / views).astype(
+        np.float64
+    )
+
+
+def mean_views(q_RA: np.ndarray, views: int) -> np.ndarray:
+    """(R / views, A) float64: the float32 mean of each block of `views` consecutive rows of
+    the float32 (R, A) `q_RA`; compiled where the module is built."""
+    if _extension is None:
+        return numpy_mean_views(q_RA, views)
+    result: np.ndarray = _extension.mean_views(q_RA, views)
     return result

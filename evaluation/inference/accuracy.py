@@ -47,7 +47,6 @@ import numpy as np
 from envs.particle.batched import BatchedParticleWorld
 from envs.particle.goals import GOAL_IDS, N_GOALS, TARGET_BOXES_G4
 from envs.particle.scenarios import start_states
-from evaluation.rollout import sample_actions
 from policy.belief import (
     BeliefConfig,
     belief_cross_entropy,
@@ -56,6 +55,7 @@ from policy.belief import (
     prior_log_probs,
     update_log_belief,
 )
+from policy.sampling import sample_actions
 from services.engine import ActRequest, InferenceEngine, PartnerSpec
 from services.sessions.messages import SessionSettings
 

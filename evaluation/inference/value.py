@@ -51,11 +51,11 @@ from evaluation.rollout import (
     CellResult,
     EpisodeTally,
     run_cells,
-    sample_actions,
     uniforms,
 )
 from evaluation.stats import MeanSE, mean_se, paired_diff, wilcoxon_p
 from policy.belief import BeliefConfig, initial_log_belief, prior_log_probs, update_log_belief
+from policy.sampling import sample_actions
 from services.engine import InferenceEngine
 
 INFERRED = "aail-inferred"

@@ -12,11 +12,11 @@ bottom in `_act`; every batch size takes the same steps (a single observation is
 | stack    | the networks' weights, once per combination of versions       | `model_cache`  |
 | inputs   | each member's input rows from the domain's views (table below)| `_inputs`      |
 | forward  | `networks.forward_group`: every member on its rows            | `networks`     |
-| reduce   | task Q = mean over the K task views; one impact Q per partner,| `_impact_q`    |
+| reduce   | task Q = mean over the K task views; one impact Q per partner,| `mean_views`,  |
 |          | a goal distribution's the expectation over its goals (§3.2)   |                |
 | blend    | `policy.blend.blend_checked` (eqs. 8-10; R1 for aail_bounded);| `policy.blend` |
 |          | jl: the joint Q alone                                         |                |
-| sample   | inverse CDF per row from `default_rng(seed)`, one stream over | `sample_actions`|
+| sample   | inverse CDF per row from `default_rng(seed)`, one stream over | `sample_rows`  |
 |          | the rows (row r of a batch is not row 1 of a single request)  |                |
 
 Member input rows (B observation rows, K task views, U_g partners with goal g):
@@ -48,7 +48,6 @@ Hot reload: `refresh()` (or the daemon thread of `start_refresh_thread`, every
 from __future__ import annotations
 
 import logging
-import math
 import threading
 from collections.abc import Mapping, Sequence
 from typing import NamedTuple
@@ -61,6 +60,8 @@ from model_store.naming import joint_model_name
 from model_store.store import ModelStore
 from policy.blend import BlendMethod, blend_checked
 from policy.regret_bound import DEFAULT_EPSILON_PER_ALPHA, keep_goal_rows
+from policy.row_forward import mean_views
+from policy.sampling import sample_rows
 from services.engine.environments import env_runtime
 from services.engine.errors import EngineError, InvalidRequest
 from services.engine.goal_inference import goal_log_likelihoods, recover_partner_actions
@@ -156,12 +157,9 @@ class InferenceEngine:
         q_members = forward_group(group, _inputs(checked, members, group, layout))
         batch, n_actions = checked.obs_BD.shape[0], domain.n_actions
         if method == "jl":
-            q_task_BA = q_members[0]
-        else:  # the task Q averaged over the K task views (one per other agent): np.mean's
-            # float32 sum and division, without its Python wrapper (the same bits)
-            views = q_members[0].shape[0] // batch
-            q_task_BA = np.add.reduce(q_members[0].reshape(batch, views, n_actions), axis=1) / views
-        q_task_BA = q_task_BA.astype(np.float64)
+            q_task_BA = q_members[0].astype(np.float64)
+        else:  # the task Q averaged over the K task views (one per other agent)
+            q_task_BA = mean_views(q_members[0], q_members[0].shape[0] // batch)
         epsilon_B, finished_B = aail_bounded_guard(request, group, checked)
         if finished_B is not None:  # R3: nothing left to earn, the exact task Q is flat
             flat_BA = np.broadcast_to(q_task_BA.mean(axis=1, keepdims=True), q_task_BA.shape)
@@ -172,25 +170,22 @@ class InferenceEngine:
         else:  # sl, jl: the task/joint network alone
             blend_method = "sl"
             q_impact_BPA = np.zeros((batch, 0, n_actions))
-        # every value is a float32 network output or a mean or probability-weighted mix of
-        # some, so |q| <= float32's maximum where finite and a float64 sum cannot overflow: the
-        # sum is finite exactly when every value is (NaN and inf carry through it; +inf and
-        # -inf together make a NaN, which numpy would warn about on the way to this error)
-        with np.errstate(invalid="ignore"):
-            total = np.add.reduce(q_task_BA, axis=None) + np.add.reduce(q_impact_BPA, axis=None)
-        if not math.isfinite(total):
-            raise InvalidRequest("observations", "values so large that the Q-values overflow")
         temperature = request.temperature or group.nets[0].alpha or DEFAULT_TEMPERATURE
         # every partner slot is used, one temperature for all rows
-        blended = blend_checked(
-            blend_method,
-            q_task_BA,
-            q_impact_BPA,
-            _constant(q_impact_BPA.shape[:2], True),
-            _constant((batch,), float(temperature)),
-            domain.blend_normalisation == "standardise",
-            epsilon_B,
-        )
+        try:
+            blended = blend_checked(
+                blend_method,
+                q_task_BA,
+                q_impact_BPA,
+                _constant(q_impact_BPA.shape[:2], True),
+                _constant((batch,), float(temperature)),
+                domain.blend_normalisation == "standardise",
+                epsilon_B,
+            )
+        except FloatingPointError:  # float32 outputs overflowed on huge (finite) observations
+            raise InvalidRequest(
+                "observations", "values so large that the Q-values overflow"
+            ) from None
         partner_weights_BP = blended.partner_weights_BP
         if blend_method == "sl":  # no impact network was evaluated: every partner weighs 0
             partner_weights_BP = np.zeros((batch, len(checked.partners)))
@@ -199,12 +194,14 @@ class InferenceEngine:
         kept_BA = goal_kept_of(request, checked, epsilon_B)
         if kept_BA is not None:  # R4: no action that loses the reached goal where one keeps it
             probs_BA = keep_goal_rows(probs_BA, kept_BA)
+        # one uniform per row, in order: row r of a batch is not row 1 of a single request
+        actions_B, greedy_B = sample_rows(probs_BA, rng.random((batch,)))
         return ActColumns(
             method=method,
             models=list(layout.models),
             probs=probs_BA,
-            actions=sample_actions(probs_BA, rng).astype(np.int64, copy=False),
-            greedy_actions=probs_BA.argmax(axis=1).astype(np.int64, copy=False),
+            actions=actions_B,
+            greedy_actions=greedy_B,
             task_entropies=blended.task_entropy_B,
             task_weights=blended.task_weight_B,
             partner_weights=partner_weights_BP,
@@ -519,15 +516,6 @@ def _constant(shape: tuple[int, ...], value: bool | float) -> np.ndarray:
             _CONSTANTS.clear()
         _CONSTANTS[key] = array
     return array
-
-
-def sample_actions(probs_BA: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """One action per row drawn from `probs_BA` by inverse CDF (one uniform per row, in order):
-    the first action whose cumulative probability exceeds u, so a p = 0 action is never drawn."""
-    # the ufuncs' own methods: cumsum's and sum's work without their Python wrappers
-    cdf_BA = np.add.accumulate(probs_BA, axis=1)
-    u_B1 = rng.random((probs_BA.shape[0], 1)) * cdf_BA[:, -1:]
-    return np.minimum(np.add.reduce(cdf_BA <= u_B1, axis=1), probs_BA.shape[1] - 1)
 
 
 def aail_bounded_guard(

@@ -11,7 +11,7 @@ from envs.particle.scenarios import start_states
 from envs.particle.scripted import scripted_actions
 from evaluation.backend import ModelRecord
 from evaluation.config import Scenario
-from evaluation.rollout import Cell, run_cells, sample_actions
+from evaluation.rollout import Cell, run_cells
 from services.engine import ActRequest
 
 RECORD = ModelRecord("particle/task/x", 1, "0" * 64, "task")
@@ -45,13 +45,6 @@ def scripted_policy(request: ActRequest) -> np.ndarray:
 
 def uniform_policy(request: ActRequest) -> np.ndarray:
     return np.full((len(request.observations), 5), 0.2)
-
-
-def test_sample_actions_inverse_cdf_by_hand() -> None:
-    probs = np.array([[0.2, 0.3, 0.5]] * 4 + [[0.0, 1.0, 0.0]])
-    u = np.array([0.1, 0.25, 0.5, 0.99, 0.0])
-    # cdf 0.2, 0.5, 1.0: u = 0.5 does not exceed 0.5, so action 2; a p = 0 action is never drawn
-    assert sample_actions(probs, u).tolist() == [0, 1, 2, 2, 1]
 
 
 def test_every_method_sees_the_same_starts_and_random_numbers() -> None:

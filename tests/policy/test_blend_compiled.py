@@ -189,6 +189,29 @@ def test_many_actions(n_actions: int) -> None:
             _assert_close(blend(method, q_task, q_impact, 0.5), want)
 
 
+@pytest.mark.parametrize("compiled_kernel", [True, False])
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_a_non_finite_q_value_raises(
+    monkeypatch: pytest.MonkeyPatch, compiled_kernel: bool, bad: float
+) -> None:
+    """`blend_checked` finds a NaN or infinite Q-value of an unmasked slot in its pass over the
+    inputs, compiled or not (the engine answers it as an overflow of the observations)."""
+    if compiled_kernel and not blend_module.COMPILED:
+        pytest.skip("policy._blend_row not built")
+    monkeypatch.setattr(blend_module, "COMPILED", compiled_kernel)
+    task, impact = np.zeros((2, 3)), np.zeros((2, 2, 3))
+    mask, alpha = np.ones((2, 2), bool), np.full(2, 0.5)
+    for q_task, q_impact in ((task.copy(), impact), (task, impact.copy())):
+        (q_task if q_task is not task else q_impact)[1, 1] = bad
+        with pytest.raises(FloatingPointError, match="NaN or infinite"):
+            blend_module.blend_checked("aail", q_task, q_impact, mask, alpha, True, None)
+    if compiled_kernel:  # the kernel never reads a masked slot (the numpy path wants zeros)
+        masked = impact.copy()
+        masked[1, 1] = bad
+        mask[1, 1] = False
+        blend_module.blend_checked("aail", task, masked, mask, alpha, True, None)
+
+
 def test_masked_slots_are_never_read() -> None:
     q_task = [[0.0, 1.0, 3.0]]
     q_impact = [[[np.nan, 0.0, np.inf], [2.0, 0.0, 1.0]]]

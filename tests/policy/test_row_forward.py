@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from policy import row_forward as rf
-from policy.row_forward import numpy_row_forward, row_forward
+from policy.row_forward import mean_views, numpy_mean_views, numpy_row_forward, row_forward
 
 compiled = pytest.mark.skipif(not rf.COMPILED, reason="no compiled forward on this machine")
 Layers = list[tuple[np.ndarray, np.ndarray]]
@@ -154,7 +154,7 @@ def test_bad_arguments_are_refused_clearly() -> None:
 
 @compiled
 def test_threads_share_it_safely() -> None:
-    """The GIL is released while it runs: threads calling it at once get their own answers."""
+    """Threads calling it at once get their own answers (a call this large releases the GIL)."""
     from concurrent.futures import ThreadPoolExecutor
 
     rng = np.random.default_rng(3)
@@ -165,3 +165,21 @@ def test_threads_share_it_safely() -> None:
         got = list(pool.map(lambda x: row_forward(x, layers, 0, 35, "relu"), xs * 4))
     for k, result in enumerate(got):
         np.testing.assert_array_equal(result, want[k % len(xs)])
+
+
+@pytest.mark.parametrize(("rows", "views"), [(1, 1), (4, 4), (12, 3), (40, 5)])
+def test_mean_views_equals_the_reference(rows: int, views: int) -> None:
+    """The same float32 sums in the same order: the same values, not merely close ones."""
+    q = np.random.default_rng(rows).standard_normal((rows, 5)).astype(np.float32) * 1e3
+    got = mean_views(q, views)
+    assert got.dtype == np.float64 and got.shape == (rows // views, 5)
+    np.testing.assert_array_equal(got, numpy_mean_views(q, views))
+    overflowing = np.full((2, 5), np.finfo(np.float32).max, np.float32)
+    assert np.isinf(mean_views(overflowing, 2)).all()  # the float32 sum overflows, as numpy's
+
+
+def test_mean_views_refuses_a_block_that_does_not_divide_the_rows() -> None:
+    if rf._extension is None:
+        pytest.skip("policy._row_forward not built")
+    with pytest.raises(ValueError, match="views: expected a divisor"):
+        mean_views(np.zeros((5, 3), np.float32), 2)

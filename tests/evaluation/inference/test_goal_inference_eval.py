@@ -34,12 +34,13 @@ from evaluation.inference.value import (
     run_inferred,
     run_value,
 )
-from evaluation.rollout import CellResult, sample_actions, uniforms
+from evaluation.rollout import CellResult, uniforms
 from model_store.entities import Lineage
 from model_store.naming import impact_model_name, task_model_name
 from model_store.sql import SqlModelStore
 from model_store.testing import qnet_spec, qnet_tensors
 from policy.belief import BeliefConfig
+from policy.sampling import sample_actions
 from services.engine import ActRequest, InferenceEngine
 from services.sessions.messages import Observed, SessionPartner, SessionSettings
 from services.sessions.session import Session

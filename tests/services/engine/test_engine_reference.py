@@ -9,8 +9,6 @@ from typing import cast
 import numpy as np
 import pytest
 import torch
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 from envs.particle.goals import TARGET_BOXES_G4, goal_index
 from envs.particle.world import in_target, step_state
@@ -20,7 +18,6 @@ from policy.maths import boltzmann
 from policy.qnet import QNetSpec, qnet_from_safetensors
 from policy.regret_bound import DEFAULT_EPSILON_PER_ALPHA
 from services.engine import ActRequest, InferenceEngine, PartnerSpec
-from services.engine.engine import sample_actions
 
 PHANTOM = np.array([0.5, 0.5, 0.0, 0.0])
 PARTNER_GOALS = ("b3", "c1", "d4", "e0")
@@ -308,16 +305,3 @@ def test_seeded_sampling_is_reproducible_and_follows_probs(tiny_zoo) -> None:
     np.testing.assert_allclose(frequencies, probs, atol=0.03)
     unseeded = ActRequest("particle", "c1", obs_BD[:50], request.partners, temperature=2.0)
     assert len({tuple(r.action for r in engine.act(unseeded)) for _ in range(3)}) > 1
-
-
-@settings(max_examples=200, deadline=None)
-@given(
-    weights=st.lists(st.sampled_from([0.0, 0.0, 1e-9, 0.1, 1.0, 3.0]), min_size=1, max_size=6),
-    seed=st.integers(0, 2**32),
-)
-def test_sample_actions_stays_on_the_support(weights: list[float], seed: int) -> None:
-    weights[seed % len(weights)] += 0.5  # at least one positive entry
-    probs_BA = np.tile(np.array(weights) / sum(weights), (64, 1))
-    actions = sample_actions(probs_BA, np.random.default_rng(seed))
-    assert actions.shape == (64,)
-    assert (probs_BA[0][actions] > 0).all()  # never an action of probability 0
