@@ -4,11 +4,7 @@
  * Why C: a few rows through many networks are many matrix-vector products per layer. numpy's
  * stacked matmul makes one BLAS call per network and layer and the weights stream from the
  * caches meanwhile; here the whole stack is one loop over the members that reads each weight
- * once per row, with AVX2 and FMA. The GIL is released while a call runs long enough
- * (RELEASE_GIL_MACS multiply-adds: a session's likelihood pass over every task network) that
- * other threads should go on meanwhile; a single act's few networks keep it, since a thread
- * that gives the GIL up waits to get it back behind the server's other threads (gRPC's
- * pollers), which costs more than the forward itself.
+ * once per row, with AVX2 and FMA. The GIL is released while it runs.
  *
  * Order of operations (fixed, so the results do not depend on the batch or on the other rows):
  * - output o of a layer in a full group of 8 outputs: acc = b[o], then for i = 0 .. I-1
@@ -35,7 +31,6 @@
 #include <numpy/arrayobject.h>
 
 #define MAX_LAYERS 16
-#define RELEASE_GIL_MACS 1e6 /* from this many multiply-adds a call releases the GIL */
 
 #if defined(__x86_64__) && defined(__GNUC__)
 #include <immintrin.h>
@@ -261,16 +256,9 @@ static PyObject *forward(PyObject *self, PyObject *args) {
     const float *x_data = (const float *)PyArray_DATA(x);
     float *out_data = (float *)PyArray_DATA((PyArrayObject *)out);
     int x_members = (int)xs[0], P = (int)xs[1];
-    double macs = 0.0; /* multiply-adds of the whole call */
-    for (int k = 0; k < s.n_layers; k++) macs += (double)s.n_in[k] * s.n_out[k];
-    macs *= (double)members * P;
-    if (macs >= RELEASE_GIL_MACS) { /* long enough that other threads should run meanwhile */
-        Py_BEGIN_ALLOW_THREADS
-        run(&s, x_data, x_members, (int)members, P, relu, out_data, buf, (int)width);
-        Py_END_ALLOW_THREADS
-    } else {
-        run(&s, x_data, x_members, (int)members, P, relu, out_data, buf, (int)width);
-    }
+    Py_BEGIN_ALLOW_THREADS
+    run(&s, x_data, x_members, (int)members, P, relu, out_data, buf, (int)width);
+    Py_END_ALLOW_THREADS
     free(buf);
     Py_DECREF(keep);
     return out;

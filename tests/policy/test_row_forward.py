@@ -154,7 +154,7 @@ def test_bad_arguments_are_refused_clearly() -> None:
 
 @compiled
 def test_threads_share_it_safely() -> None:
-    """Threads calling it at once get their own answers (a call this large releases the GIL)."""
+    """The GIL is released while it runs: threads calling it at once get their own answers."""
     from concurrent.futures import ThreadPoolExecutor
 
     rng = np.random.default_rng(3)
