@@ -4,8 +4,8 @@ action.
     actions_B, greedy_B = sample_rows(probs_BA, u_B)
 
 Row b's action is the first whose cumulative probability exceeds u_b times the row's total
-(so an action of probability 0 is never drawn, and a total a rounding off 1 changes nothing),
-at most A - 1; its greedy action is the first most probable one. `numpy_sample_rows` is the
+(so an action of probability 0 is never drawn, and a total that rounding moved off 1 changes
+nothing), at most A - 1; its greedy action is the first most probable one. `numpy_sample_rows` is the
 reference; `policy/_blend_row.c` (`sample_rows`) computes the same sums in the same order, so
 the two give the same actions (tests/policy/test_sampling.py), in one call instead of numpy's
 six. The inference engine draws u from the request's generator, the evaluation from its common

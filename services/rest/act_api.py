@@ -7,8 +7,9 @@
 The handlers are `async def` and call the engine directly (no thread-pool hop: a forward takes
 microseconds); they only translate JSON to an `ActRequest` and the results back, written with
 orjson; a valid JSON body comes straight from the app's `LeanDispatch` middleware, without
-FastAPI's router and dependency solving (`lean_route`; its share of an act: docs/performance.md). A batch with `"format": "columns"` is answered from `engine.act_columns`:
-one array per field, written by orjson straight from numpy, and the models once, not per row.
+FastAPI's router and dependency solving (`lean_route`; its share of an act: docs/performance.md).
+A batch with `"format": "columns"` is answered from `engine.act_columns`: one array per field,
+written by orjson straight from numpy, and the models once, not per row.
 Field names in errors follow the body: a single request's `observation` (or `state`), a batch's
 `observations[i]` (or `states[i]`). A `state` is turned into the ego's observation by the
 environment's perspective transform (`services.engine.observations_from_states`).

@@ -237,10 +237,9 @@ class LeanDispatch:
         assert call is not None
         try:
             if len(body) < OFFLOAD_BYTES:
-                value = call.body_model.model_validate(parse_json(body))
+                value = _validated(call.body_model, body)
             else:  # off the event loop, as `FastJsonRequest` parses a large body
-                parsed = await run_in_threadpool(parse_json, body)
-                value = await run_in_threadpool(call.body_model.model_validate, parsed)
+                value = await run_in_threadpool(_validated, call.body_model, body)
         except Exception:  # malformed or invalid: FastAPI's handler says so, from the same bytes
             await self.app(scope, replay, send)
             return
@@ -261,6 +260,10 @@ class LeanDispatch:
             else:
                 response = await run_in_threadpool(handler, request, exc)
         await response(scope, replay, send)
+
+
+def _validated(model: type[BaseModel], body: bytes) -> BaseModel:
+    return model.model_validate(parse_json(body))
 
 
 def _handler_for(app: Any, exc: Exception) -> Callable[..., Any] | None:
