@@ -3,12 +3,14 @@
  *
  * Why C: a few rows through many networks are many matrix-vector products per layer. numpy's
  * stacked matmul makes one BLAS call per network and layer and the weights stream from the
- * caches meanwhile; here the whole stack is one loop over the members that reads each weight
- * once per row, with AVX2 and FMA. The GIL is released while it runs.
+ * caches meanwhile; here the whole stack is one loop over the members, with AVX2 and FMA, that
+ * takes a member's rows in blocks of 4, 2 or 1 and loads each weight once per block (a
+ * session's 4 partners through 35 impact networks: 4 rows a member). The GIL is released
+ * while it runs.
  *
  * Order of operations (fixed, so the results do not depend on the batch or on the other rows):
  * - output o of a layer in a full group of 8 outputs: acc = b[o], then for i = 0 .. I-1
- *   acc = fma(x[i], W[i, o], acc);
+ *   acc = fma(x[i], W[i, o], acc), whatever the block of rows and the group of outputs;
  * - the last O mod 8 outputs (the 5 actions of the final layer): four partial sums over
  *   i = 0, 4, 8 .. / 1, 5, 9 .. / 2, .. / 3, .., the first starting at b[o], the I mod 4 last
  *   inputs added to the first one in order, then (s0 + s1) + (s2 + s3);
@@ -59,40 +61,64 @@ __attribute__((target("avx2,fma"))) static void tail_avx2(const float *x, const 
     _mm256_maskstore_ps(y + ob, mask, _mm256_add_ps(_mm256_add_ps(s0, s1), _mm256_add_ps(s2, s3)));
 }
 
-/* output groups of 64 (8 registers), then of 8, then the tail */
-__attribute__((target("avx2,fma"))) static void matvec_avx2(const float *x, const float *W,
-                                                           const float *b, float *y, int n_i,
-                                                           int n_o) {
+/* R rows (R = 1, 2 or 4, a constant after inlining) of one layer, y_r = W^T x_r + b: output
+ * groups of 8V with R * V = 8 accumulators (enough independent FMAs to fill both FMA pipes),
+ * each weight vector loaded once for all R rows; then groups of 8 outputs; then the tail, row
+ * by row. Every output follows the order of the header comment, whatever R and the group. */
+__attribute__((target("avx2,fma"), always_inline)) static inline void
+layer_rows_avx2(const float *x, int x_step, const float *W, const float *b, float *y, int y_step,
+                int n_i, int n_o, const int R) {
+    const int V = R == 4 ? 3 : R == 2 ? 4 : 8;
     int ob = 0;
-    for (; ob + 64 <= n_o; ob += 64) {
-        __m256 a0 = _mm256_loadu_ps(b + ob), a1 = _mm256_loadu_ps(b + ob + 8);
-        __m256 a2 = _mm256_loadu_ps(b + ob + 16), a3 = _mm256_loadu_ps(b + ob + 24);
-        __m256 a4 = _mm256_loadu_ps(b + ob + 32), a5 = _mm256_loadu_ps(b + ob + 40);
-        __m256 a6 = _mm256_loadu_ps(b + ob + 48), a7 = _mm256_loadu_ps(b + ob + 56);
-        const float *r = W + ob;
-        for (int i = 0; i < n_i; i++, r += n_o) {
-            __m256 h = _mm256_broadcast_ss(x + i);
-            a0 = _mm256_fmadd_ps(h, _mm256_loadu_ps(r), a0);
-            a1 = _mm256_fmadd_ps(h, _mm256_loadu_ps(r + 8), a1);
-            a2 = _mm256_fmadd_ps(h, _mm256_loadu_ps(r + 16), a2);
-            a3 = _mm256_fmadd_ps(h, _mm256_loadu_ps(r + 24), a3);
-            a4 = _mm256_fmadd_ps(h, _mm256_loadu_ps(r + 32), a4);
-            a5 = _mm256_fmadd_ps(h, _mm256_loadu_ps(r + 40), a5);
-            a6 = _mm256_fmadd_ps(h, _mm256_loadu_ps(r + 48), a6);
-            a7 = _mm256_fmadd_ps(h, _mm256_loadu_ps(r + 56), a7);
+    for (; ob + 8 * V <= n_o; ob += 8 * V) {
+        __m256 acc[4][8];
+#pragma GCC unroll 4
+        for (int r = 0; r < R; r++)
+#pragma GCC unroll 8
+            for (int v = 0; v < V; v++) acc[r][v] = _mm256_loadu_ps(b + ob + 8 * v);
+        const float *w = W + ob;
+        for (int i = 0; i < n_i; i++, w += n_o) {
+            __m256 wv[8];
+#pragma GCC unroll 8
+            for (int v = 0; v < V; v++) wv[v] = _mm256_loadu_ps(w + 8 * v);
+#pragma GCC unroll 4
+            for (int r = 0; r < R; r++) {
+                __m256 h = _mm256_broadcast_ss(x + (size_t)r * x_step + i);
+#pragma GCC unroll 8
+                for (int v = 0; v < V; v++) acc[r][v] = _mm256_fmadd_ps(h, wv[v], acc[r][v]);
+            }
         }
-        _mm256_storeu_ps(y + ob, a0), _mm256_storeu_ps(y + ob + 8, a1);
-        _mm256_storeu_ps(y + ob + 16, a2), _mm256_storeu_ps(y + ob + 24, a3);
-        _mm256_storeu_ps(y + ob + 32, a4), _mm256_storeu_ps(y + ob + 40, a5);
-        _mm256_storeu_ps(y + ob + 48, a6), _mm256_storeu_ps(y + ob + 56, a7);
+#pragma GCC unroll 4
+        for (int r = 0; r < R; r++)
+#pragma GCC unroll 8
+            for (int v = 0; v < V; v++) _mm256_storeu_ps(y + (size_t)r * y_step + ob + 8 * v, acc[r][v]);
     }
     for (; ob + 8 <= n_o; ob += 8) {
-        __m256 a = _mm256_loadu_ps(b + ob);
-        const float *r = W + ob;
-        for (int i = 0; i < n_i; i++, r += n_o) a = _mm256_fmadd_ps(_mm256_broadcast_ss(x + i), _mm256_loadu_ps(r), a);
-        _mm256_storeu_ps(y + ob, a);
+        __m256 acc[4];
+#pragma GCC unroll 4
+        for (int r = 0; r < R; r++) acc[r] = _mm256_loadu_ps(b + ob);
+        const float *w = W + ob;
+        for (int i = 0; i < n_i; i++, w += n_o) {
+            __m256 wv = _mm256_loadu_ps(w);
+#pragma GCC unroll 4
+            for (int r = 0; r < R; r++)
+                acc[r] = _mm256_fmadd_ps(_mm256_broadcast_ss(x + (size_t)r * x_step + i), wv, acc[r]);
+        }
+#pragma GCC unroll 4
+        for (int r = 0; r < R; r++) _mm256_storeu_ps(y + (size_t)r * y_step + ob, acc[r]);
     }
-    tail_avx2(x, W, b, y, n_i, n_o, ob);
+    for (int r = 0; r < R; r++)
+        tail_avx2(x + (size_t)r * x_step, W, b, y + (size_t)r * y_step, n_i, n_o, ob);
+}
+
+/* one layer on R = 1, 2 or 4 rows (`layer_rows_avx2` made for each R) */
+__attribute__((target("avx2,fma"))) static void layer_avx2(const float *x, int x_step,
+                                                          const float *W, const float *b,
+                                                          float *y, int y_step, int n_i,
+                                                          int n_o, int R) {
+    if (R == 4) layer_rows_avx2(x, x_step, W, b, y, y_step, n_i, n_o, 4);
+    else if (R == 2) layer_rows_avx2(x, x_step, W, b, y, y_step, n_i, n_o, 2);
+    else layer_rows_avx2(x, x_step, W, b, y, y_step, n_i, n_o, 1);
 }
 
 /* max(0, v), NaN kept (MAXPS returns its second operand when one is NaN) */
@@ -132,23 +158,30 @@ static void activate(float *y, int n, int relu) {
 #endif
 }
 
-/* every member m < M on its rows p < P: out[m, p] = mlp_m(x[m or 0, p]). `buf` holds 2 hidden
- * vectors of the widest layer. */
+/* every member m < M on its rows p < P: out[m, p] = mlp_m(x[m or 0, p]), in blocks of 4, 2
+ * or 1 rows (`layer_avx2`). `buf` holds 2 x ROW_BLOCK hidden vectors of the widest layer. */
+#define ROW_BLOCK 4
 static void run(const Stack *s, const float *x, int x_members, int M, int P, int relu,
                 float *out, float *buf, int width) {
 #if HAVE_X86
     int last = s->n_layers - 1, n_x = s->n_in[0], n_a = s->n_out[last];
     for (int m = 0; m < M; m++) {
-        for (int p = 0; p < P; p++) {
+        for (int p = 0; p < P;) {
+            int R = P - p >= 4 ? 4 : P - p >= 2 ? 2 : 1;
             const float *h = x + ((size_t)(x_members > 1 ? m : 0) * P + p) * n_x;
+            int h_step = n_x;
             for (int k = 0; k <= last; k++) {
                 int n_i = s->n_in[k], n_o = s->n_out[k];
                 const float *w = s->w[k] + (size_t)m * n_i * n_o, *b = s->b[k] + (size_t)m * n_o;
-                float *y = k == last ? out + ((size_t)m * P + p) * n_a : buf + (k % 2) * width;
-                matvec_avx2(h, w, b, y, n_i, n_o);
-                if (k < last) activate(y, n_o, relu);
+                float *y = k == last ? out + ((size_t)m * P + p) * n_a : buf + (size_t)(k % 2) * ROW_BLOCK * width;
+                int y_step = k == last ? n_a : width;
+                layer_avx2(h, h_step, w, b, y, y_step, n_i, n_o, R);
+                if (k < last)
+                    for (int r = 0; r < R; r++) activate(y + (size_t)r * y_step, n_o, relu);
                 h = y;
+                h_step = y_step;
             }
+            p += R;
         }
     }
 #else
@@ -247,7 +280,7 @@ static PyObject *forward(PyObject *self, PyObject *args) {
     }
     npy_intp dims[3] = {members, xs[1], n_in};
     PyObject *out = PyArray_SimpleNew(3, dims, NPY_FLOAT32);
-    float *buf = out ? malloc(2 * (size_t)width * sizeof(float)) : NULL;
+    float *buf = out ? malloc(2 * ROW_BLOCK * (size_t)width * sizeof(float)) : NULL;
     if (buf == NULL) {
         Py_XDECREF(out);
         if (!PyErr_Occurred()) PyErr_NoMemory();

@@ -12,9 +12,11 @@ A group is split into *partitions* of members with the same spec, whose weights 
 once, (G, in, out) per layer. `forward_group` evaluates the members of a partition that have
 the same number of input rows R together, one `policy.row_forward.row_forward` on a (G', R, D)
 input: a request's impact networks (one view each per observation row) in one call, its task
-network (K views per row) in another. Where the compiled forward exists it takes calls of at
-most `ROW_FORWARD_MAX_ROWS` rows per member (a few matrix-vector products per network: one loop
-that reads each weight once per row); larger calls take numpy's matmul, stacked up to
+network (K views per row) in another; members given the very same input array (the impact
+networks of a belief's goals, all on the same partners' rows) take it once, (1, R, D). Where
+the compiled forward exists it takes calls of at most `ROW_FORWARD_MAX_ROWS` rows per member (a
+few matrix-vector products per network: one loop that loads each weight once per block of
+rows); larger calls take numpy's matmul, stacked up to
 `STACK_MAX_ROWS` rows per member and member by member beyond (a 2-D product per member reaches
 BLAS speed, numpy's batched 3-D matmul does not).
 """
@@ -173,37 +175,62 @@ def build_group(nets: Sequence[LoadedNet]) -> StackedGroup:
     return StackedGroup(tuple(nets), partitions)
 
 
-def _forward_members(part: Partition, x_GRD: np.ndarray, start: int, count: int) -> np.ndarray:
-    """Members `start` .. `start + count - 1` of the partition on x (count, R, D)."""
-    rows, activation = x_GRD.shape[1], part.spec.activation
+def _forward_members(part: Partition, x_XRD: np.ndarray, start: int, count: int) -> np.ndarray:
+    """Members `start` .. `start + count - 1` of the partition on x (count or 1, R, D): each
+    member on its own rows, or all of them on the same rows (X = 1)."""
+    rows, activation = x_XRD.shape[1], part.spec.activation
     if ROW_FORWARD and rows <= ROW_FORWARD_MAX_ROWS:
-        return row_forward(x_GRD, part.row_weights, start, count, activation)
+        return row_forward(x_XRD, part.row_weights, start, count, activation)
     if rows <= STACK_MAX_ROWS:
-        return numpy_row_forward(x_GRD, part.row_weights, start, count, activation)
+        return numpy_row_forward(x_XRD, part.row_weights, start, count, activation)
+    shared = x_XRD.shape[0] == 1
     return np.concatenate([
-        numpy_row_forward(x_GRD[i : i + 1], part.row_weights, start + i, 1, activation)
+        numpy_row_forward(x_XRD[0 if shared else i][None], part.row_weights, start + i, 1,
+                          activation)
         for i in range(count)
     ])  # fmt: skip
 
 
+def _runs(part: Partition, inputs: Sequence[np.ndarray]) -> list[tuple[int, int, bool]]:
+    """The partition's members as runs (start, end, shared) evaluated in one call each: members
+    given the same input array (a belief's impact networks, all on the same partners' rows)
+    share it; other consecutive members with as many rows are stacked."""
+    runs: list[tuple[int, int, bool]] = []
+    members, g = part.members, 0
+    while g < len(members):
+        x = inputs[members[g]]
+        end = g + 1
+        while end < len(members) and inputs[members[end]] is x:
+            end += 1
+        if end - g > 1:
+            runs.append((g, end, True))
+            g = end
+            continue
+        rows = x.shape[0]
+        while (
+            end < len(members)
+            and inputs[members[end]].shape[0] == rows
+            and (end + 1 == len(members) or inputs[members[end + 1]] is not inputs[members[end]])
+        ):
+            end += 1
+        runs.append((g, end, False))
+        g = end
+    return runs
+
+
 def forward_group(group: StackedGroup, inputs: Sequence[np.ndarray]) -> list[np.ndarray]:
     """Q-values (rows_j, A) float32 of every member j on its input (rows_j, obs_dim of its spec):
-    per partition, consecutive members with as many rows are evaluated together."""
+    per partition, in runs of members evaluated together (`_runs`)."""
     outputs: list[np.ndarray] = [np.empty(0)] * len(group.nets)
     for part in group.partitions:
-        g = 0
-        while g < len(part.members):
-            rows = inputs[part.members[g]].shape[0]
-            end = g + 1
-            while end < len(part.members) and inputs[part.members[end]].shape[0] == rows:
-                end += 1
+        for g, end, shared in _runs(part, inputs):
             same = part.members[g:end]
-            if len(same) == 1:
-                x_GRD = inputs[same[0]][None]
+            if shared or len(same) == 1:
+                x_XRD = inputs[same[0]][None]
             else:  # np.stack's result, from one concatenate (np.stack's Python steps cost more)
-                x_GRD = np.concatenate([inputs[j] for j in same]).reshape(len(same), rows, -1)
-            q_GRA = _forward_members(part, x_GRD, g, end - g)
+                rows = inputs[same[0]].shape[0]
+                x_XRD = np.concatenate([inputs[j] for j in same]).reshape(len(same), rows, -1)
+            q_GRA = _forward_members(part, x_XRD, g, end - g)
             for i, j in enumerate(same):
                 outputs[j] = q_GRA[i]
-            g = end
     return outputs

@@ -52,7 +52,10 @@ SIZES = [
 @compiled
 @pytest.mark.parametrize("sizes", SIZES)
 @pytest.mark.parametrize("activation", ["relu", "tanh"])
-@pytest.mark.parametrize(("x_members", "rows"), [(1, 1), (1, 3), ("all", 1), ("all", 2)])
+# rows in blocks of 4, 2 and 1 (7 = 4 + 2 + 1; 5 = 4 + 1)
+@pytest.mark.parametrize(
+    ("x_members", "rows"), [(1, 1), (1, 3), (1, 7), ("all", 1), ("all", 2), ("all", 5)]
+)
 def test_compiled_matches_numpy_and_float64(
     sizes: tuple[int, ...], activation: str, x_members: object, rows: int
 ) -> None:
@@ -95,9 +98,9 @@ def test_each_row_is_computed_alone() -> None:
     table serves any subset of its partners: `goal_inference.ROWS_INDEPENDENT`)."""
     rng = np.random.default_rng(6)
     layers = stack(rng, (8, 128, 128, 5), 4)
-    x = rng.standard_normal((1, 4, 8)).astype(np.float32)
+    x = rng.standard_normal((1, 7, 8)).astype(np.float32)  # blocks of 4, 2 and 1 rows
     whole = row_forward(x, layers, 0, 4, "relu")
-    for p in range(4):
+    for p in range(7):
         np.testing.assert_array_equal(row_forward(x[:, p : p + 1], layers, 0, 4, "relu")[:, 0],
                                       whole[:, p])  # fmt: skip
 

@@ -100,3 +100,34 @@ def test_goal_distributions_mix_as_mix_goal_beliefs_does(tiny_zoo, batch: int) -
         probs = np.broadcast_to(np.asarray(partner.probs), (batch, 1, len(blocks)))
         want = mix_goal_beliefs(q_BGA[:, None].astype(np.float64), probs)[:, 0]
         np.testing.assert_allclose(got[:, position], want, rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("rows", [1, 4, 7, 65])  # compiled (<= 8), stacked numpy, one by one
+def test_members_sharing_an_input_equal_members_on_copies(tiny_zoo, rows: int) -> None:
+    """`forward_group` gives members handed the very same input array that array once (a
+    belief's impact networks); each member's Q-values are those of the same network on its
+    own copy of the rows, and of the network evaluated alone."""
+    from services.engine.networks import _runs, forward_group
+
+    store = tiny_zoo.store
+    names = [
+        task_model_name("particle", "a2"),
+        *(f"particle/impact/{g}" for g in ("b3", "c1", "e0")),
+    ]
+    nets = [load_net(store, store.resolve(f"{name}@production")) for name in names]
+    group = build_group(nets)
+    rng = np.random.default_rng(rows)
+    task_rows = rng.standard_normal((rows, 8)).astype(np.float32)
+    shared = rng.standard_normal((rows, 8)).astype(np.float32)
+    inputs = [task_rows, shared, shared, shared]
+    copies = [task_rows, *(shared.copy() for _ in range(3))]
+    assert [run for part in group.partitions for run in _runs(part, inputs)] == [
+        (0, 1, False),
+        (1, 4, True),
+    ]
+    assert [run for part in group.partitions for run in _runs(part, copies)] == [(0, 4, False)]
+    together, apart = forward_group(group, inputs), forward_group(group, copies)
+    for j, net in enumerate(nets):
+        alone = forward_group(build_group([net]), [inputs[j]])[0]
+        np.testing.assert_allclose(together[j], apart[j], rtol=1e-5, atol=1e-5)
+        np.testing.assert_allclose(together[j], alone, rtol=1e-5, atol=1e-5)
