@@ -13,12 +13,12 @@ once, (G, in, out) per layer. `forward_group` evaluates the members of a partiti
 the same number of input rows R together, one `policy.row_forward.row_forward` on a (G', R, D)
 input: a request's impact networks (one view each per observation row) in one call, its task
 network (K views per row) in another; members given the very same input array (the impact
-networks of a belief's goals, all on the same partners' rows) take it once, (1, R, D). Where
-the compiled forward exists it takes calls of at most `ROW_FORWARD_MAX_ROWS` rows per member (a
-few matrix-vector products per network: one loop that loads each weight once per block of
-rows); larger calls take numpy's matmul, stacked up to
-`STACK_MAX_ROWS` rows per member and member by member beyond (a 2-D product per member reaches
-BLAS speed, numpy's batched 3-D matmul does not).
+networks of a belief's goals, all on the same partners' rows) take it once, (1, R, D).
+Where the compiled forward exists it takes every call (it loads each weight once per block of
+rows, fuses bias and activation, and outruns numpy's BLAS on these narrow layers at any row
+count: `docs/performance.md`); without it numpy's matmul runs, stacked up to `STACK_MAX_ROWS`
+rows per member and member by member beyond (a 2-D product per member reaches BLAS speed,
+numpy's batched 3-D matmul does not).
 """
 
 from __future__ import annotations
@@ -41,7 +41,6 @@ K = TypeVar("K", bound=Hashable)
 V = TypeVar("V")
 
 STACK_MAX_ROWS = 64  # members with more input rows than this are evaluated one by one
-ROW_FORWARD_MAX_ROWS = 8  # members with at most this many rows: compiled, where it is built
 
 
 class LruCache(Generic[K, V]):
@@ -179,7 +178,7 @@ def _forward_members(part: Partition, x_XRD: np.ndarray, start: int, count: int)
     """Members `start` .. `start + count - 1` of the partition on x (count or 1, R, D): each
     member on its own rows, or all of them on the same rows (X = 1)."""
     rows, activation = x_XRD.shape[1], part.spec.activation
-    if ROW_FORWARD and rows <= ROW_FORWARD_MAX_ROWS:
+    if ROW_FORWARD:
         return row_forward(x_XRD, part.row_weights, start, count, activation)
     if rows <= STACK_MAX_ROWS:
         return numpy_row_forward(x_XRD, part.row_weights, start, count, activation)
