@@ -35,8 +35,16 @@ def rest_app() -> Any:
 def serve_rest(port: int) -> None:
     import uvicorn
 
-    uvicorn.run(rest_app(), host="127.0.0.1", port=port, workers=1, loop="uvloop",
-                http="httptools", log_level="warning", access_log=False)  # fmt: skip
+    uvicorn.run(
+        rest_app(),
+        host="127.0.0.1",
+        port=port,
+        workers=1,
+        loop="uvloop",
+        http="httptools",
+        log_level="warning",
+        access_log=False,
+    )
 
 
 def serve_grpc(port: int) -> None:

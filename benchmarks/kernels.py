@@ -86,9 +86,12 @@ def cases(url: str) -> dict[str, tuple[Call, int]]:
         session.step(obs_TD[0])
 
         def step(
-            i: int, s: Session = session, n: int = n, obs: np.ndarray = obs_TD,
+            i: int,
+            s: Session = session,
+            n: int = n,
+            obs: np.ndarray = obs_TD,
             actions: np.ndarray = actions_TP,
-        ) -> object:  # fmt: skip
+        ) -> object:
             t = i % (len(obs) - 1) + 1
             s.prepare_next()
             observed = [Observed(j + 1, int(actions[t - 1, j])) for j in range(n)]

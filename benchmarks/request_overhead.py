@@ -52,10 +52,20 @@ def coexist_app(tmp: str) -> Any:
 
 def asgi_timer(app: Any, path: str) -> Callable[[int], float]:
     """A function timing `n` GET requests of `path` through `app`, in µs per request."""
-    scope = {"type": "http", "asgi": {"version": "3.0"}, "http_version": "1.1",
-             "method": "GET", "scheme": "http", "path": path, "raw_path": path.encode(),
-             "query_string": b"", "root_path": "", "headers": [(b"host", b"bench")],
-             "client": ("127.0.0.1", 1), "server": ("127.0.0.1", 80)}  # fmt: skip
+    scope = {
+        "type": "http",
+        "asgi": {"version": "3.0"},
+        "http_version": "1.1",
+        "method": "GET",
+        "scheme": "http",
+        "path": path,
+        "raw_path": path.encode(),
+        "query_string": b"",
+        "root_path": "",
+        "headers": [(b"host", b"bench")],
+        "client": ("127.0.0.1", 1),
+        "server": ("127.0.0.1", 80),
+    }
     request = {"type": "http.request", "body": b"", "more_body": False}
 
     async def receive() -> dict[str, Any]:
@@ -123,8 +133,9 @@ def grpc_timers() -> tuple[Callable[[int], float], Callable[[int], float]]:
         def run(n: int) -> float:
             start = time.perf_counter()
             for _ in range(n):  # grpcio asks the interceptor for the handler on every call
-                handler = interceptor.intercept_service(lambda d: plain, details) if wrapped \
-                    else plain  # fmt: skip
+                handler = (
+                    interceptor.intercept_service(lambda d: plain, details) if wrapped else plain
+                )
                 handler.unary_unary(request, context)  # type: ignore[union-attr]
             return (time.perf_counter() - start) / n * 1e6
 
@@ -147,9 +158,12 @@ def main() -> None:
 
         with TestClient(app):  # runs the lifespan: engine, sessions
             grpc_bare, grpc_coexist = grpc_timers()
-            timers = {"bare": asgi_timer(bare_app(), "/healthz"),
-                      "coexist": asgi_timer(app, "/healthz"),
-                      "grpc bare": grpc_bare, "grpc coexist": grpc_coexist}  # fmt: skip
+            timers = {
+                "bare": asgi_timer(bare_app(), "/healthz"),
+                "coexist": asgi_timer(app, "/healthz"),
+                "grpc bare": grpc_bare,
+                "grpc coexist": grpc_coexist,
+            }
             for timer in timers.values():
                 timer(args.requests // 10)  # warm-up
             rounds: dict[str, list[float]] = {name: [] for name in timers}
@@ -165,8 +179,10 @@ def main() -> None:
         ("gRPC", "grpc bare", "grpc coexist"),
     ):
         overhead = statistics.median(o - b for o, b in zip(rounds[ours], rounds[bare], strict=True))
-        print(f"{transport} overhead (coexist - bare, median of per-round differences): "
-              f"{overhead:.1f} µs")  # fmt: skip
+        print(
+            f"{transport} overhead (coexist - bare, median of per-round differences): "
+            f"{overhead:.1f} µs"
+        )
 
 
 if __name__ == "__main__":

@@ -101,12 +101,16 @@ def build_store(url: str) -> None:
     with open_store(url) as store:
         for seed, (name, kind, goal) in enumerate(names):
             torch.manual_seed(seed)
-            store.create_model(name, env="particle", kind=kind, goals=[goal], obs_dim=8,
-                               n_actions=5, exist_ok=True)  # fmt: skip
+            store.create_model(
+                name, env="particle", kind=kind, goals=[goal], obs_dim=8, n_actions=5, exist_ok=True
+            )
             store.register_version(
-                name, spec=spec.to_json(), weights=weights_to_safetensors(QNetwork(spec)),
-                lineage=Lineage(config={"alpha": 0.02}, seed=seed), aliases=("production",),
-            )  # fmt: skip
+                name,
+                spec=spec.to_json(),
+                weights=weights_to_safetensors(QNetwork(spec)),
+                lineage=Lineage(config={"alpha": 0.02}, seed=seed),
+                aliases=("production",),
+            )
 
 
 def observations(rows: int) -> np.ndarray:
@@ -123,8 +127,12 @@ def rest_bodies() -> dict[str, bytes]:
     act = {**common, "observation": observations(1)[0].tolist()}
     rows = {**common, "observations": observations(BATCH).tolist()}
     default = {k: v for k, v in act.items() if k != "method"}  # aail_bounded, what users get
-    bodies = {"act": act, "batch": {**rows, "format": "columns"}, "batch rows": rows,
-              "act default": default}  # fmt: skip
+    bodies = {
+        "act": act,
+        "batch": {**rows, "format": "columns"},
+        "batch rows": rows,
+        "act default": default,
+    }
     return {name: json.dumps(body).encode() for name, body in bodies.items()}
 
 
@@ -135,19 +143,40 @@ def grpc_bodies() -> dict[str, bytes]:
     from services.grpc_api.gen.coexist.v1 import policy_pb2 as pb
 
     partners = [pb.PartnerSpec(index=i + 1, goal=g) for i, g in enumerate(PARTNERS)]
-    act = pb.ActRequest(env="particle", ego_goal=EGO, observation=observations(1)[0],
-                        partners=partners, method="aail")  # fmt: skip
+    act = pb.ActRequest(
+        env="particle",
+        ego_goal=EGO,
+        observation=observations(1)[0],
+        partners=partners,
+        method="aail",
+    )
     obs_BD = observations(BATCH)
     matrix = pb.Matrix(rows=BATCH, cols=obs_BD.shape[1], values=obs_BD.ravel())
-    batch = pb.ActBatchRequest(env="particle", ego_goal=EGO, observation_matrix=matrix,
-                               partners=partners, method="aail",
-                               format=pb.BATCH_FORMAT_COLUMNS)  # fmt: skip
-    rows = pb.ActBatchRequest(env="particle", ego_goal=EGO, partners=partners, method="aail",
-                              observations=[pb.Vector(values=row) for row in obs_BD])  # fmt: skip
-    default = pb.ActRequest(env="particle", ego_goal=EGO, observation=observations(1)[0],
-                            partners=partners)  # fmt: skip
-    messages = {"noop": health_pb2.HealthCheckRequest(), "act": act, "batch": batch,
-                "batch rows": rows, "act default": default}  # fmt: skip
+    batch = pb.ActBatchRequest(
+        env="particle",
+        ego_goal=EGO,
+        observation_matrix=matrix,
+        partners=partners,
+        method="aail",
+        format=pb.BATCH_FORMAT_COLUMNS,
+    )
+    rows = pb.ActBatchRequest(
+        env="particle",
+        ego_goal=EGO,
+        partners=partners,
+        method="aail",
+        observations=[pb.Vector(values=row) for row in obs_BD],
+    )
+    default = pb.ActRequest(
+        env="particle", ego_goal=EGO, observation=observations(1)[0], partners=partners
+    )
+    messages = {
+        "noop": health_pb2.HealthCheckRequest(),
+        "act": act,
+        "batch": batch,
+        "batch rows": rows,
+        "act default": default,
+    }
 
     def frame(data: bytes) -> bytes:
         return b"\x00" + len(data).to_bytes(4, "big") + data
@@ -220,8 +249,18 @@ def run_wrk(url: str, body: bytes | None, concurrency: int, duration: float, tmp
             "wrk.headers['Content-Type'] = 'application/json'\n"
             f"local f = io.open('{tmp / 'body.json'}', 'rb'); wrk.body = f:read('*a'); f:close()\n"
         )
-    base = ["taskset", "-c", LOAD_CPU, "wrk", "-t1", f"-c{concurrency}", "--timeout", "10s",
-            "-s", str(script)]  # fmt: skip
+    base = [
+        "taskset",
+        "-c",
+        LOAD_CPU,
+        "wrk",
+        "-t1",
+        f"-c{concurrency}",
+        "--timeout",
+        "10s",
+        "-s",
+        str(script),
+    ]
     subprocess.run([*base, "-d1s", url], check=True, capture_output=True)  # warm-up
     out = subprocess.run(
         [*base, f"-d{round(duration)}s", "--latency", url],
@@ -253,9 +292,28 @@ def run_h2load(url: str, body: bytes, concurrency: int, duration: float, tmp: Pa
     data, log = tmp / "body.grpc", tmp / "h2load.log"
     data.write_bytes(body)
     log.unlink(missing_ok=True)
-    command = ["taskset", "-c", LOAD_CPU, "h2load", "-t1", f"-c{concurrency}", "-m1",
-               "-H", "content-type: application/grpc", "-H", "te: trailers", "-d", str(data),
-               "--warm-up-time", "1", "-D", str(round(duration)), "--log-file", str(log), url]  # fmt: skip
+    command = [
+        "taskset",
+        "-c",
+        LOAD_CPU,
+        "h2load",
+        "-t1",
+        f"-c{concurrency}",
+        "-m1",
+        "-H",
+        "content-type: application/grpc",
+        "-H",
+        "te: trailers",
+        "-d",
+        str(data),
+        "--warm-up-time",
+        "1",
+        "-D",
+        str(round(duration)),
+        "--log-file",
+        str(log),
+        url,
+    ]
     out = subprocess.run(command, check=True, capture_output=True, text=True).stdout
     requests, seconds, p50_ms, failed = parse_h2load(out, log.read_text())
     return Case("gRPC", "", concurrency, requests, seconds, p50_ms, 1, failed)
@@ -265,8 +323,11 @@ def parse_h2load(out: str, log_text: str) -> tuple[int, float, float, int]:
     """(requests, seconds, p50 ms, failed) from h2load's output and its `--log-file` (one line
     per request: start time, status, microseconds to the end of the response)."""
     found = re.search(r"finished in ([\d.]+)(ms|s), ([\d.]+) req/s", out)
-    status = re.search(r"requests: \d+ total, \d+ started, (\d+) done, (\d+) succeeded, "
-                       r"(\d+) failed, (\d+) errored", out)  # fmt: skip
+    status = re.search(
+        r"requests: \d+ total, \d+ started, (\d+) done, (\d+) succeeded, "
+        r"(\d+) failed, (\d+) errored",
+        out,
+    )
     micros = [int(line.split("\t")[2]) for line in log_text.splitlines() if line.strip()]
     if found is None or status is None or not micros:
         raise ValueError(f"unexpected h2load output:\n{out}")
@@ -281,35 +342,75 @@ def coexist_plan(http_port: int, grpc_port: int, duration: float) -> list[Planne
     both, one = (1, 32), (1,)
     return [
         ("REST", "no-op", 1, both, lambda c, t: run_wrk(http + "/healthz", None, c, duration, t)),
-        ("REST", "act", 1, both,
-         lambda c, t: run_wrk(http + "/v1/act", rest["act"], c, duration, t)),
-        ("REST", "batch", BATCH, both,
-         lambda c, t: run_wrk(http + "/v1/act:batch", rest["batch"], c, duration, t)),
-        ("REST", "batch rows", BATCH, one,
-         lambda c, t: run_wrk(http + "/v1/act:batch", rest["batch rows"], c, duration, t)),
-        ("REST", "act default", 1, one,
-         lambda c, t: run_wrk(http + "/v1/act", rest["act default"], c, duration, t)),
-        ("gRPC", "no-op", 1, both,
-         lambda c, t: run_h2load(h2 + HEALTH, grpc_b["noop"], c, duration, t)),
+        (
+            "REST",
+            "act",
+            1,
+            both,
+            lambda c, t: run_wrk(http + "/v1/act", rest["act"], c, duration, t),
+        ),
+        (
+            "REST",
+            "batch",
+            BATCH,
+            both,
+            lambda c, t: run_wrk(http + "/v1/act:batch", rest["batch"], c, duration, t),
+        ),
+        (
+            "REST",
+            "batch rows",
+            BATCH,
+            one,
+            lambda c, t: run_wrk(http + "/v1/act:batch", rest["batch rows"], c, duration, t),
+        ),
+        (
+            "REST",
+            "act default",
+            1,
+            one,
+            lambda c, t: run_wrk(http + "/v1/act", rest["act default"], c, duration, t),
+        ),
+        (
+            "gRPC",
+            "no-op",
+            1,
+            both,
+            lambda c, t: run_h2load(h2 + HEALTH, grpc_b["noop"], c, duration, t),
+        ),
         ("gRPC", "act", 1, both, lambda c, t: run_h2load(h2 + ACT, grpc_b["act"], c, duration, t)),
-        ("gRPC", "batch", BATCH, both,
-         lambda c, t: run_h2load(h2 + ACT_BATCH, grpc_b["batch"], c, duration, t)),
-        ("gRPC", "batch rows", BATCH, one,
-         lambda c, t: run_h2load(h2 + ACT_BATCH, grpc_b["batch rows"], c, duration, t)),
-        ("gRPC", "act default", 1, one,
-         lambda c, t: run_h2load(h2 + ACT, grpc_b["act default"], c, duration, t)),
-    ]  # fmt: skip
+        (
+            "gRPC",
+            "batch",
+            BATCH,
+            both,
+            lambda c, t: run_h2load(h2 + ACT_BATCH, grpc_b["batch"], c, duration, t),
+        ),
+        (
+            "gRPC",
+            "batch rows",
+            BATCH,
+            one,
+            lambda c, t: run_h2load(h2 + ACT_BATCH, grpc_b["batch rows"], c, duration, t),
+        ),
+        (
+            "gRPC",
+            "act default",
+            1,
+            one,
+            lambda c, t: run_h2load(h2 + ACT, grpc_b["act default"], c, duration, t),
+        ),
+    ]
 
 
 def floor_plan(kind: str, port: int, duration: float) -> list[Planned]:
     """The bare server's no-op (`floor_servers.py`), at the concurrencies of coexist's no-op."""
     if kind == "rest":
         url = f"http://127.0.0.1:{port}/healthz"
-        return [("REST", "floor no-op", 1, (1, 32),
-                 lambda c, t: run_wrk(url, None, c, duration, t))]  # fmt: skip
+        return [
+            ("REST", "floor no-op", 1, (1, 32), lambda c, t: run_wrk(url, None, c, duration, t))
+        ]
     url, noop = f"http://127.0.0.1:{port}{HEALTH}", grpc_bodies()["noop"]
-    return [("gRPC", "floor no-op", 1, (1, 32),
-             lambda c, t: run_h2load(url, noop, c, duration, t))]  # fmt: skip
+    return [("gRPC", "floor no-op", 1, (1, 32), lambda c, t: run_h2load(url, noop, c, duration, t))]
 
 
 def measure(plan: list[Planned]) -> list[Case]:
@@ -319,8 +420,11 @@ def measure(plan: list[Planned]) -> list[Case]:
             for concurrency in concurrencies:
                 result = runner(concurrency, Path(tmp))
                 result.transport, result.case, result.rows = transport, case, rows
-                print(f"  {transport:4} {case:11} c={concurrency:<2} p50 {result.p50_ms:7.3f} ms "
-                      f"{result.rps:9,.0f} req/s  failed {result.failed}", flush=True)  # fmt: skip
+                print(
+                    f"  {transport:4} {case:11} c={concurrency:<2} p50 {result.p50_ms:7.3f} ms "
+                    f"{result.rps:9,.0f} req/s  failed {result.failed}",
+                    flush=True,
+                )
                 cases.append(result)
     return cases
 
@@ -374,12 +478,21 @@ def floor_verdicts(get: dict[tuple[str, str, int], Case]) -> list[tuple[str, flo
     rows = []
     floor_rest, floor_grpc = get["REST", "floor no-op", 1], get["gRPC", "floor no-op", 1]
     against = [
-        ("REST: no-op p50 / bare FastAPI no-op p50 (c=1)", get["REST", "no-op", 1], floor_rest, 1.15),
+        (
+            "REST: no-op p50 / bare FastAPI no-op p50 (c=1)",
+            get["REST", "no-op", 1],
+            floor_rest,
+            1.15,
+        ),
         ("REST: act p50 / bare FastAPI no-op p50 (c=1)", get["REST", "act", 1], floor_rest, 1.8),
-        ("gRPC: health p50 / bare grpcio health p50 (c=1)", get["gRPC", "no-op", 1], floor_grpc,
-         1.15),
+        (
+            "gRPC: health p50 / bare grpcio health p50 (c=1)",
+            get["gRPC", "no-op", 1],
+            floor_grpc,
+            1.15,
+        ),
         ("gRPC: act p50 / bare grpcio health p50 (c=1)", get["gRPC", "act", 1], floor_grpc, 1.5),
-    ]  # fmt: skip
+    ]
     for name, ours, floor, required in against:
         ratio = ours.p50_ms / floor.p50_ms
         rows.append((name, ratio, required, ratio <= required))
@@ -393,11 +506,18 @@ def median_cases(rounds: list[list[Case]]) -> list[Case]:
     merged = []
     for same in zip(*rounds, strict=True):
         first = same[0]
-        merged.append(Case(
-            first.transport, first.case, first.concurrency,
-            round(statistics.median(c.rps for c in same)), 1.0,
-            statistics.median(c.p50_ms for c in same), first.rows, sum(c.failed for c in same),
-        ))  # fmt: skip
+        merged.append(
+            Case(
+                first.transport,
+                first.case,
+                first.concurrency,
+                round(statistics.median(c.rps for c in same)),
+                1.0,
+                statistics.median(c.p50_ms for c in same),
+                first.rows,
+                sum(c.failed for c in same),
+            )
+        )
     return merged
 
 
@@ -427,8 +547,10 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         url = f"sqlite:///{tmp}/models.db"
         build_store(url)
-        print(f"servers on CPU {SERVER_CPU} (one at a time), load generators on CPU {LOAD_CPU}, "
-              f"{args.duration:g} s per case, log level {args.log_level}")  # fmt: skip
+        print(
+            f"servers on CPU {SERVER_CPU} (one at a time), load generators on CPU {LOAD_CPU}, "
+            f"{args.duration:g} s per case, log level {args.log_level}"
+        )
         rounds = []
         for r in range(args.rounds):
             if args.rounds > 1:
@@ -439,20 +561,31 @@ def main() -> None:
     print(f"\n| transport | case | c | p50 ms | req/s | actions/s | failed |{what}")
     print("|---|---|---|---|---|---|---|")
     for c in cases:
-        print(f"| {c.transport} | {c.case} | {c.concurrency} | {c.p50_ms:.3f} | {c.rps:,.0f} | "
-              f"{c.actions_per_s:,.0f} | {c.failed} |")  # fmt: skip
+        print(
+            f"| {c.transport} | {c.case} | {c.concurrency} | {c.p50_ms:.3f} | {c.rps:,.0f} | "
+            f"{c.actions_per_s:,.0f} | {c.failed} |"
+        )
     print("\n| target | measured | required | met |\n|---|---|---|---|")
     results = median_verdicts(rounds)
     for name, value, required, met in results:
         sign = "<=" if "p50" in name else ">="
         print(f"| {name} | {value:.2f} | {sign} {required:g} | {'yes' if met else 'NO'} |")
     if args.json:
-        args.json.write_text(json.dumps({
-            "cases": [{**asdict(c), "rps": c.rps, "actions_per_s": c.actions_per_s} for c in cases],
-            "rounds": [[{**asdict(c), "rps": c.rps} for c in cases] for cases in rounds],
-            "targets": [{"target": n, "measured": v, "required": r, "met": m}
-                        for n, v, r, m in results],
-        }, indent=2))  # fmt: skip
+        args.json.write_text(
+            json.dumps(
+                {
+                    "cases": [
+                        {**asdict(c), "rps": c.rps, "actions_per_s": c.actions_per_s} for c in cases
+                    ],
+                    "rounds": [[{**asdict(c), "rps": c.rps} for c in cases] for cases in rounds],
+                    "targets": [
+                        {"target": n, "measured": v, "required": r, "met": m}
+                        for n, v, r, m in results
+                    ],
+                },
+                indent=2,
+            )
+        )
     if any(c.failed for c in cases):
         raise SystemExit("some requests failed: the figures above are not valid")
 

@@ -111,9 +111,16 @@ def open_session(
 ) -> str:
     """A session with `n_partners` inferred partners, its step 0 taken (no evidence yet)."""
     partners = [{"index": j + 1, "infer": True} for j in range(n_partners)]
-    reply = client.post("/v1/sessions", json={"env": "particle", "ego_goal": EGO_GOAL,
-                                              "partners": partners, "method": "aail",
-                                              "belief": belief})  # fmt: skip
+    reply = client.post(
+        "/v1/sessions",
+        json={
+            "env": "particle",
+            "ego_goal": EGO_GOAL,
+            "partners": partners,
+            "method": "aail",
+            "belief": belief,
+        },
+    )
     reply.raise_for_status()
     session_id: str = reply.json()["session_id"]
     body = json.loads(first_body)
@@ -173,19 +180,29 @@ def measure(port: int, duration: float, steps: int, rounds: int, pause_ms: float
                     if not sent <= gained <= sent + 2:
                         raise SystemExit(f"{label}: {gained} belief updates for {sent} steps")
                 runs.setdefault(label, []).append(got)
-                print(f"  round {r + 1}: {label:36} p50 {got['p50_ms']:7.3f} ms  "
-                      f"{got['requests'] / got['seconds']:8,.0f} req/s  failed "
-                      f"{got['failed']:.0f}", flush=True)  # fmt: skip
+                print(
+                    f"  round {r + 1}: {label:36} p50 {got['p50_ms']:7.3f} ms  "
+                    f"{got['requests'] / got['seconds']:8,.0f} req/s  failed "
+                    f"{got['failed']:.0f}",
+                    flush=True,
+                )
     cases = []
     for _, (label, _, _, _, answer, _) in plans:
         got_runs = runs[label]
         p50, p90, p99 = (statistics.median(g[f"p{q}_ms"] for g in got_runs) for q in (50, 90, 99))
-        cases.append(Case(
-            label, int(sum(g["requests"] for g in got_runs)),
-            sum(g["seconds"] for g in got_runs), p50, p90, p99,
-            int(sum(g["failed"] for g in got_runs)), impact_count(answer),
-            [g["p50_ms"] for g in got_runs],
-        ))  # fmt: skip
+        cases.append(
+            Case(
+                label,
+                int(sum(g["requests"] for g in got_runs)),
+                sum(g["seconds"] for g in got_runs),
+                p50,
+                p90,
+                p99,
+                int(sum(g["failed"] for g in got_runs)),
+                impact_count(answer),
+                [g["p50_ms"] for g in got_runs],
+            )
+        )
     return cases
 
 
@@ -224,13 +241,24 @@ def main() -> None:
     parser.add_argument("--duration", type=float, default=5.0, help="seconds per case")
     parser.add_argument("--steps", type=int, default=200, help="bodies cycled through per case")
     parser.add_argument("--rounds", type=int, default=3, help="interleaved runs of every case")
-    parser.add_argument("--no-prefetch", action="store_true",
-                        help="serve with COEXIST_SESSION_PREFETCH=false (steps score their own "
-                        "evidence: the A/B of scoring ahead)")  # fmt: skip
-    parser.add_argument("--pause-ms", type=float, default=5.0,
-                        help="paced cases: wrk waits this long after each answer (0: none)")  # fmt: skip
-    parser.add_argument("--out", type=Path, default=ROOT / "reports/inference",
-                        help="writes latency.json here and re-renders README.md")  # fmt: skip
+    parser.add_argument(
+        "--no-prefetch",
+        action="store_true",
+        help="serve with COEXIST_SESSION_PREFETCH=false (steps score their own "
+        "evidence: the A/B of scoring ahead)",
+    )
+    parser.add_argument(
+        "--pause-ms",
+        type=float,
+        default=5.0,
+        help="paced cases: wrk waits this long after each answer (0: none)",
+    )
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=ROOT / "reports/inference",
+        help="writes latency.json here and re-renders README.md",
+    )
     args = parser.parse_args()
     for tool in ("wrk", "taskset"):
         if shutil.which(tool) is None:
@@ -246,8 +274,10 @@ def main() -> None:
         os.environ["COEXIST_SESSION_PREFETCH"] = "false" if args.no_prefetch else "true"
         server = start_server(url, port)  # inherits this environment
         try:
-            print(f"server on CPU {SERVER_CPU}, wrk on CPU {LOAD_CPU}, c=1, {args.duration:g} s "
-                  "per case")  # fmt: skip
+            print(
+                f"server on CPU {SERVER_CPU}, wrk on CPU {LOAD_CPU}, c=1, {args.duration:g} s "
+                "per case"
+            )
             cases = measure(port, args.duration, args.steps, args.rounds, args.pause_ms)
         finally:
             server.terminate()
@@ -255,8 +285,10 @@ def main() -> None:
     print("\n| case | p50 ms | p90 ms | p99 ms | req/s | impact nets | failed |")
     print("|---|---|---|---|---|---|---|")
     for c in cases:
-        print(f"| {c.case} | {c.p50_ms:.3f} | {c.p90_ms:.3f} | {c.p99_ms:.3f} | {c.rps:,.0f} | "
-              f"{c.impact_nets} | {c.failed} |")  # fmt: skip
+        print(
+            f"| {c.case} | {c.p50_ms:.3f} | {c.p90_ms:.3f} | {c.p99_ms:.3f} | {c.rps:,.0f} | "
+            f"{c.impact_nets} | {c.failed} |"
+        )
     found = ratios(cases)
     for name, ms in in_process.items():
         print(f"in-process: {name}: {ms:.3f} ms")
@@ -290,10 +322,14 @@ def main() -> None:
     )
     args.out.mkdir(parents=True, exist_ok=True)
     record = {
-        "command": command, "generated": f"{datetime.now(UTC):%Y-%m-%d %H:%M} UTC",
-        "setup": setup, "target": TARGET, "ratios": found,
-        "cases": [asdict(c) | {"rps": c.rps} for c in cases], "in_process": in_process,
-    }  # fmt: skip
+        "command": command,
+        "generated": f"{datetime.now(UTC):%Y-%m-%d %H:%M} UTC",
+        "setup": setup,
+        "target": TARGET,
+        "ratios": found,
+        "cases": [asdict(c) | {"rps": c.rps} for c in cases],
+        "in_process": in_process,
+    }
     (args.out / "latency.json").write_text(json.dumps(record, indent=1))
     from evaluation.inference.report import render_readme
 

@@ -156,12 +156,24 @@ def _rest_in_process(
 
     def post(path: str, body: bytes) -> bytes:
         """One request through the ASGI app; the answer's body (SystemExit unless 200/201)."""
-        scope = {"type": "http", "asgi": {"version": "3.0"}, "http_version": "1.1",
-                 "method": "POST", "scheme": "http", "path": path, "raw_path": path.encode(),
-                 "query_string": b"", "root_path": "", "client": ("127.0.0.1", 1),
-                 "server": ("127.0.0.1", 80),
-                 "headers": [(b"host", b"bench"), (b"content-type", b"application/json"),
-                             (b"content-length", str(len(body)).encode())]}  # fmt: skip
+        scope = {
+            "type": "http",
+            "asgi": {"version": "3.0"},
+            "http_version": "1.1",
+            "method": "POST",
+            "scheme": "http",
+            "path": path,
+            "raw_path": path.encode(),
+            "query_string": b"",
+            "root_path": "",
+            "client": ("127.0.0.1", 1),
+            "server": ("127.0.0.1", 80),
+            "headers": [
+                (b"host", b"bench"),
+                (b"content-type", b"application/json"),
+                (b"content-length", str(len(body)).encode()),
+            ],
+        }
         messages = [{"type": "http.request", "body": body, "more_body": False}]
         sent: list[dict[str, Any]] = []
 
@@ -180,8 +192,12 @@ def _rest_in_process(
     steps = len(obs_TD)
     acts, bodies = act_bodies(obs_TD, ("b3",)), step_bodies(obs_TD, actions_TP, observed=True)
     out = {"REST act, in-process": _median_ms(lambda i: post("/v1/act", acts[i % steps]), calls)}
-    created = post("/v1/sessions", json.dumps({"env": "particle", "ego_goal": "a2",
-                                               "partners": [{"index": 1, "infer": True}]}).encode())  # fmt: skip
+    created = post(
+        "/v1/sessions",
+        json.dumps(
+            {"env": "particle", "ego_goal": "a2", "partners": [{"index": 1, "infer": True}]}
+        ).encode(),
+    )
     path = f"/v1/sessions/{json.loads(created)['session_id']}/steps"
     post(path, step_bodies(obs_TD[:1], actions_TP[:1], observed=False)[0])  # step 0
     out["REST step, in-process"] = _median_ms(

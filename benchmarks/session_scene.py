@@ -26,16 +26,27 @@ def build_store(url: str) -> str:
     with open_store(url) as store:
         for g, goal in enumerate(GOAL_IDS):
             for k, (kind, name) in enumerate(
-                (("task", task_model_name("particle", goal)),
-                 ("impact", impact_model_name("particle", goal)))
-            ):  # fmt: skip
-                store.create_model(name, env="particle", kind=kind, goals=[goal], obs_dim=8,
-                                   n_actions=5, exist_ok=True)  # fmt: skip
+                (
+                    ("task", task_model_name("particle", goal)),
+                    ("impact", impact_model_name("particle", goal)),
+                )
+            ):
+                store.create_model(
+                    name,
+                    env="particle",
+                    kind=kind,
+                    goals=[goal],
+                    obs_dim=8,
+                    n_actions=5,
+                    exist_ok=True,
+                )
                 store.register_version(
-                    name, spec=spec, weights=qnet_weights(spec, seed=2 * g + k),
+                    name,
+                    spec=spec,
+                    weights=qnet_weights(spec, seed=2 * g + k),
                     lineage=Lineage(config={"alpha": 0.02}, seed=2 * g + k),
                     aliases=("production",),
-                )  # fmt: skip
+                )
     return "-".join(map(str, (8, *hidden, 5)))
 
 
@@ -61,10 +72,17 @@ def episode(n_agents: int, steps: int, seed: int = 0) -> tuple[np.ndarray, np.nd
 def act_bodies(obs_TD: np.ndarray, goals: tuple[str, ...]) -> list[bytes]:
     partners = [{"index": j + 1, "goal": g} for j, g in enumerate(goals)]
     return [
-        json.dumps({"env": "particle", "ego_goal": EGO_GOAL, "partners": partners,
-                    "method": "aail", "observation": o.round(6).tolist()}).encode()
+        json.dumps(
+            {
+                "env": "particle",
+                "ego_goal": EGO_GOAL,
+                "partners": partners,
+                "method": "aail",
+                "observation": o.round(6).tolist(),
+            }
+        ).encode()
         for o in obs_TD
-    ]  # fmt: skip
+    ]
 
 
 def step_bodies(obs_TD: np.ndarray, actions_TP: np.ndarray, observed: bool) -> list[bytes]:

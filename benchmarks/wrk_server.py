@@ -72,12 +72,24 @@ def run_wrk(
     as `lua_script` takes it."""
     script = tmp / "bench.lua"
     script.write_text(lua_script(path, bodies, pause_ms))
-    command = ["taskset", "-c", LOAD_CPU, "wrk", "-t1", "-c1", "--timeout", "10s",
-               "-s", str(script), "--latency"]  # fmt: skip
+    command = [
+        "taskset",
+        "-c",
+        LOAD_CPU,
+        "wrk",
+        "-t1",
+        "-c1",
+        "--timeout",
+        "10s",
+        "-s",
+        str(script),
+        "--latency",
+    ]
     runs = []
     for seconds in (1, round(duration)):  # warm-up, then the timed run
-        done = subprocess.run([*command, f"-d{seconds}s", base], check=True,
-                              capture_output=True, text=True)  # fmt: skip
+        done = subprocess.run(
+            [*command, f"-d{seconds}s", base], check=True, capture_output=True, text=True
+        )
         runs.append(parse_wrk(done.stdout))
     return runs[1], int(runs[0]["requests"] + runs[1]["requests"])
 
@@ -93,9 +105,22 @@ def start_server(
 ) -> subprocess.Popen[bytes]:
     """`coexist serve` on CPU `SERVER_CPU` (gRPC too when `grpc_port` > 0), ready to answer."""
     env = {**os.environ, "COEXIST_DEV_MODE": "1", "COEXIST_LOG_LEVEL": log_level}
-    command = ["taskset", "-c", SERVER_CPU, str(ROOT / ".venv/bin/coexist"), "serve",
-               "--no-bootstrap", "--host", "127.0.0.1", "--http-port", str(port),
-               "--grpc-port", str(grpc_port), "--store-url", url]  # fmt: skip
+    command = [
+        "taskset",
+        "-c",
+        SERVER_CPU,
+        str(ROOT / ".venv/bin/coexist"),
+        "serve",
+        "--no-bootstrap",
+        "--host",
+        "127.0.0.1",
+        "--http-port",
+        str(port),
+        "--grpc-port",
+        str(grpc_port),
+        "--store-url",
+        url,
+    ]
     server = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL)
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline:
@@ -113,8 +138,15 @@ def start_server(
 
 def start_floor(kind: str, port: int) -> subprocess.Popen[bytes]:
     """`floor_servers.py kind port` on CPU `SERVER_CPU`, once it answers its health check."""
-    command = ["taskset", "-c", SERVER_CPU, str(ROOT / ".venv/bin/python"),
-               str(ROOT / "benchmarks/floor_servers.py"), kind, str(port)]  # fmt: skip
+    command = [
+        "taskset",
+        "-c",
+        SERVER_CPU,
+        str(ROOT / ".venv/bin/python"),
+        str(ROOT / "benchmarks/floor_servers.py"),
+        kind,
+        str(port),
+    ]
     server = subprocess.Popen(command, stdout=subprocess.DEVNULL)
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline:

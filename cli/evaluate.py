@@ -45,8 +45,12 @@ class _ConsoleUi:
     def progress(self, unit: str) -> Iterator[Bars]:
         from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
 
-        columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                   TextColumn("{task.fields[rows]}"))  # fmt: skip
+        columns = (
+            TextColumn("{task.description}"),
+            BarColumn(),
+            MofNCompleteColumn(),
+            TextColumn("{task.fields[rows]}"),
+        )
         with Progress(*columns, console=self.console) as bars:
 
             def bar(label: str, total: int) -> Callable[[int, int], None]:
@@ -134,14 +138,29 @@ def evaluate(
     except ValueError as err:
         raise typer.BadParameter(str(err), param_hint="--suite") from None
     options = EvalOptions(
-        server=server, store_url=store_url, out=out, seed=seed, fast=fast, episodes=episodes,
-        five_agent_episodes=five_agent_episodes, pairs=pairs, replicates=replicates,
-        aligned_pairs=aligned_pairs, non_aligned_pairs=non_aligned_pairs, mixed_pairs=mixed_pairs,
-        five_agent_sets=five_agent_sets, set_episodes=set_episodes, pair_episodes=pair_episodes,
-        max_steps=max_steps, regret_bound=regret_bound, timing_log=timing_log,
-        run_dir=tuple(run_dir or ()), alias=alias, partner_alias=partner_alias,
+        server=server,
+        store_url=store_url,
+        out=out,
+        seed=seed,
+        fast=fast,
+        episodes=episodes,
+        five_agent_episodes=five_agent_episodes,
+        pairs=pairs,
+        replicates=replicates,
+        aligned_pairs=aligned_pairs,
+        non_aligned_pairs=non_aligned_pairs,
+        mixed_pairs=mixed_pairs,
+        five_agent_sets=five_agent_sets,
+        set_episodes=set_episodes,
+        pair_episodes=pair_episodes,
+        max_steps=max_steps,
+        regret_bound=regret_bound,
+        timing_log=timing_log,
+        run_dir=tuple(run_dir or ()),
+        alias=alias,
+        partner_alias=partner_alias,
         print_combos=print_combos,
-    )  # fmt: skip
+    )
     ui = _ConsoleUi()
     try:
         run = chosen.run(options, ui)

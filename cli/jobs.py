@@ -206,9 +206,14 @@ def list_jobs(
         table.add_column(column, no_wrap=column != "arguments")
     for job in jobs:
         table.add_row(
-            job.id, job.kind, _styled(job.status), _when(job.created_at, seconds=False),
-            _took(job), _exit_code(job), _what(job, short=True),
-        )  # fmt: skip
+            job.id,
+            job.kind,
+            _styled(job.status),
+            _when(job.created_at, seconds=False),
+            _took(job),
+            _exit_code(job),
+            _what(job, short=True),
+        )
     _console().print(table)
 
 

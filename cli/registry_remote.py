@@ -26,19 +26,31 @@ def _time(value: str) -> datetime:
 
 def _model(info: ModelInfo) -> RegisteredModel:
     return RegisteredModel(
-        name=info.name, env=info.env, kind=info.kind, goals=tuple(info.goals),
-        obs_dim=info.obs_dim, n_actions=info.n_actions, description=info.description,
-        tags=dict(info.tags), aliases=dict(info.aliases), created_at=_time(info.created_at),
+        name=info.name,
+        env=info.env,
+        kind=info.kind,
+        goals=tuple(info.goals),
+        obs_dim=info.obs_dim,
+        n_actions=info.n_actions,
+        description=info.description,
+        tags=dict(info.tags),
+        aliases=dict(info.aliases),
+        created_at=_time(info.created_at),
         updated_at=_time(info.updated_at),
-    )  # fmt: skip
+    )
 
 
 def _version(info: VersionInfo) -> ModelVersion:
     return ModelVersion(
-        name=info.name, version=info.version, spec=dict(info.spec), sha256=info.sha256,
-        size_bytes=info.size_bytes, created_at=_time(info.created_at), status=info.status,
+        name=info.name,
+        version=info.version,
+        spec=dict(info.spec),
+        sha256=info.sha256,
+        size_bytes=info.size_bytes,
+        created_at=_time(info.created_at),
+        status=info.status,
         lineage=Lineage.from_json(dict(info.lineage)),
-    )  # fmt: skip
+    )
 
 
 class RemoteRegistry:

@@ -85,10 +85,21 @@ def run(
         with Progress(console=console, transient=True) as progress:
             task = progress.add_task(f"{episodes} episodes", total=episodes)
             results = run_episodes(
-                client, env=env, ego_goal=ego, partner_goals=partner_goals, method=method,
-                regret_bound=regret_bound, infer=infer, episodes=episodes, seed=seed, max_steps=max_steps, alias=alias, greedy=greedy,
-                record_first=gif is not None, on_episode=lambda _: progress.advance(task),
-            )  # fmt: skip
+                client,
+                env=env,
+                ego_goal=ego,
+                partner_goals=partner_goals,
+                method=method,
+                regret_bound=regret_bound,
+                infer=infer,
+                episodes=episodes,
+                seed=seed,
+                max_steps=max_steps,
+                alias=alias,
+                greedy=greedy,
+                record_first=gif is not None,
+                on_episode=lambda _: progress.advance(task),
+            )
     except (CoexistError, ValueError) as err:
         console.print(f"[red]error:[/red] {err}")
         raise typer.Exit(1) from None
@@ -98,8 +109,13 @@ def run(
     summary = summarise(results)
     goals = results[0].goals
     table = Table(title=f"{env}: {len(results)} episodes, ego {method}, seed {seed} ({server})")
-    for column, justify in (("agent", "left"), ("goal", "left"), ("policy", "left"),
-                            ("return (mean ± se)", "right"), ("success", "right")):  # fmt: skip
+    for column, justify in (
+        ("agent", "left"),
+        ("goal", "left"),
+        ("policy", "left"),
+        ("return (mean ± se)", "right"),
+        ("success", "right"),
+    ):
         table.add_column(column, justify=justify)  # type: ignore[arg-type]
     for i, goal in enumerate(goals):
         policy = (method + (", goals inferred" if infer else "")) if i == 0 else "sl (own task)"

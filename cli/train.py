@@ -276,8 +276,17 @@ def task(
             from trainer.backends.jobs import task_stage
 
             stage = task_stage(goal_ids, config, seed=seed, per_batch=goals_per_batch)
-            batches = _on_ray(store, run, progress, [stage], run_dir=run_dir, resume=resume,
-                              env=env, address=ray_address, serve_alias=alias)  # fmt: skip
+            batches = _on_ray(
+                store,
+                run,
+                progress,
+                [stage],
+                run_dir=run_dir,
+                resume=resume,
+                env=env,
+                address=ray_address,
+                serve_alias=alias,
+            )
         else:
             batches = run_tasks(
                 store,
@@ -323,8 +332,16 @@ def impact(
             from trainer.backends.jobs import impact_stage
 
             stage = impact_stage(goal_ids, config, seed=seed, per_batch=goals_per_batch)
-            batches = _on_ray(store, run, progress, [stage], run_dir=run_dir, resume=resume,
-                              env=env, address=ray_address)  # fmt: skip
+            batches = _on_ray(
+                store,
+                run,
+                progress,
+                [stage],
+                run_dir=run_dir,
+                resume=resume,
+                env=env,
+                address=ray_address,
+            )
         else:
             batches = run_impacts(
                 store,
@@ -367,8 +384,16 @@ def joint(
             from trainer.backends.jobs import joint_stage
 
             stage = joint_stage(combo_ids, config, seed=seed)
-            batches = _on_ray(store, run, progress, [stage], run_dir=run_dir, resume=resume,
-                              env=env, address=ray_address)  # fmt: skip
+            batches = _on_ray(
+                store,
+                run,
+                progress,
+                [stage],
+                run_dir=run_dir,
+                resume=resume,
+                env=env,
+                address=ray_address,
+            )
         else:
             batches = run_joint(
                 store, combo_ids, config, seed=seed, run=run, progress=progress, env=env
@@ -418,8 +443,16 @@ def zoo(
             ]
             if combo_ids:
                 stages.append(joint_stage(combo_ids, joint_cfg, seed=seed))
-            batches = _on_ray(store, run, progress, stages, run_dir=run_dir, resume=resume,
-                              env=env, address=ray_address)  # fmt: skip
+            batches = _on_ray(
+                store,
+                run,
+                progress,
+                stages,
+                run_dir=run_dir,
+                resume=resume,
+                env=env,
+                address=ray_address,
+            )
         else:
             common = dict(seed=seed, run=run, progress=progress, env=env)
             sizes: dict[str, Any] = dict(goals_per_batch=goals_per_batch, workers=workers)

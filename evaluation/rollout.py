@@ -104,11 +104,15 @@ class EpisodeTally:
     def result(self, k: int, scenario: Scenario, method: str, rows: np.ndarray) -> CellResult:
         """Cell k's result: its `rows`, its recorded episode."""
         return CellResult(
-            scenario=scenario, method=method, returns_EN=self.returns_BN[rows],
-            success_EN=self.success_BN[rows], reached_EN=self.reached_BN[rows],
-            length_E=self.length_B[rows], solved_E=self.solved_B[rows],
+            scenario=scenario,
+            method=method,
+            returns_EN=self.returns_BN[rows],
+            success_EN=self.success_BN[rows],
+            reached_EN=self.reached_BN[rows],
+            length_E=self.length_B[rows],
+            solved_E=self.solved_B[rows],
             trajectory_TN4=np.stack(self.trajectories[k]),
-        )  # fmt: skip
+        )
 
 
 def uniforms(seed: int, scenario: Scenario, max_steps: int) -> np.ndarray:

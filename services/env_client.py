@@ -127,11 +127,18 @@ def run_episodes(
         raise ValueError(f"partner_goals: expected at most {domain.max_agents - 1} partners")
     policies = [
         RemotePolicy(
-            client, env, goals, i, method=method if i == 0 else "sl", infer=infer,
-            greedy=greedy, alias=alias, regret_bound=regret_bound if i == 0 else None,
+            client,
+            env,
+            goals,
+            i,
+            method=method if i == 0 else "sl",
+            infer=infer,
+            greedy=greedy,
+            alias=alias,
+            regret_bound=regret_bound if i == 0 else None,
         )
         for i in range(len(goals))
-    ]  # fmt: skip
+    ]
     resets = episode_resets(env, seed, episodes, len(goals))
     results = []
     try:
@@ -139,9 +146,14 @@ def run_episodes(
             for i, policy in enumerate(policies):
                 policy.reset(seed=agent_seed(seed, e, i))
             result = _run_one(
-                env, goals, policies, resets[e], episode=e, max_steps=max_steps,
+                env,
+                goals,
+                policies,
+                resets[e],
+                episode=e,
+                max_steps=max_steps,
                 record=record_first and e == 0,
-            )  # fmt: skip
+            )
             results.append(result)
             if on_episode is not None:
                 on_episode(result)

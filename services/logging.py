@@ -193,8 +193,12 @@ class RequestIdMiddleware:
                     headers = [h for h in headers if h[0] != _HEADER_KEY]
                 message = {**message, "headers": [*headers, id_header]}
                 if record is not None:  # latency to the response start, as before
-                    record(route_template(scope) or "unmatched", scope["method"], status,
-                           time.perf_counter() - start)  # fmt: skip
+                    record(
+                        route_template(scope) or "unmatched",
+                        scope["method"],
+                        status,
+                        time.perf_counter() - start,
+                    )
             await send(message)
 
         span = None if self.tracer is None else self.tracer.http_span(scope, request_id)
@@ -220,8 +224,13 @@ def _log_access(scope: dict[str, Any], status: int, seconds: float) -> None:
         return
     route = route_template(scope)
     method = scope.get("method", "")
-    fields = {"method": method, "route": route, "path": path, "status": status,
-              "duration_ms": round(seconds * 1000, 3)}  # fmt: skip
+    fields = {
+        "method": method,
+        "route": route,
+        "path": path,
+        "status": status,
+        "duration_ms": round(seconds * 1000, 3),
+    }
     access_log.log(level, "%s %s %d %.1f ms", method, path, status, seconds * 1000, extra=fields)
 
 

@@ -167,8 +167,10 @@ class HttpMetrics:
         key = (route, method, status)
         children = self._children.get(key)
         if children is None:
-            children = (self.requests.labels(route, method, str(status)),
-                        self.latency.labels(route))  # fmt: skip
+            children = (
+                self.requests.labels(route, method, str(status)),
+                self.latency.labels(route),
+            )
             self._children[key] = children
         children[0].inc()
         children[1].observe(seconds)

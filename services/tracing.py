@@ -62,8 +62,14 @@ class Span:
                 self.span.set_status(self._trace.Status(self._trace.StatusCode.ERROR))
         else:  # gRPC: the status code's name
             self.span.set_attribute("rpc.grpc.status_code", status)
-            if status not in ("OK", "INVALID_ARGUMENT", "NOT_FOUND", "UNAUTHENTICATED",
-                              "PERMISSION_DENIED", "FAILED_PRECONDITION"):  # fmt: skip
+            if status not in (
+                "OK",
+                "INVALID_ARGUMENT",
+                "NOT_FOUND",
+                "UNAUTHENTICATED",
+                "PERMISSION_DENIED",
+                "FAILED_PRECONDITION",
+            ):
                 self.span.set_status(self._trace.Status(self._trace.StatusCode.ERROR, status))
         if self._token is not None:
             self.deactivate(self._token)
@@ -83,8 +89,11 @@ class Tracer:
     def http_span(self, scope: dict[str, Any], request_id: str) -> Span:
         """A server span for an HTTP request (named after the method; `end` adds the route)."""
         method = scope.get("method", "")
-        attributes = {"http.request.method": method, "url.path": scope.get("path", ""),
-                      "coexist.request_id": request_id}  # fmt: skip
+        attributes = {
+            "http.request.method": method,
+            "url.path": scope.get("path", ""),
+            "coexist.request_id": request_id,
+        }
         span = self.tracer.start_span(method, kind=self._kind.SERVER, attributes=attributes)
         return Span(span, attach=True)
 
@@ -119,8 +128,11 @@ class Tracer:
 
 
 def _act_attributes(request: Any, *_: Any, **__: Any) -> dict[str, Any]:
-    return {"coexist.env": str(request.env), "coexist.ego_goal": str(request.ego_goal),
-            "coexist.method": str(request.method)}  # fmt: skip
+    return {
+        "coexist.env": str(request.env),
+        "coexist.ego_goal": str(request.ego_goal),
+        "coexist.method": str(request.method),
+    }
 
 
 def _load_attributes(name: str, version: int, *_: Any, **__: Any) -> dict[str, Any]:

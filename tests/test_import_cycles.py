@@ -84,8 +84,11 @@ def _cycle(graph: dict[str, set[str]]) -> list[str] | None:
 @pytest.mark.parametrize("package", ["trainer", "evaluation"])
 def test_no_import_cycle(package: str) -> None:
     graph = _graph()
-    within = {m: {d for d in deps if d.split(".")[0] == package} for m, deps in graph.items()
-              if m.split(".")[0] == package}  # fmt: skip
+    within = {
+        m: {d for d in deps if d.split(".")[0] == package}
+        for m, deps in graph.items()
+        if m.split(".")[0] == package
+    }
     assert _cycle(within) is None, " -> ".join(_cycle(within) or [])
 
 

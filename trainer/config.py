@@ -108,8 +108,12 @@ class TaskConfig(SoftQConfig):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        for name in ("partner_random_prob", "partner_wall_prob", "success_threshold",
-                     "wall_success_threshold"):  # fmt: skip
+        for name in (
+            "partner_random_prob",
+            "partner_wall_prob",
+            "success_threshold",
+            "wall_success_threshold",
+        ):
             value = getattr(self, name)
             if not 0.0 <= value <= 1.0:
                 raise ValueError(f"{name}: expected a share in [0, 1], got {value}")

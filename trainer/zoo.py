@@ -330,8 +330,9 @@ def warn_unserved_parents(goals: Sequence[str], env: str) -> None:
     log.warning(
         "impact %s: skipped, the task network has no 'production' version (every gate "
         "attempt failed); train a passing one, then `coexist train impact --env %s`",
-        ",".join(goals), env,
-    )  # fmt: skip
+        ",".join(goals),
+        env,
+    )
 
 
 def goals_without(

@@ -28,8 +28,14 @@ from envs.scene import AgentMark, Scene, SceneFrame, Shape, circle, hex_colour, 
 
 AGENT_RADIUS = 0.36  # of a cell, as in the GIFs
 STATION_WORDS = {BOARD: "board", BLENDER: "blend", DELIVERY: "serve"}
-CELL_WORDS = {FLOOR: "floor", WALL: "wall", COUNTER: "counter", BOARD: "cutting board",
-              BLENDER: "blender", DELIVERY: "delivery square"}  # fmt: skip
+CELL_WORDS = {
+    FLOOR: "floor",
+    WALL: "wall",
+    COUNTER: "counter",
+    BOARD: "cutting board",
+    BLENDER: "blender",
+    DELIVERY: "delivery square",
+}
 DARK = "#282828"
 PLATE_FILL, PLATE_RIM = "#fafafa", "#828282"
 
@@ -52,11 +58,28 @@ def cooking_scene(layout: Layout, recipes: Sequence[str]) -> Scene:
             kind = int(layout.cells_HW[r, c])
             fill = hex_colour(CELL_COLOURS.get(kind, FLOOR_COLOUR))
             where = f"row {r}, column {c}"
-            shapes.append(rect(c, r, 1.0, 1.0, fill=fill, stroke="#aaa096",
-                               label=f"{CELL_WORDS[kind]} at {where}"))  # fmt: skip
+            shapes.append(
+                rect(
+                    c,
+                    r,
+                    1.0,
+                    1.0,
+                    fill=fill,
+                    stroke="#aaa096",
+                    label=f"{CELL_WORDS[kind]} at {where}",
+                )
+            )
             if kind in STATION_WORDS:
-                shapes.append(text(c + 0.5, r + 0.5, STATION_WORDS[kind], 0.26, fill=DARK,
-                                   label=f"{CELL_WORDS[kind]} at {where}"))  # fmt: skip
+                shapes.append(
+                    text(
+                        c + 0.5,
+                        r + 0.5,
+                        STATION_WORDS[kind],
+                        0.26,
+                        fill=DARK,
+                        label=f"{CELL_WORDS[kind]} at {where}",
+                    )
+                )
     colours = tuple(hex_colour(col) for col in AGENT_COLOURS[: layout.n_agents])
     return Scene(float(width), float(height), False, AGENT_RADIUS, colours, tuple(shapes))
 
@@ -72,8 +95,10 @@ def _ingredient(x: float, y: float, r: float, kind: int, state: int, label: str)
     colour = hex_colour(INGREDIENT_COLOURS[kind])
     if state == CHOPPED:
         s = r * 0.5
-        return [circle(x + dx * r, y + dy * r, s, fill=colour, stroke=DARK, label=label)
-                for dx, dy in ((-0.6, 0.3), (0.6, 0.3), (0.0, -0.5))]  # fmt: skip
+        return [
+            circle(x + dx * r, y + dy * r, s, fill=colour, stroke=DARK, label=label)
+            for dx, dy in ((-0.6, 0.3), (0.6, 0.3), (0.0, -0.5))
+        ]
     if state == BLENDED:
         return [rect(x - r, y - r, 2 * r, 2 * r, fill=colour, stroke=DARK, label=label)]
     return [circle(x, y, r, fill=colour, stroke=DARK, label=label)]
@@ -89,12 +114,19 @@ def _object(
         return _ingredient(x, y, r, kind, int(state.obj_state[0, o]), label)
     on_plate = np.flatnonzero((state.obj_plate[0] == o) & ~state.obj_gone[0]).tolist()
     contents = ", ".join(_name(layout, state, k) for k in on_plate) or "nothing"
-    shapes = [circle(x, y, r, fill=PLATE_FILL, stroke=PLATE_RIM,
-                     label=f"plate {where} with {contents}")]  # fmt: skip
+    shapes = [
+        circle(x, y, r, fill=PLATE_FILL, stroke=PLATE_RIM, label=f"plate {where} with {contents}")
+    ]
     offsets = ((-0.35, 0.0), (0.35, 0.0), (0.0, -0.35), (0.0, 0.35))
     for (dx, dy), k in zip(offsets, on_plate, strict=False):
-        shapes += _ingredient(x + dx * r, y + dy * r, r * 0.4, int(layout.object_kinds_O[k]),
-                              int(state.obj_state[0, k]), f"{_name(layout, state, k)} on a plate")  # fmt: skip
+        shapes += _ingredient(
+            x + dx * r,
+            y + dy * r,
+            r * 0.4,
+            int(layout.object_kinds_O[k]),
+            int(state.obj_state[0, k]),
+            f"{_name(layout, state, k)} on a plate",
+        )
     return shapes
 
 

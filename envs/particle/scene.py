@@ -48,14 +48,22 @@ def particle_scene(goals: Sequence[str]) -> Scene:
     colours = [hex_colour(c) for c in AGENT_COLOURS[: len(goals)]]
     for i, (goal, g) in enumerate(zip(goals, indices, strict=True)):
         shapes.append(
-            _box(TARGET_BOXES_G4[g], fill=colours[i], opacity=round(TARGET_ALPHA / 255, 3),
-                 label=f"target area of agent {i} (goal {goal})")
-        )  # fmt: skip
+            _box(
+                TARGET_BOXES_G4[g],
+                fill=colours[i],
+                opacity=round(TARGET_ALPHA / 255, 3),
+                label=f"target area of agent {i} (goal {goal})",
+            )
+        )
     for i, (goal, g) in enumerate(zip(goals, indices, strict=True)):
         shapes.append(
-            _box(INFLUENCE_BOXES_G4[g], stroke=colours[i], dash=True,
-                 label=f"influence area of agent {i} (goal {goal})")
-        )  # fmt: skip
+            _box(
+                INFLUENCE_BOXES_G4[g],
+                stroke=colours[i],
+                dash=True,
+                label=f"influence area of agent {i} (goal {goal})",
+            )
+        )
     return Scene(1.0, 1.0, True, AGENT_RADIUS, tuple(colours), tuple(shapes))
 
 

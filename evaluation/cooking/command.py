@@ -33,10 +33,20 @@ DEFAULT_EPISODES = 100
 DEFAULT_MAX_STEPS = 400  # the paper's episode limit in the kitchen
 # options of the paper suite that this one refuses, in the order they are checked
 PAPER_ONLY = (
-    "five_agent_episodes", "pairs", "pair_episodes", "timing_log", "run_dir", "fast",
-    "replicates", "aligned_pairs", "non_aligned_pairs", "mixed_pairs", "five_agent_sets",
-    "set_episodes", "regret_bound",
-)  # fmt: skip
+    "five_agent_episodes",
+    "pairs",
+    "pair_episodes",
+    "timing_log",
+    "run_dir",
+    "fast",
+    "replicates",
+    "aligned_pairs",
+    "non_aligned_pairs",
+    "mixed_pairs",
+    "five_agent_sets",
+    "set_episodes",
+    "regret_bound",
+)
 
 
 @dataclass(frozen=True)
@@ -66,9 +76,11 @@ class CookingSuite:
                 raise OptionError("not used by the cooking suite", f"--{name.replace('_', '-')}")
         settings: dict[str, Any] = {
             "episodes": options.episodes or DEFAULT_EPISODES,
-            "max_steps": options.max_steps or DEFAULT_MAX_STEPS, "seed": options.seed,
-            "alias": options.alias, "partner_alias": options.partner_alias,
-        }  # fmt: skip
+            "max_steps": options.max_steps or DEFAULT_MAX_STEPS,
+            "seed": options.seed,
+            "alias": options.alias,
+            "partner_alias": options.partner_alias,
+        }
         out = options.out or Path("reports/cooking")
         with ExitStack() as stack:
             store = None

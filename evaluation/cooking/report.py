@@ -183,7 +183,10 @@ def main(argv: list[str]) -> None:
         results = evaluate_cooking(backend, episodes=episodes, temperature=temperature)
         command = "python -m evaluation.cooking " + " ".join(argv)
         write_cooking_files(
-            results, out, command=command, backend=backend.description,
+            results,
+            out,
+            command=command,
+            backend=backend.description,
             wall_s=time.perf_counter() - start,
-        )  # fmt: skip
+        )
     print(results.to_markdown())

@@ -203,9 +203,12 @@ def evaluate_cooking(
         (max_steps, episodes, 2)
     )
     left_request = ActRequest(
-        env="cooking", ego_goal=RECIPES[0], observations=world.observe()[:1, 0],
-        partners=(PartnerSpec(index=1, goal=RECIPES[1]),), alias=alias,
-    )  # fmt: skip
+        env="cooking",
+        ego_goal=RECIPES[0],
+        observations=world.observe()[:1, 0],
+        partners=(PartnerSpec(index=1, goal=RECIPES[1]),),
+        alias=alias,
+    )
     if not backend.has_models(left_request):
         raise LookupError(
             f"the left cook's networks are not served: cooking/task/{RECIPES[0]} and "
@@ -269,9 +272,17 @@ def evaluate_cooking(
         if progress is not None:
             progress(t + 1, int((~np.all(served.reshape(n_rows, 2), axis=1)).sum()))
     return CookingResults(
-        methods, seed, max_steps, right_cook, served, steps, returns, models, trajectory,
+        methods,
+        seed,
+        max_steps,
+        right_cook,
+        served,
+        steps,
+        returns,
+        models,
+        trajectory,
         temperature,
-    )  # fmt: skip
+    )
 
 
 def plot_cooking(results: CookingResults, path: str | Path) -> Path:
@@ -287,9 +298,13 @@ def plot_cooking(results: CookingResults, path: str | Path) -> Path:
         stats = [results.completion(method, agent) for agent in (0, 1)]
         xs = np.arange(2) + (m - (len(results.methods) - 1) / 2) * width
         bars = ax.bar(
-            xs, [s.mean for s in stats], width, yerr=[s.se for s in stats], capsize=4,
+            xs,
+            [s.mean for s in stats],
+            width,
+            yerr=[s.se for s in stats],
+            capsize=4,
             label=method.upper(),
-        )  # fmt: skip
+        )
         ax.bar_label(bars, labels=[f"{s.mean:.2f}" for s in stats], padding=2, fontsize=8)
     ax.set_xticks(
         np.arange(2), [f"{label}\n{r}" for label, r in zip(AGENT_LABELS, RECIPES, strict=True)]

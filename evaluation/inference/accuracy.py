@@ -77,9 +77,11 @@ def _nested_targets() -> np.ndarray:
     """(G, G): goal g's target area contains goal h's or lies inside it (g = h included)."""
     b = TARGET_BOXES_G4
     inside = (
-        (b[:, None, 0] <= b[None, :, 0] + 1e-9) & (b[:, None, 1] >= b[None, :, 1] - 1e-9)
-        & (b[:, None, 2] <= b[None, :, 2] + 1e-9) & (b[:, None, 3] >= b[None, :, 3] - 1e-9)
-    )  # fmt: skip
+        (b[:, None, 0] <= b[None, :, 0] + 1e-9)
+        & (b[:, None, 1] >= b[None, :, 1] - 1e-9)
+        & (b[:, None, 2] <= b[None, :, 2] + 1e-9)
+        & (b[:, None, 3] >= b[None, :, 3] - 1e-9)
+    )
     return inside | inside.T
 
 
@@ -287,18 +289,28 @@ def run_accuracy(
         actions_E2[:, 1] = sample_actions(p_probs, u_KE2[t, :, 1])
         for e in range(n_eps):
             probs = ego_probs_with_belief(
-                engine, cfg.env, GOAL_IDS[ego_goals_E[e]], obs_END[e, 0], belief_CEG[0, e],
-                alias=cfg.alias, mass=cfg.blend_mass, max_goals=cfg.blend_max_goals,
-            )  # fmt: skip
+                engine,
+                cfg.env,
+                GOAL_IDS[ego_goals_E[e]],
+                obs_END[e, 0],
+                belief_CEG[0, e],
+                alias=cfg.alias,
+                mass=cfg.blend_mass,
+                max_goals=cfg.blend_max_goals,
+            )
             actions_E2[e, 0] = sample_actions(probs[None], u_KE2[t, e : e + 1, 0])[0]
             # the partner acted on the observation the ego had at t: score it there
             log_lik = {
                 alpha: engine.goal_log_likelihoods(
-                    cfg.env, obs_END[e, 0], [1], [int(actions_E2[e, 1])], alias=cfg.alias,
+                    cfg.env,
+                    obs_END[e, 0],
+                    [1],
+                    [int(actions_E2[e, 1])],
+                    alias=cfg.alias,
                     temperature=alpha,
                 )
                 for alpha in temperatures
-            }  # fmt: skip
+            }
             for c, belief in enumerate(configs):
                 updated = update_log_belief(
                     belief_CEG[c, e][None], log_lik[belief.temperature], log_prior_G[None], belief

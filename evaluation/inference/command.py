@@ -60,9 +60,12 @@ class InferenceSuite:
             engine = InferenceEngine(store)
             with ui.progress("") as bars:
                 results = run_inference_suite(
-                    engine, store, config, command=_command(config, options.store_url, out),
+                    engine,
+                    store,
+                    config,
+                    command=_command(config, options.store_url, out),
                     progress=bars,
-                )  # fmt: skip
+                )
         return InferenceRun(results, out)
 
     def write_report(self, run: InferenceRun, options: EvalOptions, ui: Ui) -> None:
@@ -89,12 +92,16 @@ def _config(options: EvalOptions) -> InferenceSuiteConfig:
                 base.accuracy, alias=o.alias, partner_alias=o.partner_alias, seed=o.seed
             ),
             value=replace(
-                v, alias=o.alias, partner_alias=o.partner_alias, seed=o.seed,
-                episodes=o.episodes or v.episodes, pairs=v.pairs if o.pairs is None else o.pairs,
+                v,
+                alias=o.alias,
+                partner_alias=o.partner_alias,
+                seed=o.seed,
+                episodes=o.episodes or v.episodes,
+                pairs=v.pairs if o.pairs is None else o.pairs,
                 pair_episodes=o.pair_episodes or v.pair_episodes,
                 max_steps=o.max_steps or v.max_steps,
             ),
-        )  # fmt: skip
+        )
     except ValueError as err:
         raise OptionError(str(err)) from None
 

@@ -60,12 +60,23 @@ def plot_accuracy(
         _top1(ax, k, s, COLOURS[j], label)
         if j == 0:
             ax.plot(k, s["top3"], color=COLOURS[j], linestyle="--", label=f"top-3, {label}")
-            ax.plot(k, s["nested"], color=COLOURS[j], linestyle="-.",
-                    label=f"top-1 up to nesting, {label}")  # fmt: skip
+            ax.plot(
+                k,
+                s["nested"],
+                color=COLOURS[j],
+                linestyle="-.",
+                label=f"top-1 up to nesting, {label}",
+            )
     if reference is not None:
         k = np.arange(len(reference["accuracy"]))
-        ax.plot(k, reference["accuracy"], color="#555555", linestyle=":", linewidth=1.6,
-                label="top-1, partner driven by the likelihood nets")  # fmt: skip
+        ax.plot(
+            k,
+            reference["accuracy"],
+            color="#555555",
+            linestyle=":",
+            linewidth=1.6,
+            label="top-1, partner driven by the likelihood nets",
+        )
     _finish(ax, episodes)
     ax.set_title("Belief's top goal = the partner's true goal (band: Wilson 95 %)", fontsize=10)
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # outside: no overlap
@@ -87,8 +98,13 @@ def plot_cross_entropy(series: Series, path: Path) -> Path:
         mean, se = np.asarray(s["cross_entropy"]), np.asarray(s["cross_entropy_se"])
         ax.fill_between(k, mean - se, mean + se, color=colour, alpha=0.2)
         ax.plot(k, mean, color=colour, label=label)
-    ax.axhline(math.log(N_GOALS), color="black", linewidth=0.6, linestyle=":",
-               label="uniform belief (log 35)")  # fmt: skip
+    ax.axhline(
+        math.log(N_GOALS),
+        color="black",
+        linewidth=0.6,
+        linestyle=":",
+        label="uniform belief (log 35)",
+    )
     ax.set_xlabel("k (partner actions observed)")
     ax.set_ylabel("mean -log b_k(true goal) [nats]")
     ax.set_title("Cross-entropy of the belief (band: ± SE)", fontsize=10)

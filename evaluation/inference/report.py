@@ -52,8 +52,9 @@ def _accuracy_section(results: dict[str, Any], out: Path) -> str:
     reference = next(iter(matched["series"].values())) if matched else None
     plot_accuracy(acc["series"], acc["episodes"], out / "accuracy_vs_k.png", reference)
     plot_cross_entropy(acc["series"], out / "cross_entropy.png")
-    plot_switch(switch["series"], switch["episodes"], switch["config"]["switch_at"],
-                out / "goal_switch.png")  # fmt: skip
+    plot_switch(
+        switch["series"], switch["episodes"], switch["config"]["switch_at"], out / "goal_switch.png"
+    )
     confusions = [[t, g, str(n)] for t, g, n in acc["confusions"]]
     k = acc["confusions_at_k"]
     sw = switch["config"]["switch_at"]

@@ -116,8 +116,15 @@ def networks_summary(store: ModelStore, config: InferenceSuiteConfig) -> list[di
         version = store.resolve(ref)
         kind = version.name.split("/")[1]
         key = f"{kind}@{ref.rsplit('@', 1)[1]}"
-        row = rows.setdefault(key, {"population": key, "networks": 0, "seeds": set(),
-                                    "gate": {"passed": 0, "failed": 0, "none": 0}})  # fmt: skip
+        row = rows.setdefault(
+            key,
+            {
+                "population": key,
+                "networks": 0,
+                "seeds": set(),
+                "gate": {"passed": 0, "failed": 0, "none": 0},
+            },
+        )
         row["networks"] += 1
         row["seeds"].add(version.lineage.seed)
         gate = version.lineage.metrics.get("gate")

@@ -36,14 +36,22 @@ def main_table(acc: dict[str, Any]) -> str:
     rows = []
     for label, s in list(acc["series"].items())[:2]:
         rows += [
-            [label, "top-1 [95 % CI]",
-             *(f"{s['accuracy'][k]:.2f} [{s['accuracy_lo'][k]:.2f}, {s['accuracy_hi'][k]:.2f}]"
-               for k in ks)],
+            [
+                label,
+                "top-1 [95 % CI]",
+                *(
+                    f"{s['accuracy'][k]:.2f} [{s['accuracy_lo'][k]:.2f}, {s['accuracy_hi'][k]:.2f}]"
+                    for k in ks
+                ),
+            ],
             [label, "top-3", *(f"{s['top3'][k]:.2f}" for k in ks)],
             [label, "top-1 up to nesting", *(f"{s['nested'][k]:.2f}" for k in ks)],
-            [label, "cross-entropy (nats)",
-             *(f"{s['cross_entropy'][k]:.2f} ± {s['cross_entropy_se'][k]:.2f}" for k in ks)],
-        ]  # fmt: skip
+            [
+                label,
+                "cross-entropy (nats)",
+                *(f"{s['cross_entropy'][k]:.2f} ± {s['cross_entropy_se'][k]:.2f}" for k in ks),
+            ],
+        ]
     return table(["belief", "measure", *(f"k = {k}" for k in ks)], rows)
 
 
@@ -55,12 +63,22 @@ def settings_table(acc: dict[str, Any], matched: dict[str, Any] | None) -> str:
         label, s = next(iter(matched["series"].items()))
         runs.append((f"{label}, partner driven by the likelihood nets", s))
     rows = [
-        [label, *(f"{s['accuracy'][k]:.2f}" for k in ks), f"{s['top3'][end]:.2f}",
-         f"{s['nested'][end]:.2f}", f"{s['cross_entropy'][end]:.2f}"]
+        [
+            label,
+            *(f"{s['accuracy'][k]:.2f}" for k in ks),
+            f"{s['top3'][end]:.2f}",
+            f"{s['nested'][end]:.2f}",
+            f"{s['cross_entropy'][end]:.2f}",
+        ]
         for label, s in runs
-    ]  # fmt: skip
-    header = ["belief", *(f"top-1, k = {k}" for k in ks), f"top-3, k = {end}",
-              f"nested, k = {end}", f"cross-entropy, k = {end}"]  # fmt: skip
+    ]
+    header = [
+        "belief",
+        *(f"top-1, k = {k}" for k in ks),
+        f"top-3, k = {end}",
+        f"nested, k = {end}",
+        f"cross-entropy, k = {end}",
+    ]
     return table(header, rows)
 
 
@@ -98,15 +116,21 @@ def recovered_text(triple: list[float | None]) -> str:
 
 def value_block(label: str, c: dict[str, Any], unit: str) -> str:
     rows = [
-        [VALUE_LABELS[m], *(mean_se_text(by[k]) for k in ("team", "ego", "others")),
-         f"{c['ego_success'][m]:.2f}"]
+        [
+            VALUE_LABELS[m],
+            *(mean_se_text(by[k]) for k in ("team", "ego", "others")),
+            f"{c['ego_success'][m]:.2f}",
+        ]
         for m, by in c["means"].items()
-    ]  # fmt: skip
+    ]
     tests = [
-        [name.replace("aail-inferred", "inferred").replace("aail", "announced"),
-         f"{d['mean']:.2f} ± {d['se']:.2f}", fmt_p(d["p"])]
+        [
+            name.replace("aail-inferred", "inferred").replace("aail", "announced"),
+            f"{d['mean']:.2f} ± {d['se']:.2f}",
+            fmt_p(d["p"]),
+        ]
         for name, d in c["diffs"].items()
-    ]  # fmt: skip
+    ]
     gap = c["diffs"]["team: aail − sl"]
     recovered = (
         f"**Recovered** (team return, (inferred − SL) / (announced − SL)): "
@@ -132,8 +156,11 @@ def value_block(label: str, c: dict[str, Any], unit: str) -> str:
         recovered,
     ]
     if top1 is not None:
-        lines += ["", f"The belief's top goal was the partner's goal at the end of {top1:.0%} of "
-                  "the inferred episodes."]  # fmt: skip
+        lines += [
+            "",
+            f"The belief's top goal was the partner's goal at the end of {top1:.0%} of "
+            "the inferred episodes.",
+        ]
     return "\n".join(lines)
 
 
@@ -141,10 +168,16 @@ def latency_section(latency: dict[str, Any] | None) -> str:
     if latency is None:
         return "Not measured yet: run `benchmarks/session_bench.py` (it re-renders this file)."
     rows = [
-        [c["case"], f"{c['p50_ms']:.3f}", f"{c['p90_ms']:.3f}", f"{c['p99_ms']:.3f}",
-         f"{c['rps']:,.0f}", str(c["requests"])]
+        [
+            c["case"],
+            f"{c['p50_ms']:.3f}",
+            f"{c['p90_ms']:.3f}",
+            f"{c['p99_ms']:.3f}",
+            f"{c['rps']:,.0f}",
+            str(c["requests"]),
+        ]
         for c in latency["cases"]
-    ]  # fmt: skip
+    ]
     ratios = [
         f"- {name}: session step p50 / plain act p50 = **{ratio:.2f}×** (target <= "
         f"{LATENCY_TARGET}: {'met' if ratio <= LATENCY_TARGET else 'missed'})"
@@ -173,8 +206,12 @@ def latency_section(latency: dict[str, Any] | None) -> str:
 
 def networks_table(results: dict[str, Any]) -> str:
     rows = [
-        [n["population"], str(n["networks"]), ", ".join(map(str, n["seeds"])) or "-",
-         ", ".join(f"{k} {v}" for k, v in n["gate"].items() if v)]
+        [
+            n["population"],
+            str(n["networks"]),
+            ", ".join(map(str, n["seeds"])) or "-",
+            ", ".join(f"{k} {v}" for k, v in n["gate"].items() if v),
+        ]
         for n in results["networks"]
-    ]  # fmt: skip
+    ]
     return table(["population", "networks", "training seeds", "quality gate"], rows)

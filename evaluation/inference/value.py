@@ -160,9 +160,15 @@ def run_inferred(
                 updates_B[r] += 1
             ego_goal = GOAL_IDS[int(goals_BN[r, 0])]
             probs = ego_probs_with_belief(
-                engine, env, ego_goal, obs_BND[r, 0], belief_BG[r], alias=config.alias,
-                mass=config.blend_mass, max_goals=config.blend_max_goals,
-            )  # fmt: skip
+                engine,
+                env,
+                ego_goal,
+                obs_BND[r, 0],
+                belief_BG[r],
+                alias=config.alias,
+                mass=config.blend_mass,
+                max_goals=config.blend_max_goals,
+            )
             actions_BN[r, 0] = sample_actions(probs[None], u_TBN[t, r : r + 1, 0])[0]
         previous = (obs_BND[:, 0].copy(), actions_BN[:, 1].copy())
         step = world.step(actions_BN)
@@ -232,9 +238,12 @@ def compare(
             x, y = values[a][measure], values[b][measure]
             diffs[f"{measure}: {a} − {b}"] = (paired_diff(x, y), wilcoxon_p(x, y))
     recovered = bootstrap_recovered(
-        values[INFERRED]["team"], values["aail"]["team"], values["sl"]["team"],
-        draws=config.bootstrap, seed=config.seed,
-    )  # fmt: skip
+        values[INFERRED]["team"],
+        values["aail"]["team"],
+        values["sl"]["team"],
+        draws=config.bootstrap,
+        seed=config.seed,
+    )
     rates = {m: float(np.mean(success[m])) for m in VALUE_METHODS}
     return Comparison(label, units, means, rates, diffs, recovered, belief_top1)
 
@@ -271,9 +280,13 @@ def run_value(
     baseline = run_cells(
         EngineBackend(engine),
         [Cell(s, m) for s in chosen for m in ("sl", "aail")],
-        max_steps=config.max_steps, seed=config.seed, alias=config.alias,
-        partner_alias=config.partner_alias, env=config.env, progress=report("sl, aail"),
-    ).results  # fmt: skip
+        max_steps=config.max_steps,
+        seed=config.seed,
+        alias=config.alias,
+        partner_alias=config.partner_alias,
+        env=config.env,
+        progress=report("sl, aail"),
+    ).results
     walls["sl + aail announced"] = time.perf_counter() - started
     started = time.perf_counter()
     inferred = run_inferred(engine, chosen, config, progress=report(INFERRED))

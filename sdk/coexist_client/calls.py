@@ -72,9 +72,12 @@ def _health_messages() -> tuple[Any, Any]:
     for number, name in enumerate(("UNKNOWN", "SERVING", "NOT_SERVING", "SERVICE_UNKNOWN")):
         status.value.add(name=name, number=number)
     response.field.add(
-        name="status", number=1, type=enum, label=1,
+        name="status",
+        number=1,
+        type=enum,
+        label=1,
         type_name=".grpc.health.v1.HealthCheckResponse.ServingStatus",
-    )  # fmt: skip
+    )
     pool = descriptor_pool.DescriptorPool()
     pool.Add(file)
     request_class, response_class = (

@@ -82,14 +82,26 @@ class ClientCore(Core):
     ) -> None:
         if (protocol or protocol_of(url)) == "http":
             self.transport: HttpTransport | GrpcTransport = HttpTransport(
-                url, aio=aio, timeout=timeout, token=token, headers=headers, verify=verify,
-                transport=transport, retry=retry,
-            )  # fmt: skip
+                url,
+                aio=aio,
+                timeout=timeout,
+                token=token,
+                headers=headers,
+                verify=verify,
+                transport=transport,
+                retry=retry,
+            )
         else:
             self.transport = GrpcTransport(
-                url, aio=aio, timeout=timeout, token=token, tls=tls,
-                root_certificates=root_certificates, options=options, retry=retry,
-            )  # fmt: skip
+                url,
+                aio=aio,
+                timeout=timeout,
+                token=token,
+                tls=tls,
+                root_certificates=root_certificates,
+                options=options,
+                retry=retry,
+            )
 
 
 def act(
@@ -110,10 +122,19 @@ def act(
 ) -> Plan[Action]:
     """One action for one observation (or state + ego_index)."""
     body = act_body(
-        env, ego_goal, observation, state=state, ego_index=ego_index, partners=partners,
-        method=method, temperature=temperature, regret_bound=regret_bound, seed=seed, alias=alias,
+        env,
+        ego_goal,
+        observation,
+        state=state,
+        ego_index=ego_index,
+        partners=partners,
+        method=method,
+        temperature=temperature,
+        regret_bound=regret_bound,
+        seed=seed,
+        alias=alias,
         versions=versions,
-    )  # fmt: skip
+    )
     return (yield from act_exchange(core.transport, body))
 
 
@@ -136,10 +157,20 @@ def act_batch_columns(
     """Many observations (or states + ego_index) in one vectorised request, answered as arrays,
     one per field (the server's columnar format)."""
     body = act_batch_body(
-        env, ego_goal, observations, states=states, ego_index=ego_index, partners=partners,
-        method=method, temperature=temperature, regret_bound=regret_bound, seed=seed, alias=alias,
-        versions=versions, columns=True,
-    )  # fmt: skip
+        env,
+        ego_goal,
+        observations,
+        states=states,
+        ego_index=ego_index,
+        partners=partners,
+        method=method,
+        temperature=temperature,
+        regret_bound=regret_bound,
+        seed=seed,
+        alias=alias,
+        versions=versions,
+        columns=True,
+    )
     return (yield from columns_exchange(core.transport, body))
 
 
@@ -194,9 +225,18 @@ def open_session(
     the server's). Over gRPC an `Episode` stream; over HTTP a REST session, or with `episode`
     and no goal inferred plain `POST /v1/act` per step (no state on the server)."""
     body = session_body(
-        env, ego_goal, partners=partners, infer=infer, method=method, temperature=temperature,
-        regret_bound=regret_bound, seed=seed, alias=alias, versions=versions, belief=belief,
-    )  # fmt: skip
+        env,
+        ego_goal,
+        partners=partners,
+        infer=infer,
+        method=method,
+        temperature=temperature,
+        regret_bound=regret_bound,
+        seed=seed,
+        alias=alias,
+        versions=versions,
+        belief=belief,
+    )
     if core.transport.grpc:
         return (yield from open_stream(body))
     inferring = any(p.get("infer") for p in body["partners"]) or belief is not None

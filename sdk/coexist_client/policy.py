@@ -55,9 +55,11 @@ class RemotePolicy:
         if method != "sl":
             self.partners = {self.partner_index[k]: None if infer else goals[k] for k in others}
         self.settings: dict[str, Any] = {
-            "method": method, "alias": alias, "regret_bound": regret_bound,
+            "method": method,
+            "alias": alias,
+            "regret_bound": regret_bound,
             "temperature": temperature,
-        }  # fmt: skip
+        }
         self.greedy = greedy
         self.seed = seed
         self.last: Action | None = None

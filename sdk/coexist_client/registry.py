@@ -162,9 +162,15 @@ def create_model(
 ) -> Plan[ModelInfo]:
     """Register a new model (no versions yet): what it is for and its sizes."""
     body = {
-        "name": name, "env": env, "kind": kind, "goals": list(goals), "obs_dim": obs_dim,
-        "n_actions": n_actions, "description": description, "tags": dict(tags or {}),
-    }  # fmt: skip
+        "name": name,
+        "env": env,
+        "kind": kind,
+        "goals": list(goals),
+        "obs_dim": obs_dim,
+        "n_actions": n_actions,
+        "description": description,
+        "tags": dict(tags or {}),
+    }
     return ModelInfo.from_json((yield Http("POST", f"{PREFIX}/models", body, idempotent=False)))
 
 
@@ -198,9 +204,12 @@ def upload(
         files["lineage"] = (None, json.dumps(dict(lineage)), "application/json")
     key = idempotency_key or hashlib.sha256(weights).hexdigest()
     data = yield Http(
-        "POST", f"{_model(name)}/-/versions", params={"alias": list(aliases)},
-        headers={"Idempotency-Key": key}, files=files,
-    )  # fmt: skip
+        "POST",
+        f"{_model(name)}/-/versions",
+        params={"alias": list(aliases)},
+        headers={"Idempotency-Key": key},
+        files=files,
+    )
     return VersionInfo.from_json(data)
 
 

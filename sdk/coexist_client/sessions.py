@@ -127,9 +127,12 @@ def step(
     if opened.kind == "rest":
         expected = t if core.expect_steps else None
         body = step_body(
-            observation, state=state, ego_index=ego_index, observed=observed,
+            observation,
+            state=state,
+            ego_index=ego_index,
+            observed=observed,
             expected_step=expected,
-        )  # fmt: skip
+        )
         data = yield Http("POST", f"{core.path}/steps", body, headers=core.headers)
         answer = SessionStep.from_json(data)
         core.next_step = answer.step + 1

@@ -117,9 +117,14 @@ class HttpTransport:
             merged["Authorization"] = f"Bearer {token}"
         kind = httpx.AsyncClient if aio else httpx.Client
         self.http: Any = kind(
-            base_url=base_url, timeout=timeout, headers=merged or None, transport=transport,
-            verify=verify if isinstance(verify, bool) else ssl.create_default_context(cafile=str(verify)),
-        )  # fmt: skip
+            base_url=base_url,
+            timeout=timeout,
+            headers=merged or None,
+            transport=transport,
+            verify=verify
+            if isinstance(verify, bool)
+            else ssl.create_default_context(cafile=str(verify)),
+        )
         self.retry = retry
 
     def _args(self, x: Http) -> dict[str, Any]:

@@ -132,9 +132,15 @@ def _action_fields(data: Mapping[str, Any]) -> dict[str, Any]:
 
 # The per-row fields of a columns answer: the same names in the REST JSON and in protobuf.
 COLUMN_FIELDS = (
-    "probs", "actions", "greedy_actions", "action_meanings", "task_entropies", "task_weights",
-    "partner_indices", "partner_weights",
-)  # fmt: skip
+    "probs",
+    "actions",
+    "greedy_actions",
+    "action_meanings",
+    "task_entropies",
+    "task_weights",
+    "partner_indices",
+    "partner_weights",
+)
 
 
 @dataclass(frozen=True, eq=False)  # eq=False: the fields are arrays

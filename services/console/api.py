@@ -116,10 +116,16 @@ async def live_episode(
 ) -> StreamingResponse:
     """Play an episode on the server and stream it, one JSON line per step."""
     settings = EpisodeSettings(
-        env=env, ego_goal=ego_goal, partner_goals=parse_list(partners),
-        inferred=parse_indices(infer, "infer"), methods=parse_list(methods), seed=seed,
-        max_steps=max_steps, alias=alias, temperature=temperature,
-    )  # fmt: skip
+        env=env,
+        ego_goal=ego_goal,
+        partner_goals=parse_list(partners),
+        inferred=parse_indices(infer, "infer"),
+        methods=parse_list(methods),
+        seed=seed,
+        max_steps=max_steps,
+        alias=alias,
+        temperature=temperature,
+    )
     engine = _engine(request)
 
     def start() -> tuple[dict[str, Any], dict[str, Any], Iterator[dict[str, Any]]]:

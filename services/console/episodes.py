@@ -60,10 +60,16 @@ class EpisodeSettings:
 
     def to_json(self) -> dict[str, Any]:
         return {
-            "env": self.env, "ego_goal": self.ego_goal, "partners": list(self.partner_goals),
-            "infer": list(self.inferred), "methods": list(self.methods), "seed": self.seed,
-            "max_steps": self.max_steps, "alias": self.alias, "temperature": self.temperature,
-        }  # fmt: skip
+            "env": self.env,
+            "ego_goal": self.ego_goal,
+            "partners": list(self.partner_goals),
+            "infer": list(self.inferred),
+            "methods": list(self.methods),
+            "seed": self.seed,
+            "max_steps": self.max_steps,
+            "alias": self.alias,
+            "temperature": self.temperature,
+        }
 
 
 def check_episode(settings: EpisodeSettings) -> None:
@@ -129,9 +135,14 @@ class _Lane:
             for j, g in enumerate(settings.partner_goals, start=1)
         )
         session_settings = SessionSettings(
-            settings.env, settings.ego_goal, partners, method=method,  # type: ignore[arg-type]
-            temperature=settings.temperature, seed=self.seeds[0], alias=settings.alias,
-        )  # fmt: skip
+            settings.env,
+            settings.ego_goal,
+            partners,
+            method=method,  # type: ignore[arg-type]
+            temperature=settings.temperature,
+            seed=self.seeds[0],
+            alias=settings.alias,
+        )
         try:
             self.session = Session(engine, session_settings, prefetch=False)
         except EngineError as err:
@@ -174,9 +185,13 @@ class _Lane:
         for j, goal in enumerate(self.settings.partner_goals, start=1):
             obs = np.asarray(self.observations[self.agents[j]], dtype=np.float64)[None]
             request = ActRequest(
-                env=self.settings.env, ego_goal=goal, observations=obs, method="sl",
-                seed=self.seeds[j] + self.t, alias=self.settings.alias,
-            )  # fmt: skip
+                env=self.settings.env,
+                ego_goal=goal,
+                observations=obs,
+                method="sl",
+                seed=self.seeds[j] + self.t,
+                alias=self.settings.alias,
+            )
             try:
                 result = self.engine.act(request)[0]
             except EngineError as err:  # the partner's own task network: its goal is to blame
@@ -187,12 +202,20 @@ class _Lane:
             {"index": j, "weight": w} for j, w in enumerate(ego.partner_weights, start=1)
         ]
         beliefs = [
-            {"index": b.index, "top": [{"goal": g, "prob": p} for g, p in b.top],
-             "entropy": b.entropy, "updates": b.updates}
+            {
+                "index": b.index,
+                "top": [{"goal": g, "prob": p} for g, p in b.top],
+                "entropy": b.entropy,
+                "updates": b.updates,
+            }
             for b in step.beliefs
-        ]  # fmt: skip
-        ego_json = {"task_weight": ego.task_weight, "task_entropy": ego.task_entropy,
-                    "partner_weights": partner_weights, "beliefs": beliefs}  # fmt: skip
+        ]
+        ego_json = {
+            "task_weight": ego.task_weight,
+            "task_entropy": ego.task_entropy,
+            "partner_weights": partner_weights,
+            "beliefs": beliefs,
+        }
         if self.t == 0:
             ego_json["models"] = [f"{m.name}/{m.version}" for m in ego.models]
         return {"policies": policies, "ego": ego_json}
@@ -222,10 +245,15 @@ class LiveEpisode:
         lane = self.lanes[0]
         inferred = set(s.inferred)
         agents = [
-            {"index": i, "name": name, "goal": goal, "role": "ego" if i == 0 else "partner",
-             "inferred": i in inferred}
+            {
+                "index": i,
+                "name": name,
+                "goal": goal,
+                "role": "ego" if i == 0 else "partner",
+                "inferred": i in inferred,
+            }
             for i, (name, goal) in enumerate(zip(lane.agents, lane.goals, strict=True))
-        ]  # fmt: skip
+        ]
         return {
             "type": "episode",
             "settings": s.to_json(),
@@ -247,8 +275,12 @@ class LiveEpisode:
 
 
 def _summary(lane: _Lane) -> dict[str, Any]:
-    return {"method": lane.method, "length": lane.t, "returns": lane.returns.tolist(),
-            "team_return": float(lane.returns.sum())}  # fmt: skip
+    return {
+        "method": lane.method,
+        "length": lane.t,
+        "returns": lane.returns.tolist(),
+        "team_return": float(lane.returns.sum()),
+    }
 
 
 def parse_list(text: str | None) -> tuple[str, ...]:

@@ -403,13 +403,21 @@ def _layout(checked: CheckedRequest, members: Sequence[Member], group: StackedGr
         if partner.probs is not None:
             by_count.setdefault(len(partner.goals), []).append(position)
     mixes = tuple(
-        (tuple(positions), np.array([
-            [first_unit[slots[(k, goal)][0] - 1] + slots[(k, goal)][1]
-             for goal in checked.partners[k].goals]
-            for k in positions
-        ], dtype=np.intp))
+        (
+            tuple(positions),
+            np.array(
+                [
+                    [
+                        first_unit[slots[(k, goal)][0] - 1] + slots[(k, goal)][1]
+                        for goal in checked.partners[k].goals
+                    ]
+                    for k in positions
+                ],
+                dtype=np.intp,
+            ),
+        )
         for positions in by_count.values()
-    )  # fmt: skip
+    )
     layout = Layout(
         tuple(map(tuple, served[1:])), slots, _models_used(checked, members, group), mixes
     )

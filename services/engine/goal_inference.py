@@ -213,9 +213,10 @@ def _check_partners(partners: object, n_agents: int) -> tuple[int, ...]:
         if not 1 <= index <= n_agents - 1:
             expected = f"1..{n_agents - 1}" if n_agents > 1 else "no partner index (only the ego)"
             raise InvalidRequest(
-                field, f"{brief(index)} out of range: the observation holds {n_agents} agent(s), "
-                f"expected {expected}"
-            )  # fmt: skip
+                field,
+                f"{brief(index)} out of range: the observation holds {n_agents} agent(s), "
+                f"expected {expected}",
+            )
         if index in seen:
             raise InvalidRequest(field, f"partner index {index} given twice")
         seen.append(int(index))
@@ -265,9 +266,16 @@ def goal_log_likelihoods(
     pinned = {} if versions is None else versions
     check_versions(pinned)
     return checked_log_likelihoods(
-        cache_, runtime, obs_D, n_agents, indices, actions_P,
-        alias=alias, versions=pinned, temperature=temperature,
-    )  # fmt: skip
+        cache_,
+        runtime,
+        obs_D,
+        n_agents,
+        indices,
+        actions_P,
+        alias=alias,
+        versions=pinned,
+        temperature=temperature,
+    )
 
 
 def checked_log_likelihoods(
@@ -305,9 +313,12 @@ def task_group(
 
 
 def _q_values(
-    group: StackedGroup, runtime: EnvRuntime, obs_D: np.ndarray, n_agents: int,
+    group: StackedGroup,
+    runtime: EnvRuntime,
+    obs_D: np.ndarray,
+    n_agents: int,
     partners: tuple[int, ...],
-) -> np.ndarray:  # fmt: skip
+) -> np.ndarray:
     """Every task network on each partner's view: finite (G, P, A) float32 Q-values."""
     x_1PF = _partner_views(runtime, obs_D, n_agents, partners)
     if ROW_FORWARD:  # compiled: no floating-point warnings to silence

@@ -100,11 +100,17 @@ class ActColumns:
         method, models = self.method, self.models
         return [
             ActResult(
-                probs[b], actions[b], greedy[b], method, entropy[b], w_task[b], w_partners[b],
+                probs[b],
+                actions[b],
+                greedy[b],
+                method,
+                entropy[b],
+                w_task[b],
+                w_partners[b],
                 list(models),
             )
             for b in range(len(probs))
-        ]  # fmt: skip
+        ]
 
     @classmethod
     def from_results(cls, results: Sequence[ActResult]) -> ActColumns:

@@ -117,9 +117,14 @@ def load_net(store: ModelStore, version: ModelVersion) -> LoadedNet:
     data = store.load_weights(version.name, version.version)  # re-computes and checks the sha256
     tensors = tensors_from_safetensors(spec, data)
     return LoadedNet(
-        version.name, version.version, version.sha256, spec, tensors, training_alpha(version),
+        version.name,
+        version.version,
+        version.sha256,
+        spec,
+        tensors,
+        training_alpha(version),
         _row_layers_of(tensors, spec),
-    )  # fmt: skip
+    )
 
 
 def _row_layers_of(
@@ -183,11 +188,14 @@ def _forward_members(part: Partition, x_XRD: np.ndarray, start: int, count: int)
     if rows <= STACK_MAX_ROWS:
         return numpy_row_forward(x_XRD, part.row_weights, start, count, activation)
     shared = x_XRD.shape[0] == 1
-    return np.concatenate([
-        numpy_row_forward(x_XRD[0 if shared else i][None], part.row_weights, start + i, 1,
-                          activation)
-        for i in range(count)
-    ])  # fmt: skip
+    return np.concatenate(
+        [
+            numpy_row_forward(
+                x_XRD[0 if shared else i][None], part.row_weights, start + i, 1, activation
+            )
+            for i in range(count)
+        ]
+    )
 
 
 def _runs(part: Partition, inputs: Sequence[np.ndarray]) -> list[tuple[int, int, bool]]:

@@ -207,14 +207,18 @@ def session_settings(settings: pb.EpisodeSettings) -> SessionSettings:
     belief = {k: getattr(b, k) for k in ("forgetting", "floor", "temperature") if b.HasField(k)}
     blend = {k: getattr(b, k) for k in ("blend_mass", "blend_max_goals") if b.HasField(k)}
     return SessionSettings(
-        env=settings.env, ego_goal=settings.ego_goal, partners=partners,
+        env=settings.env,
+        ego_goal=settings.ego_goal,
+        partners=partners,
         method=settings.method or DEFAULT_METHOD,  # type: ignore[arg-type]  # the session checks it
         temperature=settings.temperature if settings.HasField("temperature") else None,
         regret_bound=settings.regret_bound if settings.HasField("regret_bound") else None,
         seed=settings.seed if settings.HasField("seed") else None,
-        alias=settings.alias or DEFAULT_ALIAS, versions=dict(settings.versions),
-        belief=BeliefConfig(**belief), **blend,
-    )  # fmt: skip
+        alias=settings.alias or DEFAULT_ALIAS,
+        versions=dict(settings.versions),
+        belief=BeliefConfig(**belief),
+        **blend,
+    )
 
 
 def session_step_inputs(env: str, step: pb.EpisodeStep) -> tuple[np.ndarray, list[Observed]]:

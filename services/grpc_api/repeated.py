@@ -66,10 +66,17 @@ def request_with(
     key = settings.DESCRIPTOR.full_name.encode() + settings.SerializeToString(deterministic=True)
     t = _remembered(_SETTINGS, key, convert)
     return ActRequest(
-        env=t.env, ego_goal=t.ego_goal, observations=observations, partners=t.partners,
-        method=t.method, temperature=t.temperature, regret_bound=t.regret_bound, seed=seed,
-        alias=t.alias, versions=t.versions,
-    )  # fmt: skip
+        env=t.env,
+        ego_goal=t.ego_goal,
+        observations=observations,
+        partners=t.partners,
+        method=t.method,
+        temperature=t.temperature,
+        regret_bound=t.regret_bound,
+        seed=seed,
+        alias=t.alias,
+        versions=t.versions,
+    )
 
 
 class Head(NamedTuple):

@@ -72,8 +72,13 @@ def _log_access(route: str, status: str, seconds: float) -> None:
     level = logging.DEBUG if route.startswith(HEALTH_PREFIX) else logging.INFO
     if not access_log.isEnabledFor(level):
         return
-    fields = {"method": "GRPC", "route": route, "path": route, "status": status,
-              "duration_ms": round(seconds * 1000, 3)}  # fmt: skip
+    fields = {
+        "method": "GRPC",
+        "route": route,
+        "path": route,
+        "status": status,
+        "duration_ms": round(seconds * 1000, 3),
+    }
     access_log.log(level, "GRPC %s %s %.1f ms", route, status, seconds * 1000, extra=fields)
 
 

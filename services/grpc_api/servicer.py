@@ -155,9 +155,12 @@ class PolicyServicer(pb_grpc.PolicyServiceServicer):
         # a session begun mid-stream judges the next step's `observed` on the last observation
         observation = previous[1] if previous and previous[0] == settings.env else None
         return Session(
-            self.engine, session_settings, first_step=t, previous_observation=observation,
+            self.engine,
+            session_settings,
+            first_step=t,
+            previous_observation=observation,
             prefetch=self.session_prefetch,
-        )  # fmt: skip
+        )
 
     def _session_step(self, session: Session, step: pb.EpisodeStep) -> pb.ActResponse:
         """One step of an inferring episode; errors blame the field the client sent."""

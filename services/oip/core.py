@@ -36,9 +36,14 @@ from services.engine.environments import env_runtime
 MODEL_VERSION = "1"
 INPUT_NAMES = ("observation", "ego_goal", "partner_goals")
 _PARAMETERS = {
-    "ego_goal": str, "partner_goals": str, "method": str, "alias": str,
-    "seed": int, "temperature": float, "regret_bound": float,
-}  # fmt: skip
+    "ego_goal": str,
+    "partner_goals": str,
+    "method": str,
+    "alias": str,
+    "seed": int,
+    "temperature": float,
+    "regret_bound": float,
+}
 
 
 @dataclass(frozen=True)
@@ -155,9 +160,13 @@ def outputs(results: Sequence[ActResult]) -> list[tuple[str, str, list[int], np.
     return [
         ("probabilities", "FP64", list(probs.shape), probs.ravel()),
         ("action", "INT64", [len(results)], np.asarray([r.action for r in results], np.int64)),
-        ("greedy_action", "INT64", [len(results)],
-         np.asarray([r.greedy_action for r in results], np.int64)),
-    ]  # fmt: skip
+        (
+            "greedy_action",
+            "INT64",
+            [len(results)],
+            np.asarray([r.greedy_action for r in results], np.int64),
+        ),
+    ]
 
 
 def model_ready(engine: InferenceEngine, env: str) -> bool:

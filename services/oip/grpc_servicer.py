@@ -24,8 +24,13 @@ from services.version import VERSION
 
 SERVICE_NAME = "inference.GRPCInferenceService"
 _NUMPY = {"FP32": "<f4", "FP64": "<f8", "INT32": "<i4", "INT64": "<i8"}
-_CONTENTS = {"FP32": "fp32_contents", "FP64": "fp64_contents", "INT32": "int_contents",
-             "INT64": "int64_contents", "BYTES": "bytes_contents"}  # fmt: skip
+_CONTENTS = {
+    "FP32": "fp32_contents",
+    "FP64": "fp64_contents",
+    "INT32": "int_contents",
+    "INT64": "int64_contents",
+    "BYTES": "bytes_contents",
+}
 
 
 def _parameter(value: pb.InferParameter) -> Any:
@@ -94,10 +99,12 @@ class InferenceServicer:
     ) -> pb.ModelMetadataResponse:
         meta = core.model_metadata(request.name)
         return pb.ModelMetadataResponse(
-            name=meta["name"], versions=meta["versions"], platform=meta["platform"],
+            name=meta["name"],
+            versions=meta["versions"],
+            platform=meta["platform"],
             inputs=[pb.ModelMetadataResponse.TensorMetadata(**t) for t in meta["inputs"]],
             outputs=[pb.ModelMetadataResponse.TensorMetadata(**t) for t in meta["outputs"]],
-        )  # fmt: skip
+        )
 
     @translate_errors
     def ModelInfer(

@@ -103,10 +103,17 @@ def _act(
             )
         partners = tuple(PartnerSpec(p.index, p.goal, p.goal_probs) for p in body.partners)
         request = ActRequest(
-            env=body.env, ego_goal=body.ego_goal, observations=obs, partners=partners,
-            method=body.method, temperature=body.temperature, regret_bound=body.regret_bound,
-            seed=body.seed, alias=body.alias, versions=body.versions,
-        )  # fmt: skip
+            env=body.env,
+            ego_goal=body.ego_goal,
+            observations=obs,
+            partners=partners,
+            method=body.method,
+            temperature=body.temperature,
+            regret_bound=body.regret_bound,
+            seed=body.seed,
+            alias=body.alias,
+            versions=body.versions,
+        )
         answer = run(request)
     except EngineError as exc:
         raise exc.renamed(_rename(exc.field, source, single)) from None
@@ -145,11 +152,15 @@ def model_dicts(models: Sequence[ModelUsed]) -> list[dict[str, Any]]:
     """The `models` JSON of an answer."""
     return [
         {
-            "role": m.role, "name": m.name, "version": m.version, "sha256": m.sha256,
-            "partner_index": m.partner_index, "goal": m.goal,
+            "role": m.role,
+            "name": m.name,
+            "version": m.version,
+            "sha256": m.sha256,
+            "partner_index": m.partner_index,
+            "goal": m.goal,
         }
         for m in models
-    ]  # fmt: skip
+    ]
 
 
 def _columns(env: str, partners: Sequence[PartnerSpec], columns: ActColumns) -> dict[str, Any]:

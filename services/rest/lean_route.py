@@ -73,10 +73,16 @@ Receive = Callable[[], Awaitable[Message]]
 Send = Callable[[Message], Awaitable[None]]
 # what a dependant may hold besides path parameters, one body and the request
 _EXTRAS = (
-    "dependencies", "query_params", "header_params", "cookie_params", "websocket_param_name",
-    "http_connection_param_name", "response_param_name", "background_tasks_param_name",
+    "dependencies",
+    "query_params",
+    "header_params",
+    "cookie_params",
+    "websocket_param_name",
+    "http_connection_param_name",
+    "response_param_name",
+    "background_tasks_param_name",
     "security_scopes_param_name",
-)  # fmt: skip
+)
 
 
 class LeanJsonRoute(FastJsonRoute):

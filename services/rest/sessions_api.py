@@ -98,13 +98,21 @@ def _json(body: Any, status_code: int = 200, headers: Mapping[str, str] | None =
 def _settings(body: SessionBody) -> SessionSettings:
     b = body.belief
     return SessionSettings(
-        env=body.env, ego_goal=body.ego_goal,
-        partners=tuple(SessionPartner(p.index, p.goal, p.goal_probs, p.infer) for p in body.partners),
-        method=body.method, temperature=body.temperature, regret_bound=body.regret_bound,
-        seed=body.seed, alias=body.alias, versions=body.versions,
+        env=body.env,
+        ego_goal=body.ego_goal,
+        partners=tuple(
+            SessionPartner(p.index, p.goal, p.goal_probs, p.infer) for p in body.partners
+        ),
+        method=body.method,
+        temperature=body.temperature,
+        regret_bound=body.regret_bound,
+        seed=body.seed,
+        alias=body.alias,
+        versions=body.versions,
         belief=BeliefConfig(forgetting=b.forgetting, floor=b.floor, temperature=b.temperature),
-        blend_mass=b.blend_mass, blend_max_goals=b.blend_max_goals,
-    )  # fmt: skip
+        blend_mass=b.blend_mass,
+        blend_max_goals=b.blend_max_goals,
+    )
 
 
 # A step's models are the engine's remembered `ModelUsed` objects, the same ones at every step
@@ -153,27 +161,39 @@ def _beliefs(beliefs: tuple[PartnerBelief, ...]) -> list[dict[str, Any]]:
 def _session_json(info: SessionInfo) -> dict[str, Any]:
     s = info.settings
     partners = [
-        {"index": p.index, "goal": p.goal,
-         "goal_probs": None if p.goal_probs is None else dict(p.goal_probs), "infer": p.inferred}
+        {
+            "index": p.index,
+            "goal": p.goal,
+            "goal_probs": None if p.goal_probs is None else dict(p.goal_probs),
+            "infer": p.inferred,
+        }
         for p in s.partners
-    ]  # fmt: skip
+    ]
     belief = {
-        "forgetting": s.belief.forgetting, "floor": s.belief.floor,
-        "temperature": s.belief.temperature, "blend_mass": s.blend_mass,
+        "forgetting": s.belief.forgetting,
+        "floor": s.belief.floor,
+        "temperature": s.belief.temperature,
+        "blend_mass": s.blend_mass,
         "blend_max_goals": s.blend_max_goals,
-    }  # fmt: skip
+    }
     return {
         "session_id": info.session_id,
         "step": info.step,
         "expires_in_s": info.expires_in_s,
         "beliefs": _beliefs(info.beliefs),
         "settings": {
-            "env": s.env, "ego_goal": s.ego_goal, "partners": partners, "method": s.method,
-            "temperature": s.temperature, "regret_bound": s.regret_bound, "seed": s.seed,
+            "env": s.env,
+            "ego_goal": s.ego_goal,
+            "partners": partners,
+            "method": s.method,
+            "temperature": s.temperature,
+            "regret_bound": s.regret_bound,
+            "seed": s.seed,
             "alias": s.alias,
-            "versions": dict(s.versions), "belief": belief,
+            "versions": dict(s.versions),
+            "belief": belief,
         },
-    }  # fmt: skip
+    }
 
 
 def _observation(env: str, body: SessionStepBody) -> tuple[np.ndarray | list[float], bool]:

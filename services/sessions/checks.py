@@ -108,12 +108,17 @@ def _dry_act_request(settings: SessionSettings, runtime: EnvRuntime) -> ActReque
         for p in settings.partners
     )
     return ActRequest(
-        env=settings.env, ego_goal=settings.ego_goal,
-        observations=np.zeros((1, runtime.domain.obs_dim(n_agents))), partners=specs,
-        method=settings.method, temperature=settings.temperature,
-        regret_bound=settings.regret_bound, seed=settings.seed, alias=settings.alias,
+        env=settings.env,
+        ego_goal=settings.ego_goal,
+        observations=np.zeros((1, runtime.domain.obs_dim(n_agents))),
+        partners=specs,
+        method=settings.method,
+        temperature=settings.temperature,
+        regret_bound=settings.regret_bound,
+        seed=settings.seed,
+        alias=settings.alias,
         versions=settings.versions,
-    )  # fmt: skip
+    )
 
 
 def _check_pins_usable(
@@ -192,10 +197,17 @@ def check_settings(settings: SessionSettings) -> CheckedSettings:
     )
     act_request = replace(_dry_act_request(settings, runtime), partners=(), seed=None)
     return CheckedSettings(
-        settings, runtime, goals, inferred, log_prior_PG, initial_PG,
-        PreparedUpdate(log_prior_PG, config), tuple(partners[i].index for i in inferred),
-        announced, act_request,
-    )  # fmt: skip
+        settings,
+        runtime,
+        goals,
+        inferred,
+        log_prior_PG,
+        initial_PG,
+        PreparedUpdate(log_prior_PG, config),
+        tuple(partners[i].index for i in inferred),
+        announced,
+        act_request,
+    )
 
 
 def check_observed(

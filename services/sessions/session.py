@@ -203,10 +203,15 @@ class Session:
             settings = self._checked.settings
             try:
                 table = likelihood_table(
-                    self.engine.cache, self._checked.runtime, self._previous[0],
-                    self._previous_agents, partners, alias=settings.alias,
-                    versions=settings.versions, temperature=settings.belief.temperature,
-                )  # fmt: skip
+                    self.engine.cache,
+                    self._checked.runtime,
+                    self._previous[0],
+                    self._previous_agents,
+                    partners,
+                    alias=settings.alias,
+                    versions=settings.versions,
+                    temperature=settings.belief.temperature,
+                )
             except EngineError:
                 return False
             self._table = (t, table)
@@ -279,10 +284,16 @@ class Session:
             # = engine.goal_log_likelihoods(env, previous, partners, actions, ...) without its
             # checks: the settings were checked at creation, the observation and `observed` above
             log_lik_EG = checked_log_likelihoods(
-                self.engine.cache, checked.runtime, self._previous[0], n_agents, partners,
-                actions_E, alias=settings.alias, versions=settings.versions,
+                self.engine.cache,
+                checked.runtime,
+                self._previous[0],
+                n_agents,
+                partners,
+                actions_E,
+                alias=settings.alias,
+                versions=settings.versions,
                 temperature=settings.belief.temperature,
-            )  # fmt: skip
+            )
         rows = [indices.index(e.index) for e in entries]
         # = update_log_belief(log_belief_PG[rows], log_lik_EG, log_prior_PG[rows], belief)
         if rows == list(range(count)):  # every inferred partner, in order: no copies
@@ -329,9 +340,11 @@ class Session:
             )
         try:
             recovered = self.engine.recover_partner_actions(
-                self._checked.settings.env, self._previous[0], obs_1D[0],
+                self._checked.settings.env,
+                self._previous[0],
+                obs_1D[0],
                 [entries[j].index for j in missing],
-            )  # fmt: skip
+            )
         except InvalidRequest as err:
             raise err.renamed(field) from None
         for j, action in zip(missing, recovered, strict=True):
@@ -345,9 +358,12 @@ class Session:
             return last[1]
         settings = self._checked.settings
         return belief_views(
-            log_belief_PG, self._checked.goals, TOP_GOALS, settings.blend_mass,
+            log_belief_PG,
+            self._checked.goals,
+            TOP_GOALS,
+            settings.blend_mass,
             settings.blend_max_goals,
-        )  # fmt: skip
+        )
 
     def _act(self, obs_1D: np.ndarray, n_agents: int, views: list[BeliefView], t: int) -> ActResult:
         """`engine.act` of the request with each inferred partner's `goal_probs` =
@@ -377,11 +393,16 @@ class Session:
         request = checked.act_request
         if settings.seed is not None:
             request = ActRequest(
-                env=settings.env, ego_goal=settings.ego_goal, observations=obs_1D,
-                method=settings.method, temperature=settings.temperature,
-                regret_bound=settings.regret_bound, seed=settings.seed + t, alias=settings.alias,
+                env=settings.env,
+                ego_goal=settings.ego_goal,
+                observations=obs_1D,
+                method=settings.method,
+                temperature=settings.temperature,
+                regret_bound=settings.regret_bound,
+                seed=settings.seed + t,
+                alias=settings.alias,
                 versions=settings.versions,
-            )  # fmt: skip
+            )
         ready = CheckedRequest(checked.runtime, obs_1D, n_agents, tuple(partners))
         try:
             return self.engine.act_checked(request, ready)[0]

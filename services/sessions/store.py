@@ -172,8 +172,11 @@ class SessionStore:
 
     def _first_free(self, now: float, client: str | None) -> float:
         """Seconds until the first of `client`'s sessions (None: of all) could expire."""
-        left = [self._expires_in(e, now) for e in self._sessions.values()
-                if client is None or e.client == client]  # fmt: skip
+        left = [
+            self._expires_in(e, now)
+            for e in self._sessions.values()
+            if client is None or e.client == client
+        ]
         return max(0.0, min(left, default=0.0))
 
     def _remove(self, session_id: str, why: str) -> None:

@@ -60,9 +60,13 @@ def _case(transport: str, case: str, c: int, requests: int, p50: float, rows: in
 def test_verdicts_compare_each_transport_with_its_own_floor() -> None:
     cases = []
     for t, slow in (("REST", 1.0), ("gRPC", 3.0)):
-        cases += [_case(t, "no-op", 1, 5000, 0.2), _case(t, "no-op", 32, 10000, 3.0),
-                  _case(t, "act", 1, 3000, 0.2 * slow * 1.5), _case(t, "act", 32, 3000, 9.0),
-                  _case(t, "batch", 1, 400, 2.5, rows=256)]  # fmt: skip
+        cases += [
+            _case(t, "no-op", 1, 5000, 0.2),
+            _case(t, "no-op", 32, 10000, 3.0),
+            _case(t, "act", 1, 3000, 0.2 * slow * 1.5),
+            _case(t, "act", 32, 3000, 9.0),
+            _case(t, "batch", 1, 400, 2.5, rows=256),
+        ]
     got = {name: (round(value, 2), met) for name, value, _, met in serving.verdicts(cases)}
     assert got["REST: act p50 / no-op p50 (c=1)"] == (1.5, True)
     assert got["gRPC: act p50 / no-op p50 (c=1)"] == (4.5, False)
@@ -73,10 +77,15 @@ def test_verdicts_compare_each_transport_with_its_own_floor() -> None:
 def test_verdicts_against_the_bare_servers() -> None:
     cases = []
     for t in ("REST", "gRPC"):
-        cases += [_case(t, "no-op", 1, 5000, 0.22), _case(t, "no-op", 32, 10000, 3.0),
-                  _case(t, "act", 1, 3000, 0.3), _case(t, "act", 32, 3000, 9.0),
-                  _case(t, "batch", 1, 400, 2.5, rows=256),
-                  _case(t, "floor no-op", 1, 6000, 0.2), _case(t, "floor no-op", 32, 8000, 3.0)]  # fmt: skip
+        cases += [
+            _case(t, "no-op", 1, 5000, 0.22),
+            _case(t, "no-op", 32, 10000, 3.0),
+            _case(t, "act", 1, 3000, 0.3),
+            _case(t, "act", 32, 3000, 9.0),
+            _case(t, "batch", 1, 400, 2.5, rows=256),
+            _case(t, "floor no-op", 1, 6000, 0.2),
+            _case(t, "floor no-op", 32, 8000, 3.0),
+        ]
     got = {name: (round(value, 2), met) for name, value, _, met in serving.verdicts(cases)}
     assert got["REST: no-op p50 / bare FastAPI no-op p50 (c=1)"] == (1.1, True)
     assert got["REST: act p50 / bare FastAPI no-op p50 (c=1)"] == (1.5, True)
@@ -84,8 +93,10 @@ def test_verdicts_against_the_bare_servers() -> None:
     assert got["gRPC: act p50 / bare grpcio health p50 (c=1)"] == (1.5, True)
     assert got["REST: act req/s / bare FastAPI no-op req/s (c=32)"] == (0.38, False)
     assert len(got) == 11
-    slower = [c if c.case != "no-op" else _case(c.transport, "no-op", c.concurrency, 1, 0.24)
-              for c in cases]  # fmt: skip
+    slower = [
+        c if c.case != "no-op" else _case(c.transport, "no-op", c.concurrency, 1, 0.24)
+        for c in cases
+    ]
     got = {name: met for name, _, _, met in serving.verdicts(slower)}
     assert not got["REST: no-op p50 / bare FastAPI no-op p50 (c=1)"]
     assert not got["gRPC: health p50 / bare grpcio health p50 (c=1)"]
@@ -140,14 +151,27 @@ def test_payloads_are_the_five_agent_scenario() -> None:
 def test_a_short_real_run_answers_every_request(tmp_path: Path) -> None:
     out = tmp_path / "serving.json"
     subprocess.run(
-        [sys.executable, str(ROOT / "benchmarks/serving.py"), "--duration", "1",
-         "--json", str(out)],
-        check=True, timeout=300, cwd=ROOT,
-    )  # fmt: skip
+        [
+            sys.executable,
+            str(ROOT / "benchmarks/serving.py"),
+            "--duration",
+            "1",
+            "--json",
+            str(out),
+        ],
+        check=True,
+        timeout=300,
+        cwd=ROOT,
+    )
     figures = json.loads(out.read_text())
     # 16 of coexist (batch rows and act default: c = 1) and 4 of the bare servers; 6 + 5 targets
     assert len(figures["cases"]) == 20 and len(figures["targets"]) == 11
     assert {c["case"] for c in figures["cases"]} == {
-        "no-op", "act", "batch", "batch rows", "act default", "floor no-op"
-    }  # fmt: skip
+        "no-op",
+        "act",
+        "batch",
+        "batch rows",
+        "act default",
+        "floor no-op",
+    }
     assert all(c["failed"] == 0 and c["requests"] > 0 for c in figures["cases"])

@@ -67,8 +67,14 @@ def _depends(service: str) -> dict[str, str]:
 
 def test_compose_describes_the_topology() -> None:
     assert set(SERVICES) == {
-        "postgres", "migrate", "trainer", "inference", "lb", "prometheus", "grafana"
-    }  # fmt: skip
+        "postgres",
+        "migrate",
+        "trainer",
+        "inference",
+        "lb",
+        "prometheus",
+        "grafana",
+    }
     assert "pg_isready" in " ".join(SERVICES["postgres"]["healthcheck"]["test"])
     assert _depends("migrate") == {"postgres": "service_healthy"}
     assert SERVICES["migrate"]["restart"] == "no"  # one shot
@@ -91,8 +97,11 @@ def test_compose_describes_the_topology() -> None:
         interpolate(SERVICES["inference"]["environment"], {})
 
 
-LEAF_COMMANDS = {"migrate": "coexist models migrate", "trainer": "coexist train zoo",
-                 "inference": "coexist serve"}  # fmt: skip
+LEAF_COMMANDS = {
+    "migrate": "coexist models migrate",
+    "trainer": "coexist train zoo",
+    "inference": "coexist serve",
+}
 
 
 @pytest.mark.parametrize("name", sorted(OUR_IMAGES))
@@ -105,8 +114,9 @@ def test_every_service_runs_a_command_the_cli_has(name: str) -> None:
         assert (context.params["http_port"], context.params["grpc_port"]) == (8000, 50051)
     if name == "trainer":  # resumable through the trainer-runs volume
         assert context.params["resume"] is True
-        assert str(context.params["run_dir"]) in {v.split(":")[1] + "/zoo"
-                                                  for v in SERVICES["trainer"]["volumes"]}  # fmt: skip
+        assert str(context.params["run_dir"]) in {
+            v.split(":")[1] + "/zoo" for v in SERVICES["trainer"]["volumes"]
+        }
 
 
 @pytest.mark.parametrize("target", ["server", "trainer"])
@@ -198,8 +208,10 @@ def test_envoy_sends_both_protocols_to_the_replicas() -> None:
     assert set(listeners) == {8000, 50051}
     clusters = {c["name"]: c for c in resources["clusters"]}
     serve_argv = service_argv(SERVICES["inference"], STAGES)
-    ports = {"inference_http": serve_argv[serve_argv.index("--http-port") + 1],
-             "inference_grpc": serve_argv[serve_argv.index("--grpc-port") + 1]}  # fmt: skip
+    ports = {
+        "inference_http": serve_argv[serve_argv.index("--http-port") + 1],
+        "inference_grpc": serve_argv[serve_argv.index("--grpc-port") + 1],
+    }
     for port, listener in listeners.items():
         manager = listener["filter_chains"][0]["filters"][0]["typed_config"]
         routes = manager["route_config"]["virtual_hosts"][0]["routes"]
@@ -234,8 +246,11 @@ def _service_env(service: str, base: dict[str, str], store_url: str) -> dict[str
     """The image's and the compose file's COEXIST_* variables over `base`; the container-only
     ones (data dir, listen address) and the store URL (no host `postgres` here) replaced."""
     image = STAGES[SERVICES[service]["build"]["target"]].env
-    kept = {k: v for k, v in image.items()
-            if k.startswith("COEXIST_") and k not in ("COEXIST_DATA_DIR", "COEXIST_HOST")}  # fmt: skip
+    kept = {
+        k: v
+        for k, v in image.items()
+        if k.startswith("COEXIST_") and k not in ("COEXIST_DATA_DIR", "COEXIST_HOST")
+    }
     compose = interpolate(
         SERVICES[service].get("environment", {}), {"COEXIST_ADMIN_TOKEN": ADMIN_TOKEN}
     )
@@ -256,8 +271,22 @@ def _install_like_the_image(tmp_path: Path) -> tuple[list[str], dict[str, str]]:
             source.mkdir(exist_ok=True)
             shutil.copy(src, source / item)
     wheels = tmp_path / "wheels"
-    subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation",
-                    "-q", str(source), "-w", str(wheels)], check=True, capture_output=True)  # fmt: skip
+    subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "wheel",
+            "--no-deps",
+            "--no-build-isolation",
+            "-q",
+            str(source),
+            "-w",
+            str(wheels),
+        ],
+        check=True,
+        capture_output=True,
+    )
     site = tmp_path / "site"
     (wheel,) = wheels.glob("coexist-*.whl")
     with zipfile.ZipFile(wheel) as archive:
@@ -265,8 +294,11 @@ def _install_like_the_image(tmp_path: Path) -> tuple[list[str], dict[str, str]]:
         points = next(n for n in archive.namelist() if n.endswith("entry_points.txt"))
         entry = archive.read(points).decode()
     module, _, attr = entry.split("coexist = ")[1].split()[0].partition(":")
-    launcher = [sys.executable, "-c", f"import sys; from {module} import {attr} as main; "
-                "sys.argv[0] = 'coexist'; main()"]  # fmt: skip
+    launcher = [
+        sys.executable,
+        "-c",
+        f"import sys; from {module} import {attr} as main; sys.argv[0] = 'coexist'; main()",
+    ]
     return launcher, {"PYTHONPATH": str(site)}
 
 
@@ -278,15 +310,27 @@ def test_the_topology_runs_as_plain_processes(tmp_path: Path) -> None:
     run_dir.mkdir()
     with pg_schema_url() as store_url:  # postgres: up and healthy
         base_env = server_env(store_url, tmp_path / "data", **path_env)
-        where = subprocess.run([*launcher[:2], "import cli; print(cli.__file__)"], env=base_env,
-                               cwd=run_dir, capture_output=True, text=True, check=True)  # fmt: skip
+        where = subprocess.run(
+            [*launcher[:2], "import cli; print(cli.__file__)"],
+            env=base_env,
+            cwd=run_dir,
+            capture_output=True,
+            text=True,
+            check=True,
+        )
         assert where.stdout.startswith(str(tmp_path / "site")), where.stdout
 
         def run(service: str, *extra: str) -> subprocess.CompletedProcess[str]:
             argv = service_argv(SERVICES[service], STAGES)
             env = _service_env(service, base_env, store_url)
-            return subprocess.run([*launcher, *argv[1:], *extra], env=env, cwd=run_dir,
-                                  capture_output=True, text=True, timeout=120)  # fmt: skip
+            return subprocess.run(
+                [*launcher, *argv[1:], *extra],
+                env=env,
+                cwd=run_dir,
+                capture_output=True,
+                text=True,
+                timeout=120,
+            )
 
         migrated = run("migrate")
         assert migrated.returncode == 0 and "schema at" in migrated.stdout, migrated.stderr
@@ -296,8 +340,10 @@ def test_the_topology_runs_as_plain_processes(tmp_path: Path) -> None:
 
         inference = service_argv(SERVICES["inference"], STAGES)[1:]
         env = _service_env("inference", base_env, store_url)
-        replicas = [start_server(f"replica-{k}", env, tmp_path, inference, launcher=launcher,
-                                 cwd=run_dir) for k in range(2)]  # fmt: skip
+        replicas = [
+            start_server(f"replica-{k}", env, tmp_path, inference, launcher=launcher, cwd=run_dir)
+            for k in range(2)
+        ]
         with running(replicas):
             health = list(STAGES["server"].healthcheck or [])
             if health[0] == "python":  # the image's interpreter; here, this one
@@ -306,8 +352,9 @@ def test_the_topology_runs_as_plain_processes(tmp_path: Path) -> None:
                 port = server.http_url.rsplit(":", 1)[1]
                 probe = subprocess.run(health, env={**env, "COEXIST_HTTP_PORT": port})
                 assert probe.returncode == 0
-            dead = subprocess.run(health, env={**env, "COEXIST_HTTP_PORT": "1"},
-                                  capture_output=True)  # fmt: skip
+            dead = subprocess.run(
+                health, env={**env, "COEXIST_HTTP_PORT": "1"}, capture_output=True
+            )
             assert dead.returncode != 0
 
             http_backends = [("127.0.0.1", int(s.http_url.rsplit(":", 1)[1])) for s in replicas]
@@ -317,8 +364,11 @@ def test_the_topology_runs_as_plain_processes(tmp_path: Path) -> None:
                 RoundRobinProxy(grpc_backends) as grpc_lb,
             ):
                 for k in range(4):  # a new connection each: round robin over the replicas
-                    resp = httpx.post(f"http://127.0.0.1:{http_lb.port}/v1/act", json=act_body(),
-                                      headers={"X-Request-ID": f"through-lb-{k}"})  # fmt: skip
+                    resp = httpx.post(
+                        f"http://127.0.0.1:{http_lb.port}/v1/act",
+                        json=act_body(),
+                        headers={"X-Request-ID": f"through-lb-{k}"},
+                    )
                     assert resp.status_code == 200 and resp.json()["models"][0]["version"] == 1
                 own = [("grpc.use_local_subchannel_pool", 1)]  # no connection shared
                 for _ in range(2):

@@ -102,7 +102,8 @@ def test_cells_must_share_an_agent_count() -> None:
     two = Scenario("two", "a2", ("b3",), 2, 1)
     three = Scenario("three", "a2", ("b3", "c"), 2, 1)
     with pytest.raises(ValueError, match="one agent count"):
-        run_cells(FakeBackend(uniform_policy), [Cell(two, "sl"), Cell(three, "sl")],
-                  max_steps=5, seed=0)  # fmt: skip
+        run_cells(
+            FakeBackend(uniform_policy), [Cell(two, "sl"), Cell(three, "sl")], max_steps=5, seed=0
+        )
     with pytest.raises(ValueError, match="at least one cell"):
         run_cells(FakeBackend(uniform_policy), [], max_steps=5, seed=0)

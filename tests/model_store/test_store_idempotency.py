@@ -22,8 +22,7 @@ KEY = "0f6c2e9a-upload-1"
 def models(store: SqlModelStore) -> SqlModelStore:
     for name in (NAME, OTHER):
         goal = name.rsplit("/", 1)[1]
-        store.create_model(name, env="particle", kind="task", goals=(goal,), obs_dim=8,
-                           n_actions=5)  # fmt: skip
+        store.create_model(name, env="particle", kind="task", goals=(goal,), obs_dim=8, n_actions=5)
     return store
 
 
@@ -31,9 +30,12 @@ def _register(
     store: SqlModelStore, name: str = NAME, *, seed: int = 0, idempotency_key: str | None = None
 ) -> int:
     version = store.register_version(
-        name, spec=SPEC, weights=qnet_weights(SPEC, seed=seed), lineage=test_lineage(),
+        name,
+        spec=SPEC,
+        weights=qnet_weights(SPEC, seed=seed),
+        lineage=test_lineage(),
         idempotency_key=idempotency_key,
-    )  # fmt: skip
+    )
     return version.version
 
 

@@ -54,8 +54,14 @@ def log_beliefs(rng: np.random.Generator, rows: int, goals: int, kind: str) -> n
 
 
 @pytest.mark.parametrize("kind", ["random", "peaked", "flat", "ties"])
-@pytest.mark.parametrize("config", [BeliefConfig(), BeliefConfig(forgetting=1.0, floor=0.0),
-                                    BeliefConfig(forgetting=0.5, floor=0.01)])  # fmt: skip
+@pytest.mark.parametrize(
+    "config",
+    [
+        BeliefConfig(),
+        BeliefConfig(forgetting=1.0, floor=0.0),
+        BeliefConfig(forgetting=0.5, floor=0.01),
+    ],
+)
 @pytest.mark.parametrize(("rows", "goals"), [(1, 35), (4, 35), (3, 1), (2, 7), (5, 200)])
 def test_the_update_matches_numpy(
     kind: str, config: BeliefConfig, rows: int, goals: int, monkeypatch: pytest.MonkeyPatch
@@ -87,8 +93,9 @@ def test_non_finite_evidence_takes_the_numpy_path(monkeypatch: pytest.MonkeyPatc
 
 
 @pytest.mark.parametrize("kind", ["random", "peaked", "flat", "ties"])
-@pytest.mark.parametrize(("rows", "goals", "k"), [(1, 35, 3), (4, 35, 3), (2, 1, 3), (3, 9, 9),
-                                                  (2, 200, 64)])  # fmt: skip
+@pytest.mark.parametrize(
+    ("rows", "goals", "k"), [(1, 35, 3), (4, 35, 3), (2, 1, 3), (3, 9, 9), (2, 200, 64)]
+)
 def test_the_views_match_numpy(
     kind: str, rows: int, goals: int, k: int, monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -45,8 +45,9 @@ def test_blend_matches_the_direct_equation(eps: float) -> None:
     for b in range(len(q_task)):
         expected = direct(q_task[b].tolist(), aail[b].tolist(), ALPHA, eps)
         np.testing.assert_allclose(bounded.probs_BA[b], expected, rtol=0, atol=1e-12)
-        row = blend("aail_bounded", q_task[b : b + 1], q_impact[b : b + 1], ALPHA,
-                    regret_bound=eps)  # fmt: skip  # one row: the same code, B = 1
+        row = blend(
+            "aail_bounded", q_task[b : b + 1], q_impact[b : b + 1], ALPHA, regret_bound=eps
+        )  # one row: the same code, B = 1
         np.testing.assert_allclose(row.probs_BA[0], expected, rtol=0, atol=1e-12)
     np.testing.assert_allclose(reference.probs_BA, bounded.probs_BA, rtol=0, atol=1e-12)
     # the diagnostics are AAIL's

@@ -101,8 +101,9 @@ def test_each_row_is_computed_alone() -> None:
     x = rng.standard_normal((1, 7, 8)).astype(np.float32)  # blocks of 4, 2 and 1 rows
     whole = row_forward(x, layers, 0, 4, "relu")
     for p in range(7):
-        np.testing.assert_array_equal(row_forward(x[:, p : p + 1], layers, 0, 4, "relu")[:, 0],
-                                      whole[:, p])  # fmt: skip
+        np.testing.assert_array_equal(
+            row_forward(x[:, p : p + 1], layers, 0, 4, "relu")[:, 0], whole[:, p]
+        )
 
 
 def test_numpy_one_member_path_matches_its_stacked_path() -> None:

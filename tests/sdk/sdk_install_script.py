@@ -17,8 +17,11 @@ OBS = [0.1, 0.5, 0.0, 0.0, 0.7, 0.6, 0.0, 0.0]
 
 
 def main(http_url: str, grpc_target: str, token: str) -> dict[str, object]:
-    absent = [m for m in ("torch", "fastapi", "sqlalchemy", "services", "model_store")
-              if importlib.util.find_spec(m) is not None]  # fmt: skip
+    absent = [
+        m
+        for m in ("torch", "fastapi", "sqlalchemy", "services", "model_store")
+        if importlib.util.find_spec(m) is not None
+    ]
     out: dict[str, object] = {"server_modules_found": absent}
     with Client(http_url) as http, Client(f"grpc://{grpc_target}") as grpc:
         out["act_http"] = list(http.act("particle", "a2", OBS, partners={1: "b3"}, seed=7).probs)

@@ -34,10 +34,23 @@ def test_coexist_run_plays_kitchen_episodes_through_the_server(
     url = server.http_url if transport == "http" else f"grpc://{server.grpc_target}"
     result = CliRunner().invoke(
         app,
-        ["run", "--server", url, "--env", "cooking", "--ego", KITCHEN[0], "--partners",
-         KITCHEN[1], "--episodes", "2", "--max-steps", "25"],
+        [
+            "run",
+            "--server",
+            url,
+            "--env",
+            "cooking",
+            "--ego",
+            KITCHEN[0],
+            "--partners",
+            KITCHEN[1],
+            "--episodes",
+            "2",
+            "--max-steps",
+            "25",
+        ],
         env={"COLUMNS": "200"},
-    )  # fmt: skip
+    )
     assert result.exit_code == 0, result.output
     assert "cooking: 2 episodes" in result.output
     assert KITCHEN[0] in result.output and KITCHEN[1] in result.output
@@ -53,9 +66,15 @@ def test_inferred_goals_give_the_same_episodes_over_both_transports(
     for url in (server.http_url, f"grpc://{server.grpc_target}"):
         with Client(url) as client:
             results = run_episodes(
-                client, env=env, ego_goal=goals[0], partner_goals=goals[1:], infer=True,
-                episodes=2, seed=3, max_steps=15,
-            )  # fmt: skip
+                client,
+                env=env,
+                ego_goal=goals[0],
+                partner_goals=goals[1:],
+                infer=True,
+                episodes=2,
+                seed=3,
+                max_steps=15,
+            )
         runs.append([(r.returns, r.length) for r in results])
     assert runs[0] == runs[1]
 

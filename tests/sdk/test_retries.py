@@ -21,9 +21,13 @@ from coexist_client import (
 )
 
 ACTION = {
-    "probs": [0.5, 0.5], "action": 1, "greedy_action": 0, "action_meaning": "up",
-    "method": "sl", "diagnostics": {"task_entropy": 1.0, "task_weight": 1.0},
-}  # fmt: skip
+    "probs": [0.5, 0.5],
+    "action": 1,
+    "greedy_action": 0,
+    "action_meaning": "up",
+    "method": "sl",
+    "diagnostics": {"task_entropy": 1.0, "task_weight": 1.0},
+}
 FAST = Retry(attempts=3, backoff_s=0.001)
 
 

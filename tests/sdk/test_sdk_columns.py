@@ -61,9 +61,14 @@ def rows_format_actions(base_url: str, live: LiveServer, **kw: Any) -> tuple[lis
     ]
     message = proto.act_batch_request(body)
     vectors = pb.ActBatchRequest(  # the repeated Vector form the SDK used to send
-        env=message.env, ego_goal=message.ego_goal, partners=message.partners, seed=message.seed,
-        method=message.method, alias=message.alias, observations=[pb.Vector(values=r) for r in OBS_BD],
-    )  # fmt: skip
+        env=message.env,
+        ego_goal=message.ego_goal,
+        partners=message.partners,
+        seed=message.seed,
+        method=message.method,
+        alias=message.alias,
+        observations=[pb.Vector(values=r) for r in OBS_BD],
+    )
     grpc_ = [proto.action_from_proto(r) for r in live.stub.ActBatch(vectors).results]
     return http, grpc_
 

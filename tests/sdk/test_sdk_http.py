@@ -76,10 +76,13 @@ def test_act_batch_state_and_partner_forms(engine: InferenceEngine, client: Coex
     actions = client.act_batch("particle", "c1", obs_BD, partners=partners, seed=3)
     expected_rows = engine.act(
         ActRequest(
-            "particle", "c1", obs_BD,
-            (PartnerSpec(2, goal_probs={"b3": 0.6, "c": 0.4}), PartnerSpec(1, goal="d4")), seed=3,
+            "particle",
+            "c1",
+            obs_BD,
+            (PartnerSpec(2, goal_probs={"b3": 0.6, "c": 0.4}), PartnerSpec(1, goal="d4")),
+            seed=3,
         )
-    )  # fmt: skip
+    )
     assert len(actions) == 6
     for got, want in zip(actions, expected_rows, strict=True):
         assert_action_is(got, want, [2, 1])
@@ -97,8 +100,9 @@ def test_envs_health_and_episode(client: CoexistClient, engine: InferenceEngine)
     with client.episode("particle", "a2", partners={1: "b3"}, seed=20) as episode:
         steps = [episode.act(obs) for obs in obs_TD]
     for t, action in enumerate(steps):
-        request = ActRequest("particle", "a2", obs_TD[t : t + 1], (PartnerSpec(1, goal="b3"),),
-                             seed=20 + t)  # fmt: skip
+        request = ActRequest(
+            "particle", "a2", obs_TD[t : t + 1], (PartnerSpec(1, goal="b3"),), seed=20 + t
+        )
         assert_action_is(action, engine.act(request)[0], [1])
 
 
@@ -132,13 +136,21 @@ def _mock_client(status: int, body: Any) -> CoexistClient:
 @pytest.mark.parametrize(
     ("status", "body", "error", "code"),
     [
-        (503, {"error": {"code": "model_unavailable", "message": "store down", "field": None}},
-         Unavailable, "unavailable"),
+        (
+            503,
+            {"error": {"code": "model_unavailable", "message": "store down", "field": None}},
+            Unavailable,
+            "unavailable",
+        ),
         (500, b"<html>oops</html>", CoexistError, "internal"),
-        (413, {"error": {"code": "too_large", "message": "body: too large", "field": "body"}},
-         InvalidArgument, "invalid_argument"),
+        (
+            413,
+            {"error": {"code": "too_large", "message": "body: too large", "field": "body"}},
+            InvalidArgument,
+            "invalid_argument",
+        ),
     ],
-)  # fmt: skip
+)
 def test_error_responses_map_to_classes(
     status: int, body: Any, error: type[CoexistError], code: str
 ) -> None:

@@ -27,26 +27,49 @@ def test_the_sdk_wheel_works_alone_against_a_real_server(tmp_path: Path) -> None
     source = tmp_path / "sdk"  # a copy: building writes build/ beside the sources
     shutil.copytree(REPO / "sdk", source, ignore=shutil.ignore_patterns("build", "*.egg-info"))
     subprocess.run(
-        [sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q",
-         "-w", str(tmp_path / "dist"), str(source)],
-        check=True, capture_output=True, timeout=300,
-    )  # fmt: skip
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "wheel",
+            "--no-deps",
+            "--no-build-isolation",
+            "-q",
+            "-w",
+            str(tmp_path / "dist"),
+            str(source),
+        ],
+        check=True,
+        capture_output=True,
+        timeout=300,
+    )
     (wheel,) = (tmp_path / "dist").glob("coexist_client-*.whl")
     venv.create(tmp_path / "fresh", with_pip=True)
     python = tmp_path / "fresh" / "bin" / "python"
     subprocess.run(
         [str(python), "-m", "pip", "install", "-q", str(wheel)],
-        check=True, capture_output=True, timeout=600,
-    )  # fmt: skip
+        check=True,
+        capture_output=True,
+        timeout=600,
+    )
     folder = tmp_path / "server"
     with serving(folder, build_console_zoo(folder / "models.db")) as server:
         with Client(server.http_url) as client:  # before the script promotes a version 2
             want = client.act("particle", "a2", OBS, partners={1: "b3"}, seed=7)
         done = subprocess.run(
-            [str(python), str(REPO / "tests" / "sdk" / "sdk_install_script.py"),
-             server.http_url, server.grpc_target, ADMIN_TOKEN],
-            capture_output=True, text=True, timeout=120, check=False, cwd=tmp_path,
-        )  # fmt: skip
+            [
+                str(python),
+                str(REPO / "tests" / "sdk" / "sdk_install_script.py"),
+                server.http_url,
+                server.grpc_target,
+                ADMIN_TOKEN,
+            ],
+            capture_output=True,
+            text=True,
+            timeout=120,
+            check=False,
+            cwd=tmp_path,
+        )
         assert done.returncode == 0, done.stderr[-3000:]
     got = json.loads(done.stdout)
     assert got["server_modules_found"] == []

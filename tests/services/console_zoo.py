@@ -56,13 +56,21 @@ def _register_env(store: SqlModelStore, env: str, seed_offset: int) -> None:
     for kind, naming, offset in (("task", task_model_name, 0), ("impact", impact_model_name, 500)):
         for k, goal in enumerate(domain.goals):
             name = naming(env, goal)
-            store.create_model(name, env=env, kind=kind, goals=(goal,),
-                               obs_dim=domain.pair_obs_dim, n_actions=domain.n_actions)  # fmt: skip
+            store.create_model(
+                name,
+                env=env,
+                kind=kind,
+                goals=(goal,),
+                obs_dim=domain.pair_obs_dim,
+                n_actions=domain.n_actions,
+            )
             store.register_version(
-                name, spec=spec, weights=_weights(spec, seed_offset + offset + k),
+                name,
+                spec=spec,
+                weights=_weights(spec, seed_offset + offset + k),
                 lineage=Lineage(config={"alpha": ALPHA}, seed=k, registered_by="pytest"),
                 aliases=("latest", "production"),
-            )  # fmt: skip
+            )
 
 
 def _retrained(store: SqlModelStore, name: str) -> StackedQNet:

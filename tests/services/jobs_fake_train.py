@@ -29,13 +29,20 @@ def _register(store_url: str) -> None:
     spec = QNetSpec(obs_dim=8, n_actions=5, hidden=(4,))
     with SqlModelStore(store_url) as store:
         store.create_model(
-            "particle/task/a2", env="particle", kind="task", goals=("a2",), obs_dim=8,
-            n_actions=5, exist_ok=True,
-        )  # fmt: skip
+            "particle/task/a2",
+            env="particle",
+            kind="task",
+            goals=("a2",),
+            obs_dim=8,
+            n_actions=5,
+            exist_ok=True,
+        )
         version = store.register_version(
-            "particle/task/a2", spec=spec.to_json(), weights=weights_to_safetensors(QNetwork(spec)),
+            "particle/task/a2",
+            spec=spec.to_json(),
+            weights=weights_to_safetensors(QNetwork(spec)),
             lineage=Lineage(seed=0, registered_by="jobs_fake_train"),
-        )  # fmt: skip
+        )
     print(f"registered {version.ref}", flush=True)
 
 

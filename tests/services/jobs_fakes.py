@@ -52,9 +52,13 @@ def fake_jobs_app(tmp_path: Path) -> Iterator[FastAPI]:
         app = create_app(settings, store=store)
         table = JobTable(settings.resolved_store_url())
         runner = JobRunner(
-            table, store_url=settings.resolved_store_url(), poll_s=0.05, heartbeat_s=0.5,
-            cancel_grace_s=GRACE_S, command=fake_command,
-        )  # fmt: skip
+            table,
+            store_url=settings.resolved_store_url(),
+            poll_s=0.05,
+            heartbeat_s=0.5,
+            cancel_grace_s=GRACE_S,
+            command=fake_command,
+        )
         app.state.jobs = table, runner
         try:
             yield app

@@ -82,8 +82,14 @@ def seed_zoo(store_url: str) -> None:
     with SqlModelStore(store_url) as store:
         for k, goal in enumerate(ZOO_GOALS):
             for kind, name in (("task", task_model_name), ("impact", impact_model_name)):
-                store.create_model(name("particle", goal), env="particle", kind=kind,
-                                   goals=(goal,), obs_dim=8, n_actions=5)  # fmt: skip
+                store.create_model(
+                    name("particle", goal),
+                    env="particle",
+                    kind=kind,
+                    goals=(goal,),
+                    obs_dim=8,
+                    n_actions=5,
+                )
                 store.register_version(
                     name("particle", goal),
                     spec=SPEC.to_json(),
@@ -100,8 +106,13 @@ def seed_zoo(store_url: str) -> None:
 
 
 def act_body(**extra: Any) -> dict[str, Any]:
-    body = {"env": "particle", "ego_goal": "a2", "observation": OBS,
-            "partners": [{"index": 1, "goal": "b3"}], "seed": 1}  # fmt: skip
+    body = {
+        "env": "particle",
+        "ego_goal": "a2",
+        "observation": OBS,
+        "partners": [{"index": 1, "goal": "b3"}],
+        "seed": 1,
+    }
     return {**body, **extra}
 
 
@@ -123,9 +134,13 @@ class Server:
 
 def server_env(store_url: str, data_dir: Path, **extra: str) -> dict[str, str]:
     env = {k: v for k, v in os.environ.items() if not k.startswith("COEXIST_")}
-    env.update(COEXIST_STORE_URL=store_url, COEXIST_ADMIN_TOKEN=ADMIN_TOKEN,
-               COEXIST_DATA_DIR=str(data_dir), COEXIST_LOG_FORMAT="json",
-               COEXIST_REFRESH_INTERVAL_S="0.3")  # fmt: skip
+    env.update(
+        COEXIST_STORE_URL=store_url,
+        COEXIST_ADMIN_TOKEN=ADMIN_TOKEN,
+        COEXIST_DATA_DIR=str(data_dir),
+        COEXIST_LOG_FORMAT="json",
+        COEXIST_REFRESH_INTERVAL_S="0.3",
+    )
     env.update(extra)
     return env
 
@@ -142,8 +157,16 @@ def start_server(
     """`coexist <args> --host 127.0.0.1 --http-port P --grpc-port Q` (the last occurrence of an
     option wins, so `args` may carry other values for them); `launcher` runs `coexist`."""
     http_port, grpc_port = free_port(), free_port()
-    cmd = [*launcher, *args, "--host", "127.0.0.1",
-           "--http-port", str(http_port), "--grpc-port", str(grpc_port)]  # fmt: skip
+    cmd = [
+        *launcher,
+        *args,
+        "--host",
+        "127.0.0.1",
+        "--http-port",
+        str(http_port),
+        "--grpc-port",
+        str(grpc_port),
+    ]
     log_path = log_dir / f"{name}.log"
     with open(log_dir / f"{name}.out", "wb") as out, open(log_path, "wb") as err:
         process = subprocess.Popen(cmd, env=env, cwd=cwd, stdout=out, stderr=err)

@@ -45,13 +45,16 @@ def build_session_zoo(path: Path) -> str:
         ):
             for k, goal in enumerate(GOAL_IDS):
                 name = naming("particle", goal)
-                store.create_model(name, env="particle", kind=kind, goals=(goal,), obs_dim=8,
-                                   n_actions=5)  # fmt: skip
+                store.create_model(
+                    name, env="particle", kind=kind, goals=(goal,), obs_dim=8, n_actions=5
+                )
                 store.register_version(
-                    name, spec=spec, weights=_weights(spec, offset + k),
+                    name,
+                    spec=spec,
+                    weights=_weights(spec, offset + k),
                     lineage=Lineage(config={"alpha": ALPHA}, seed=k, registered_by="pytest"),
                     aliases=("latest", "production"),
-                )  # fmt: skip
+                )
     return url
 
 

@@ -44,12 +44,14 @@ def store_url(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[str]:
 def client(store_url: str, tmp_path: Path) -> Iterator[TestClient]:
     settings = Settings(admin_token=SecretStr(TOKEN), grpc_enabled=False, data_dir=tmp_path)
     with SqlModelStore(store_url) as store:
-        store.create_model(NAME, env="particle", kind="task", goals=("a2",), obs_dim=8,
-                           n_actions=5)  # fmt: skip
+        store.create_model(NAME, env="particle", kind="task", goals=("a2",), obs_dim=8, n_actions=5)
         store.register_version(
-            NAME, spec=SPEC, weights=qnet_weights(SPEC), lineage=test_lineage(),
+            NAME,
+            spec=SPEC,
+            weights=qnet_weights(SPEC),
+            lineage=test_lineage(),
             aliases=("latest", "production"),
-        )  # fmt: skip
+        )
         with TestClient(create_app(settings, store=store)) as test_client:
             yield test_client
 
@@ -85,8 +87,14 @@ def test_event_ids_past_64_bits_are_422(client: TestClient) -> None:
 
 
 def test_model_sizes_past_the_columns_are_422(client: TestClient) -> None:
-    body = {"name": "particle/task/b3", "env": "particle", "kind": "task", "goals": ["b3"],
-            "obs_dim": PAST_POSTGRES, "n_actions": 5}  # fmt: skip
+    body = {
+        "name": "particle/task/b3",
+        "env": "particle",
+        "kind": "task",
+        "goals": ["b3"],
+        "obs_dim": PAST_POSTGRES,
+        "n_actions": 5,
+    }
     _error(client.post("/v1/registry/models", json=body, headers=AUTH), 422, "obs_dim")
 
 

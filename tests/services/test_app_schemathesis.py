@@ -42,9 +42,11 @@ RAN: Counter[str] = Counter()  # cases run, per configuration
 
 def _app(require_read_token: bool) -> FastAPI:
     config = Settings(
-        admin_token=SecretStr(ADMIN_TOKEN), require_read_token=require_read_token,
-        grpc_enabled=False, max_sessions=64,
-    )  # fmt: skip
+        admin_token=SecretStr(ADMIN_TOKEN),
+        require_read_token=require_read_token,
+        grpc_enabled=False,
+        max_sessions=64,
+    )
     return create_app(config)
 
 

@@ -28,8 +28,13 @@ def test_server_answers_rest_and_grpc_and_reports_metrics(tiny_zoo_store: SqlMod
         assert ready.status_code == 200, ready.text
         assert ready.json()["models_loaded"] > 0  # warm-up loaded the production networks
 
-        body = {"env": "particle", "ego_goal": "a2", "observation": OBS,
-                "partners": [{"index": 1, "goal": "b3"}], "seed": 1}  # fmt: skip
+        body = {
+            "env": "particle",
+            "ego_goal": "a2",
+            "observation": OBS,
+            "partners": [{"index": 1, "goal": "b3"}],
+            "seed": 1,
+        }
         act = client.post("/v1/act", json=body)
         assert act.status_code == 200, act.text
         assert abs(sum(act.json()["probs"]) - 1.0) < 1e-9

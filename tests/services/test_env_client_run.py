@@ -48,9 +48,13 @@ def reference_episode(engine: InferenceEngine, episode: int, seed: int, steps: i
         actions = {}
         for i, agent in enumerate(env.possible_agents):
             request = ActRequest(
-                "particle", GOALS[i], obs[agent][None], partners if i == 0 else (),
-                method=DEFAULT_METHOD if i == 0 else "sl", seed=agent_seed(seed, episode, i) + t,
-            )  # fmt: skip
+                "particle",
+                GOALS[i],
+                obs[agent][None],
+                partners if i == 0 else (),
+                method=DEFAULT_METHOD if i == 0 else "sl",
+                seed=agent_seed(seed, episode, i) + t,
+            )
             actions[agent] = engine.act(request)[0].action
         obs, rewards, _, _, infos = env.step(actions)
         returns += [rewards[a] for a in env.possible_agents]
@@ -60,8 +64,13 @@ def reference_episode(engine: InferenceEngine, episode: int, seed: int, steps: i
 
 def test_both_transports_run_the_documented_episodes(servers: tuple[LiveServer, str]) -> None:
     live, url = servers
-    kwargs: dict[str, Any] = {"ego_goal": GOALS[0], "partner_goals": GOALS[1:], "episodes": 2,
-                              "seed": 3, "max_steps": 6}  # fmt: skip
+    kwargs: dict[str, Any] = {
+        "ego_goal": GOALS[0],
+        "partner_goals": GOALS[1:],
+        "episodes": 2,
+        "seed": 3,
+        "max_steps": 6,
+    }
     seen: list[EpisodeResult] = []
     with GrpcCoexistClient(live.target) as grpc_client:
         by_grpc = run_episodes(grpc_client, record_first=True, on_episode=seen.append, **kwargs)
@@ -100,17 +109,33 @@ def test_cli_run_prints_the_table_and_writes_the_gif(
     runner = CliRunner()
     result = runner.invoke(
         app,
-        ["run", "--server", f"grpc://{live.target}", "--ego", "a2", "--partners", "b3,c",
-         "--episodes", "2", "--max-steps", "4", "--seed", "1", "--gif", str(gif)],
-    )  # fmt: skip
+        [
+            "run",
+            "--server",
+            f"grpc://{live.target}",
+            "--ego",
+            "a2",
+            "--partners",
+            "b3,c",
+            "--episodes",
+            "2",
+            "--max-steps",
+            "4",
+            "--seed",
+            "1",
+            "--gif",
+            str(gif),
+        ],
+    )
     assert result.exit_code == 0, result.output
     for text in ("agent_0 (ego)", "agent_2", "team", "±", "episode length"):
         assert text in result.output
     with Image.open(gif) as image:
         assert getattr(image, "n_frames", 1) == 5  # the start plus 4 steps
 
-    over_http = runner.invoke(app, ["run", "--server", url, "--partners", "b3", "--episodes",
-                                    "1", "--max-steps", "3"])  # fmt: skip
+    over_http = runner.invoke(
+        app, ["run", "--server", url, "--partners", "b3", "--episodes", "1", "--max-steps", "3"]
+    )
     assert over_http.exit_code == 0, over_http.output
 
     bad = runner.invoke(app, ["run", "--server", url, "--ego", "zz", "--episodes", "1"])

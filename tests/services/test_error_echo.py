@@ -44,19 +44,53 @@ def _short_error(response: Any, status: int, field: str) -> str:
 ACT = {"env": "particle", "ego_goal": "a2", "observation": OBS}
 REST_CASES: list[tuple[str, str, str, dict[str, Any], int, str, str]] = [
     # (case, method, path, JSON body, status, field, the message's start)
-    ("goal", "POST", "/v1/act", {**ACT, "ego_goal": LONG}, 422, "ego_goal",
-     "ego_goal: unknown goal 'ggg"),
-    ("partner goal", "POST", "/v1/act",
-     {**ACT, "partners": [{"index": 1, "goal": LONG}]}, 422, "partners[0].goal",
-     "partners[0].goal: unknown goal 'ggg"),
-    ("pinned name", "POST", "/v1/act", {**ACT, "versions": {LONG: 1}}, 422, "versions",
-     "versions: "),
+    (
+        "goal",
+        "POST",
+        "/v1/act",
+        {**ACT, "ego_goal": LONG},
+        422,
+        "ego_goal",
+        "ego_goal: unknown goal 'ggg",
+    ),
+    (
+        "partner goal",
+        "POST",
+        "/v1/act",
+        {**ACT, "partners": [{"index": 1, "goal": LONG}]},
+        422,
+        "partners[0].goal",
+        "partners[0].goal: unknown goal 'ggg",
+    ),
+    (
+        "pinned name",
+        "POST",
+        "/v1/act",
+        {**ACT, "versions": {LONG: 1}},
+        422,
+        "versions",
+        "versions: ",
+    ),
     ("alias", "POST", "/v1/act", {**ACT, "alias": LONG}, 422, "alias", "alias: alias 'ggg"),
-    ("session id", "GET", f"/v1/sessions/{'s' * 20000}", {}, 404, "session_id",
-     "session_id: session 'sss"),
-    ("ref", "GET", f"/v1/registry/resolve?ref=particle/task/a2@{'a' * 20000}", {}, 422, "ref",
-     "ref: alias 'aaa"),
-]  # fmt: skip
+    (
+        "session id",
+        "GET",
+        f"/v1/sessions/{'s' * 20000}",
+        {},
+        404,
+        "session_id",
+        "session_id: session 'sss",
+    ),
+    (
+        "ref",
+        "GET",
+        f"/v1/registry/resolve?ref=particle/task/a2@{'a' * 20000}",
+        {},
+        422,
+        "ref",
+        "ref: alias 'aaa",
+    ),
+]
 
 
 @pytest.mark.parametrize(
@@ -65,9 +99,14 @@ REST_CASES: list[tuple[str, str, str, dict[str, Any], int, str, str]] = [
     ids=[case[0] for case in REST_CASES],
 )
 def test_rest_errors_quote_a_short_prefix(
-    client: TestClient, method: str, path: str, body: dict[str, Any], status: int, field: str,
+    client: TestClient,
+    method: str,
+    path: str,
+    body: dict[str, Any],
+    status: int,
+    field: str,
     start: str,
-) -> None:  # fmt: skip
+) -> None:
     response = client.request(method, path, json=body or None)
     assert _short_error(response, status, field).startswith(start)
 

@@ -31,8 +31,12 @@ def _value(metrics: str, sample: str) -> float:
 def test_grpc_calls_are_counted_and_timed(tiny_zoo_store: SqlModelStore) -> None:
     settings = Settings(admin_token=SecretStr("t0ken-for-the-tests-0123"), grpc_port=0)
     app = create_app(settings, store=tiny_zoo_store)
-    good = pb.ActRequest(env="particle", ego_goal="a2", observation=OBS,
-                         partners=[pb.PartnerSpec(index=1, goal="b3")])  # fmt: skip
+    good = pb.ActRequest(
+        env="particle",
+        ego_goal="a2",
+        observation=OBS,
+        partners=[pb.PartnerSpec(index=1, goal="b3")],
+    )
     bad = pb.ActRequest(env="particle", ego_goal="a2", observation=OBS[:5])
     with TestClient(app) as client:
         with grpc.insecure_channel(f"127.0.0.1:{app.state.grpc_port}") as channel:

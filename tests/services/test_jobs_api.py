@@ -139,10 +139,24 @@ def test_train_command_always_resumes() -> None:
     spec = JobSpec("joint", combos="a2+b3", seed=3, steps=50).validate()
     cmd = train_command(spec, "sqlite:////x.db", Path("/r/1"))
     assert cmd[1:] == [
-        "-m", "cli.main", "train", "joint", "--env", "particle", "--combos", "a2+b3",
-        "--seed", "3", "--steps", "50", "--store-url", "sqlite:////x.db", "--run-dir", "/r/1",
+        "-m",
+        "cli.main",
+        "train",
+        "joint",
+        "--env",
+        "particle",
+        "--combos",
+        "a2+b3",
+        "--seed",
+        "3",
+        "--steps",
+        "50",
+        "--store-url",
+        "sqlite:////x.db",
+        "--run-dir",
+        "/r/1",
         "--resume",
-    ]  # fmt: skip
+    ]
     with pytest.raises(InvalidArgument, match="goals"):
         JobSpec("impact", goals=" , ").validate()
 

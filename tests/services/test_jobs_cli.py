@@ -38,8 +38,20 @@ def _job_id(output: str) -> str:
 
 
 def test_submit_wait_exits_0_when_the_job_succeeds(server: str) -> None:
-    result = _jobs(server, "submit", "task", "--goals", "a2", "--seed", str(OK), "--steps", "20",
-                   "--wait", "--poll", "0.05")  # fmt: skip
+    result = _jobs(
+        server,
+        "submit",
+        "task",
+        "--goals",
+        "a2",
+        "--seed",
+        str(OK),
+        "--steps",
+        "20",
+        "--wait",
+        "--poll",
+        "0.05",
+    )
     assert result.exit_code == 0, result.output
     job_id = _job_id(result.stdout)
     assert "queued (train task --env particle --goals a2 --seed 0 --steps 20)" in result.stdout
@@ -47,8 +59,9 @@ def test_submit_wait_exits_0_when_the_job_succeeds(server: str) -> None:
 
 
 def test_submit_wait_exits_1_and_shows_the_log_when_the_job_fails(server: str) -> None:
-    result = _jobs(server, "submit", "impact", "--goals", "b3", "--seed", str(FAIL), "--wait",
-                   "--poll", "0.05")  # fmt: skip
+    result = _jobs(
+        server, "submit", "impact", "--goals", "b3", "--seed", str(FAIL), "--wait", "--poll", "0.05"
+    )
     assert result.exit_code == 1, result.output
     assert "failed after" in result.stdout and "exit code 3" in result.stdout
     assert "boom: the trainer failed" in result.stderr  # the log's last lines

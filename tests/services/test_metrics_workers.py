@@ -18,8 +18,12 @@ from services.grpc_api.gen.coexist.v1 import policy_pb2 as pb
 from services.grpc_api.gen.coexist.v1 import policy_pb2_grpc as pb_grpc
 
 OBS = [0.1, 0.4, 0.0, 0.0, 0.7, 0.6, 0.0, 0.0]
-ACT_BODY = {"env": "particle", "ego_goal": "a2", "observation": OBS,
-            "partners": [{"index": 1, "goal": "b3"}]}  # fmt: skip
+ACT_BODY = {
+    "env": "particle",
+    "ego_goal": "a2",
+    "observation": OBS,
+    "partners": [{"index": 1, "goal": "b3"}],
+}
 HTTP_SAMPLE = 'coexist_http_requests_total{method="POST",route="/v1/act",status="200"}'
 GRPC_SAMPLE = 'coexist_grpc_requests_total{code="OK",method="/coexist.v1.PolicyService/Act"}'
 
@@ -61,8 +65,12 @@ def test_a_scrape_counts_the_requests_of_every_worker(
         assert "counter_999999.db" not in writers
         with grpc.insecure_channel(server.grpc_target) as channel:
             stub = pb_grpc.PolicyServiceStub(channel)
-            request = pb.ActRequest(env="particle", ego_goal="a2", observation=OBS,
-                                    partners=[pb.PartnerSpec(index=1, goal="b3")])  # fmt: skip
+            request = pb.ActRequest(
+                env="particle",
+                ego_goal="a2",
+                observation=OBS,
+                partners=[pb.PartnerSpec(index=1, goal="b3")],
+            )
             for _ in range(5):
                 stub.Act(request, timeout=30)
         for _ in range(6):  # new connections: scrapes answered by either worker

@@ -168,8 +168,9 @@ def test_sigterm_lets_an_in_flight_request_finish(zoo_url: str, tmp_path: Path) 
         url = f"{server.http_url}/v1/act:batch"
 
         def post() -> None:
-            result["resp"] = httpx.post(url, content=slow_upload(), timeout=30,
-                                        headers={"Content-Type": "application/json"})  # fmt: skip
+            result["resp"] = httpx.post(
+                url, content=slow_upload(), timeout=30, headers={"Content-Type": "application/json"}
+            )
 
         poster = threading.Thread(target=post)
         poster.start()

@@ -45,10 +45,21 @@ def test_serve_answers_rest_and_grpc_then_stops_gracefully(
     """With two uvicorn workers both bind the gRPC port too (SO_REUSEPORT)."""
     http_port, grpc_port = _free_port(), _free_port()
     env = {**os.environ, "COEXIST_DEV_MODE": "1", "COEXIST_DATA_DIR": str(tmp_path)}
-    cmd = [sys.executable, "-m", "cli.main", "serve", "--no-bootstrap",
-           "--http-port", str(http_port), "--grpc-port", str(grpc_port),
-           "--workers", str(workers),
-           "--store-url", tiny_zoo_store.url.render_as_string(hide_password=False)]  # fmt: skip
+    cmd = [
+        sys.executable,
+        "-m",
+        "cli.main",
+        "serve",
+        "--no-bootstrap",
+        "--http-port",
+        str(http_port),
+        "--grpc-port",
+        str(grpc_port),
+        "--workers",
+        str(workers),
+        "--store-url",
+        tiny_zoo_store.url.render_as_string(hide_password=False),
+    ]
     process = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     try:
         url = f"http://127.0.0.1:{http_port}"

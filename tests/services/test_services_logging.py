@@ -79,8 +79,13 @@ def test_a_client_request_id_is_echoed_and_on_every_line(
     resp = client.get("/v1/things/items/x7/-/detail", headers={"X-Request-ID": "req-42.a:b"})
     assert resp.status_code == 200 and resp.headers["x-request-id"] == "req-42.a:b"
     handler_line, access = _records(captured)
-    assert handler_line == {**handler_line, "msg": "looking at x7", "level": "WARNING",
-                            "logger": "coexist.test.handler", "request_id": "req-42.a:b"}  # fmt: skip
+    assert handler_line == {
+        **handler_line,
+        "msg": "looking at x7",
+        "level": "WARNING",
+        "logger": "coexist.test.handler",
+        "request_id": "req-42.a:b",
+    }
     assert access["logger"] == "coexist.access" and access["request_id"] == "req-42.a:b"
     assert access["method"] == "GET" and access["status"] == 200
     assert access["route"] == "/v1/things/items/{item}/-/detail"  # with the router's prefix

@@ -28,9 +28,21 @@ def test_sessions_need_one_worker(
     private = tmp_path / "models.db"  # the server may write (migrations): a private copy
     shutil.copy(session_zoo_template(tmp_path_factory), private)
     store_url = f"sqlite:///{private}"
-    cmd = [sys.executable, "-m", "cli.main", "serve", "--no-bootstrap",
-           "--http-port", str(http_port), "--grpc-port", str(grpc_port),
-           "--workers", str(workers), "--store-url", store_url]  # fmt: skip
+    cmd = [
+        sys.executable,
+        "-m",
+        "cli.main",
+        "serve",
+        "--no-bootstrap",
+        "--http-port",
+        str(http_port),
+        "--grpc-port",
+        str(grpc_port),
+        "--workers",
+        str(workers),
+        "--store-url",
+        store_url,
+    ]
     process = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     try:
         url = f"http://127.0.0.1:{http_port}"

@@ -48,7 +48,9 @@ def test_serve_refuses_a_weak_token(tmp_path: Path) -> None:
     env.update(COEXIST_DATA_DIR=str(tmp_path), COEXIST_ADMIN_TOKEN="dev-token ")
     result = subprocess.run(
         [sys.executable, "-m", "cli.main", "serve", "--no-bootstrap"],
-        env=env, capture_output=True, timeout=120,
-    )  # fmt: skip
+        env=env,
+        capture_output=True,
+        timeout=120,
+    )
     assert result.returncode == 2, result.stderr.decode()[-2000:]
     assert b"COEXIST_ADMIN_TOKEN has 10 characters, fewer than 16" in result.stderr

@@ -27,8 +27,11 @@ def test_rest_and_grpc_speak_tls_and_the_sdk_follows(
 ) -> None:
     tls = make_tls_files(tmp_path / "tls")
     url = zoo_copy(_tiny_zoo_template, tmp_path / "store")
-    env = {"COEXIST_TLS_CERT_FILE": str(tls.cert), "COEXIST_TLS_KEY_FILE": str(tls.key),
-           "COEXIST_READ_TOKEN": READ_TOKEN}  # fmt: skip
+    env = {
+        "COEXIST_TLS_CERT_FILE": str(tls.cert),
+        "COEXIST_TLS_KEY_FILE": str(tls.key),
+        "COEXIST_READ_TOKEN": READ_TOKEN,
+    }
     with serving(tmp_path, url, ca=tls.ca, **env) as server:
         https = server.http_url.replace("http://", "https://")
         with (
@@ -56,11 +59,14 @@ def test_rest_and_grpc_speak_tls_and_the_sdk_follows(
 def test_half_a_tls_pair_stops_the_server(tmp_path: Path) -> None:
     tls = make_tls_files(tmp_path / "tls")
     env = {k: v for k, v in os.environ.items() if not k.startswith("COEXIST_")}
-    env.update(COEXIST_DATA_DIR=str(tmp_path), COEXIST_DEV_MODE="1",
-               COEXIST_TLS_CERT_FILE=str(tls.cert))  # fmt: skip
+    env.update(
+        COEXIST_DATA_DIR=str(tmp_path), COEXIST_DEV_MODE="1", COEXIST_TLS_CERT_FILE=str(tls.cert)
+    )
     result = subprocess.run(
         [sys.executable, "-m", "cli.main", "serve", "--no-bootstrap"],
-        env=env, capture_output=True, timeout=120,
-    )  # fmt: skip
+        env=env,
+        capture_output=True,
+        timeout=120,
+    )
     assert result.returncode == 2, result.stderr.decode()[-2000:]
     assert b"COEXIST_TLS_CERT_FILE and COEXIST_TLS_KEY_FILE go together" in result.stderr

@@ -38,10 +38,12 @@ def server(tmp_path_factory: pytest.TempPathFactory, _tiny_zoo_template: Path) -
     directory = tmp_path_factory.mktemp("tokens")
     url = zoo_copy(_tiny_zoo_template, directory / "store")
     env = {
-        "COEXIST_REQUIRE_READ_TOKEN": "1", "COEXIST_READ_TOKEN": READ_TOKEN,
-        "COEXIST_MAX_SESSIONS": "10", "COEXIST_MAX_SESSIONS_PER_CLIENT": str(PER_CLIENT),
+        "COEXIST_REQUIRE_READ_TOKEN": "1",
+        "COEXIST_READ_TOKEN": READ_TOKEN,
+        "COEXIST_MAX_SESSIONS": "10",
+        "COEXIST_MAX_SESSIONS_PER_CLIENT": str(PER_CLIENT),
         "COEXIST_SESSION_TTL_S": str(TTL_S),
-    }  # fmt: skip
+    }
     with serving(directory, url, **env) as running:
         yield running
 
@@ -89,19 +91,23 @@ def _grpc_calls(channel: grpc.Channel, metadata: Any) -> dict[str, Any]:
     stub = pb_grpc.PolicyServiceStub(channel)
     act = pb.ActRequest(env="particle", ego_goal="a2", observation=OBS)
     batch = pb.ActBatchRequest(env="particle", ego_goal="a2", observations=[pb.Vector(values=OBS)])
-    episode = pb.EpisodeStep(settings=pb.EpisodeSettings(env="particle", ego_goal="a2"),
-                             observation=OBS)  # fmt: skip
+    episode = pb.EpisodeStep(
+        settings=pb.EpisodeSettings(env="particle", ego_goal="a2"), observation=OBS
+    )
     reflect = reflection_pb2_grpc.ServerReflectionStub(channel)
     calls = {
         "Act": lambda: stub.Act(act, metadata=metadata, timeout=10),
         "ActBatch": lambda: stub.ActBatch(batch, metadata=metadata, timeout=10),
         "ListEnvs": lambda: stub.ListEnvs(pb.ListEnvsRequest(), metadata=metadata, timeout=10),
         "Episode": lambda: list(stub.Episode(iter([episode]), metadata=metadata, timeout=10)),
-        "reflection": lambda: list(reflect.ServerReflectionInfo(
-            iter([reflection_pb2.ServerReflectionRequest(list_services="")]),
-            metadata=metadata, timeout=10,
-        )),
-    }  # fmt: skip
+        "reflection": lambda: list(
+            reflect.ServerReflectionInfo(
+                iter([reflection_pb2.ServerReflectionRequest(list_services="")]),
+                metadata=metadata,
+                timeout=10,
+            )
+        ),
+    }
     outcomes: dict[str, Any] = {}
     for name, call in calls.items():
         try:
@@ -144,9 +150,11 @@ def test_sessions_are_bounded_per_client(server: Server) -> None:
     made: list[tuple[httpx.Client, str]] = []
     here = httpx.Client(base_url=server.http_url, headers=READ, timeout=30)
     there = httpx.Client(
-        base_url=server.http_url, headers=READ, timeout=30,
+        base_url=server.http_url,
+        headers=READ,
+        timeout=30,
         transport=httpx.HTTPTransport(local_address="127.0.0.2"),
-    )  # fmt: skip
+    )
     try:
         for _ in range(PER_CLIENT):
             answer = here.post("/v1/sessions", json=SESSION)

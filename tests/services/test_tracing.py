@@ -24,8 +24,12 @@ from services.settings import Settings
 from services.tracing import TRACER_NAME
 
 OBS = [0.1, 0.4, 0.0, 0.0, 0.7, 0.6, 0.0, 0.0]
-BODY = {"env": "particle", "ego_goal": "a2", "observation": OBS,
-        "partners": [{"index": 1, "goal": "b3"}]}  # fmt: skip
+BODY = {
+    "env": "particle",
+    "ego_goal": "a2",
+    "observation": OBS,
+    "partners": [{"index": 1, "goal": "b3"}],
+}
 SETTINGS = {"admin_token": SecretStr("t0ken-for-the-tests-0123"), "grpc_port": 0}
 
 
@@ -74,8 +78,9 @@ def test_a_rest_act_traces_into_the_engine_and_the_store(
     loads = _children(spans, act)
     assert loads and all(s.name == "store.load_weights" for s in loads)
     assert {s.attributes["coexist.model"] for s in loads if s.attributes} == {
-        "particle/task/a2", "particle/impact/b3"
-    }  # fmt: skip
+        "particle/task/a2",
+        "particle/impact/b3",
+    }
     assert len({s.context.trace_id for s in spans if s.context}) == 1  # one trace
 
     exporter.clear()  # the weights are cached now: an act without loads
@@ -88,8 +93,12 @@ def test_a_grpc_act_traces_into_the_engine(
     traced: tuple[TestClient, int], exporter: InMemorySpanExporter
 ) -> None:
     _, port = traced
-    request = pb.ActRequest(env="particle", ego_goal="a2", observation=OBS,
-                            partners=[pb.PartnerSpec(index=1, goal="b3")])  # fmt: skip
+    request = pb.ActRequest(
+        env="particle",
+        ego_goal="a2",
+        observation=OBS,
+        partners=[pb.PartnerSpec(index=1, goal="b3")],
+    )
     with grpc.insecure_channel(f"127.0.0.1:{port}") as channel:
         pb_grpc.PolicyServiceStub(channel).Act(request, timeout=10)
         with pytest.raises(grpc.RpcError):

@@ -56,8 +56,9 @@ class TinyZoo:
     alpha: float = ZOO_ALPHA
     no_alpha_task: str = NO_ALPHA_TASK
 
-    def register(self, name: str, kind: str, goals: tuple[str, ...], spec: QNetSpec, seed: int,
-                 **kwargs: Any) -> int:  # fmt: skip
+    def register(
+        self, name: str, kind: str, goals: tuple[str, ...], spec: QNetSpec, seed: int, **kwargs: Any
+    ) -> int:
         """Register one more version in the zoo's store (see `register`); its number."""
         return register(self.store, name, kind, goals, spec, seed, **kwargs)
 
@@ -113,8 +114,15 @@ def _build_zoo(url: str) -> None:
             register(
                 store, task_model_name("particle", goal), "task", (goal,), PAIR_SPEC, k, alpha=alpha
             )
-        register(store, task_model_name("particle", "a2"), "task", ("a2",), PAIR_SPEC, 99,
-                 aliases=("latest",))  # fmt: skip
+        register(
+            store,
+            task_model_name("particle", "a2"),
+            "task",
+            ("a2",),
+            PAIR_SPEC,
+            99,
+            aliases=("latest",),
+        )
         for k, goal in enumerate(IMPACT_GOALS):
             register(
                 store, impact_model_name("particle", goal), "impact", (goal,), PAIR_SPEC, 100 + k

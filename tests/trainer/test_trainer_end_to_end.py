@@ -115,9 +115,15 @@ def test_goals_that_fail_their_gate_are_retrained_once_with_a_new_seed(tmp_path:
     # each, in two batches: trainer.zoo.retry_batches), and fails again
     cfg = replace(TaskConfig(), **{**TINY, "total_steps": 5, "warmup_steps": 1})
     batches = run_tasks(
-        store, ["a2", "b3"], cfg, seed=1, goals_per_batch=2, run=run,
-        progress=_no_progress, gate_retries=1,
-    )  # fmt: skip
+        store,
+        ["a2", "b3"],
+        cfg,
+        seed=1,
+        goals_per_batch=2,
+        run=run,
+        progress=_no_progress,
+        gate_retries=1,
+    )
     assert [b.seed for b in batches] == [1, 1 + 7919, 1 + 7919 + 1]
     assert [b.goals for b in batches] == [
         [("a2",), ("b3",)],
@@ -129,9 +135,15 @@ def test_goals_that_fail_their_gate_are_retrained_once_with_a_new_seed(tmp_path:
     assert "production" not in store.get_model("particle/task/b3").aliases
     assert set(run.done) == {"task:a2,b3", "task-retry-1:0", "task-retry-1:1", "task-retry-1"}
     again = run_tasks(
-        store, ["a2", "b3"], cfg, seed=1, goals_per_batch=2, run=run,
-        progress=_no_progress, gate_retries=1,
-    )  # fmt: skip
+        store,
+        ["a2", "b3"],
+        cfg,
+        seed=1,
+        goals_per_batch=2,
+        run=run,
+        progress=_no_progress,
+        gate_retries=1,
+    )
     assert again == []  # resumed: neither the batch nor its retry runs twice
     store.close()
 

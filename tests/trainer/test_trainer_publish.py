@@ -30,14 +30,23 @@ def test_each_version_stores_its_members_column_of_the_curve(tmp_path: Path) -> 
         stored_a2 = store.get_version(a2.name, a2.version).lineage.metrics
         stored_b3 = store.get_version(b3.name, b3.version).lineage.metrics
     assert stored_a2["training_curve"] == {
-        "steps": [100, 200, 300], "mean_return": [-9.0, -4.0, -2.5], "loss": [1.0, 0.5, 0.25],
-    }  # fmt: skip
+        "steps": [100, 200, 300],
+        "mean_return": [-9.0, -4.0, -2.5],
+        "loss": [1.0, 0.5, 0.25],
+    }
     assert stored_b3["training_curve"] == {
-        "steps": [100, 200, 300], "mean_return": [-7.5, -8.0, -6.0], "loss": [2.0, 1.5, 1.25],
-    }  # fmt: skip
+        "steps": [100, 200, 300],
+        "mean_return": [-7.5, -8.0, -6.0],
+        "loss": [2.0, 1.5, 1.25],
+    }
     # the summary agrees with the curve it summarises
-    assert stored_b3["curve"] == {"first": -7.5, "best": -6.0, "final": -6.0, "points": 3,
-                                  "steps": 300}  # fmt: skip
+    assert stored_b3["curve"] == {
+        "first": -7.5,
+        "best": -6.0,
+        "final": -6.0,
+        "points": 3,
+        "steps": 300,
+    }
 
 
 def test_a_run_too_short_for_a_curve_point_stores_no_curve(tmp_path: Path) -> None:

@@ -121,9 +121,10 @@ def test_hand_written_gradient_matches_autograd() -> None:
     (0.5 * (target_GB - q_GB).pow(2).mean(dim=1)).sum().backward()
     stats = learner.set_gradients(batch)
     np.testing.assert_allclose(
-        stats.loss_G.numpy(), (0.5 * (target_GB - q_GB).pow(2).mean(dim=1)).detach().numpy(),
+        stats.loss_G.numpy(),
+        (0.5 * (target_GB - q_GB).pow(2).mean(dim=1)).detach().numpy(),
         rtol=1e-6,
-    )  # fmt: skip
+    )
     for (name, mine), theirs in zip(
         learner.online.named_parameters(), reference.parameters(), strict=True
     ):

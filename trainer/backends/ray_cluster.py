@@ -108,10 +108,17 @@ def run_on_ray(
         label = f"ray: {len(jobs)} {jobs[0].kind} batch{'es' if len(jobs) > 1 else ''}"
         advance = progress(label, steps * len(jobs)) if progress else None
         pending: dict[Any, BatchJob] = {
-            remote_train.remote(url, job, config, job_key=f"{job_id}/{job.key}", env=env,
-                                serve_alias=serve_alias, on_register=on_register): job
+            remote_train.remote(
+                url,
+                job,
+                config,
+                job_key=f"{job_id}/{job.key}",
+                env=env,
+                serve_alias=serve_alias,
+                on_register=on_register,
+            ): job
             for job in jobs
-        }  # fmt: skip
+        }
         finished: list[tuple[int, BatchOutcome]] = []
         try:
             while pending:

@@ -164,9 +164,13 @@ class JobRunner:
                 out.write(f"--- {stopped}\n".encode())
                 out.flush()
             proc = subprocess.Popen(
-                leashed(cmd, run_dir), stdout=out, stderr=subprocess.STDOUT,
-                stdin=subprocess.DEVNULL, cwd=_PROJECT_ROOT, start_new_session=True,
-            )  # fmt: skip
+                leashed(cmd, run_dir),
+                stdout=out,
+                stderr=subprocess.STDOUT,
+                stdin=subprocess.DEVNULL,
+                cwd=_PROJECT_ROOT,
+                start_new_session=True,
+            )
             if not self._watch(job, proc, out):
                 return
         self.table.finish(job.id, proc.returncode, read_log(run_dir, 8_000), job.attempts)
@@ -200,8 +204,9 @@ class JobRunner:
                 out.write(f"--- lease lost ({why}): stopping process group {proc.pid}\n".encode())
                 out.flush()
                 how = terminate(proc, self.cancel_grace_s)
-                log.warning("job %s: attempt %d lost its lease (%s): %s", job.id, job.attempts,
-                            why, how)  # fmt: skip
+                log.warning(
+                    "job %s: attempt %d lost its lease (%s): %s", job.id, job.attempts, why, how
+                )
                 return False
         return True
 

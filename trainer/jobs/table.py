@@ -112,9 +112,15 @@ class JobTable:
     def submit(self, spec: JobSpec, run_root: str) -> Job:
         job_id = uuid.uuid4().hex
         row = TrainingJobRow(
-            id=job_id, kind=spec.kind, args=spec.to_json(), status=JobStatus.queued.value,
-            created_at=_now(), attempts=0, run_dir=f"{run_root}/{job_id}", log_tail="",
-        )  # fmt: skip
+            id=job_id,
+            kind=spec.kind,
+            args=spec.to_json(),
+            status=JobStatus.queued.value,
+            created_at=_now(),
+            attempts=0,
+            run_dir=f"{run_root}/{job_id}",
+            log_tail="",
+        )
         with self._write() as s, s.begin():
             s.add(row)
         return self.get(job_id)
@@ -145,9 +151,16 @@ class JobTable:
             return None
         with self._write() as s, s.begin():
             now = _now()
-            claimed = _set(s, job_id, JobStatus.queued, None, status=JobStatus.running.value,
-                           started_at=now, heartbeat_at=now,
-                           attempts=TrainingJobRow.attempts + 1)  # fmt: skip
+            claimed = _set(
+                s,
+                job_id,
+                JobStatus.queued,
+                None,
+                status=JobStatus.running.value,
+                started_at=now,
+                heartbeat_at=now,
+                attempts=TrainingJobRow.attempts + 1,
+            )
         return self.get(job_id) if claimed else None
 
     def heartbeat(self, job_id: str, attempt: int | None = None) -> bool:
@@ -172,8 +185,16 @@ class JobTable:
         status = JobStatus.succeeded if exit_code == 0 else JobStatus.failed
         with self._write() as s, s.begin():
             for expected in (JobStatus.running, JobStatus.cancelling):
-                if _set(s, job_id, expected, attempt, status=status.value, exit_code=exit_code,
-                        finished_at=_now(), log_tail=log_tail[-LOG_TAIL_CHARS:]):  # fmt: skip
+                if _set(
+                    s,
+                    job_id,
+                    expected,
+                    attempt,
+                    status=status.value,
+                    exit_code=exit_code,
+                    finished_at=_now(),
+                    log_tail=log_tail[-LOG_TAIL_CHARS:],
+                ):
                     return
 
     def cancel(self, job_id: str) -> Job:
@@ -203,9 +224,16 @@ class JobTable:
     ) -> None:
         """The runner stopped a `cancelling` job's subprocess (exit code: -signal on POSIX)."""
         with self._write() as s, s.begin():
-            _set(s, job_id, JobStatus.cancelling, attempt, status=JobStatus.cancelled.value,
-                 exit_code=exit_code, finished_at=_now(),
-                 log_tail=log_tail[-LOG_TAIL_CHARS:])  # fmt: skip
+            _set(
+                s,
+                job_id,
+                JobStatus.cancelling,
+                attempt,
+                status=JobStatus.cancelled.value,
+                exit_code=exit_code,
+                finished_at=_now(),
+                log_tail=log_tail[-LOG_TAIL_CHARS:],
+            )
 
     def release(self, job_id: str, attempt: int | None = None) -> None:
         """This process stops while the job runs: leave it for the next one (stale at once)."""
@@ -258,11 +286,17 @@ def _set(
 
 def _job(row: TrainingJobRow) -> Job:
     return Job(
-        id=row.id, spec=JobSpec.from_json(row.args), status=JobStatus(row.status),
-        created_at=row.created_at, started_at=row.started_at, finished_at=row.finished_at,
-        exit_code=row.exit_code, attempts=row.attempts, run_dir=row.run_dir,
+        id=row.id,
+        spec=JobSpec.from_json(row.args),
+        status=JobStatus(row.status),
+        created_at=row.created_at,
+        started_at=row.started_at,
+        finished_at=row.finished_at,
+        exit_code=row.exit_code,
+        attempts=row.attempts,
+        run_dir=row.run_dir,
         log_tail=row.log_tail,
-    )  # fmt: skip
+    )
 
 
 def _now() -> datetime:

@@ -28,9 +28,15 @@ def test_is_a_domain() -> None:
 def test_observation_layout() -> None:
     layout = PARTICLE.observation_layout(2)
     assert layout == [
-        "self.x", "self.y", "self.vx", "self.vy",
-        "other1.x", "other1.y", "other1.vx", "other1.vy",
-    ]  # fmt: skip
+        "self.x",
+        "self.y",
+        "self.vx",
+        "self.vy",
+        "other1.x",
+        "other1.y",
+        "other1.vx",
+        "other1.vy",
+    ]
     assert len(PARTICLE.observation_layout(5)) == 20
 
 

@@ -41,8 +41,9 @@ def test_agents_stand_where_the_env_state_puts_them() -> None:
     env.reset(options={"state": start})
     frame = PARTICLE.scene_frame(env)
     assert [(a.index, a.x, a.y) for a in frame.agents] == [
-        (0, pytest.approx(0.1), pytest.approx(0.5)), (1, pytest.approx(0.7), pytest.approx(0.2)),
-    ]  # fmt: skip
+        (0, pytest.approx(0.1), pytest.approx(0.5)),
+        (1, pytest.approx(0.7), pytest.approx(0.2)),
+    ]
     # agent 0 starts inside a2's target area (column a, row 2), agent 1 outside b3's
     assert frame.agents[0].status == "in target" and frame.agents[1].status == ""
     env.step({"agent_0": 4, "agent_1": 1})  # right, up

@@ -23,9 +23,16 @@ from trainer.publish import publish_batch
 from trainer.zoo import load_task_nets
 
 TINY = dict(
-    total_steps=20, warmup_steps=5, envs_per_net=2, batch_size=16, hidden=(16,),
-    replay_size=500, pool_episodes=2, pool_steps=5, episode_steps=20,
-)  # fmt: skip
+    total_steps=20,
+    warmup_steps=5,
+    envs_per_net=2,
+    batch_size=16,
+    hidden=(16,),
+    replay_size=500,
+    pool_episodes=2,
+    pool_steps=5,
+    episode_steps=20,
+)
 FIG8 = ["TomatoLettuceSalad", "CarrotBanana"]
 
 
@@ -66,10 +73,18 @@ def test_paired_episodes_through_the_engine(store: SqlModelStore, tmp_path: Path
     # common random numbers: SL's episodes do not depend on what else is evaluated beside them
     alone = evaluate_cooking(engine, store, episodes=3, seed=4, max_steps=15, methods=("sl",))
     np.testing.assert_array_equal(alone.returns_MEN[0], results.returns_MEN[1])
-    first = [s.agent_rc for s in evaluate_cooking(engine, store, episodes=3, seed=4, max_steps=15,
-                                                   methods=("sl",), record="sl").trajectory]  # fmt: skip
-    again = [s.agent_rc for s in evaluate_cooking(engine, store, episodes=3, seed=4, max_steps=15,
-                                                   methods=("aail", "sl"), record="sl").trajectory]  # fmt: skip
+    first = [
+        s.agent_rc
+        for s in evaluate_cooking(
+            engine, store, episodes=3, seed=4, max_steps=15, methods=("sl",), record="sl"
+        ).trajectory
+    ]
+    again = [
+        s.agent_rc
+        for s in evaluate_cooking(
+            engine, store, episodes=3, seed=4, max_steps=15, methods=("aail", "sl"), record="sl"
+        ).trajectory
+    ]
     assert all((a == b).all() for a, b in zip(first, again, strict=True))
 
     text = results.to_markdown()

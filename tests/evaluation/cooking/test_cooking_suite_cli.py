@@ -29,9 +29,16 @@ from trainer.learners import train_impacts, train_tasks
 from trainer.publish import publish_batch
 
 TINY = dict(
-    total_steps=20, warmup_steps=5, envs_per_net=2, batch_size=16, hidden=(16,),
-    replay_size=500, pool_episodes=2, pool_steps=5, episode_steps=20,
-)  # fmt: skip
+    total_steps=20,
+    warmup_steps=5,
+    envs_per_net=2,
+    batch_size=16,
+    hidden=(16,),
+    replay_size=500,
+    pool_episodes=2,
+    pool_steps=5,
+    episode_steps=20,
+)
 FIG8 = ["TomatoLettuceSalad", "CarrotBanana"]
 
 
@@ -45,8 +52,9 @@ def store_url(tmp_path_factory: pytest.TempPathFactory) -> str:
         publish_batch(store, tasks, env="cooking")
         impact_cfg = replace(CookingImpactConfig(), **TINY)  # type: ignore[arg-type]
         partner_nets = train_tasks(["CarrotBanana"], task_cfg, seed=2, evaluate=False)
-        impact = train_impacts(["CarrotBanana"], partner_nets.nets, impact_cfg, seed=1,
-                               evaluate=False)  # fmt: skip
+        impact = train_impacts(
+            ["CarrotBanana"], partner_nets.nets, impact_cfg, seed=1, evaluate=False
+        )
         publish_batch(store, impact, env="cooking")
         publish_batch(store, partner_nets, env="cooking", serve_alias="partners")
     return url
@@ -56,8 +64,21 @@ def test_cooking_suite_writes_results_and_the_paper_section(store_url: str, tmp_
     out, paper = tmp_path / "cooking", tmp_path / "paper" / "REPORT.md"
     paper.parent.mkdir()
     paper.write_text("# Report\n\n## Verdicts\n\nyes\n\n## Discussion\n\nwords\n")
-    args = ["eval", "--suite", "cooking", "--store-url", store_url, "--episodes", "3",
-            "--max-steps", "12", "--seed", "5", "--out", str(out)]  # fmt: skip
+    args = [
+        "eval",
+        "--suite",
+        "cooking",
+        "--store-url",
+        store_url,
+        "--episodes",
+        "3",
+        "--max-steps",
+        "12",
+        "--seed",
+        "5",
+        "--out",
+        str(out),
+    ]
     result = CliRunner().invoke(app, args)
     assert result.exit_code == 0, result.output
     data = json.loads((out / "results.json").read_text())
@@ -65,8 +86,13 @@ def test_cooking_suite_writes_results_and_the_paper_section(store_url: str, tmp_
     assert data["command"].startswith("coexist eval --suite cooking --store-url")
     assert "--episodes 3 --max-steps 12 --seed 5" in data["command"]
     assert data["right_cook"].startswith("learned") and set(data["summary"]) == {
-        "aail_bounded/left", "aail_bounded/right", "aail/left", "aail/right", "sl/left", "sl/right"
-    }  # fmt: skip
+        "aail_bounded/left",
+        "aail_bounded/right",
+        "aail/left",
+        "aail/right",
+        "sl/left",
+        "sl/right",
+    }
     again = results_from_json(data)
     assert again.served_MEN.shape == (3, 3, 2) and again.completion("sl", 0).mean == 0.0
     for name in ("results.md", "fig9_cooking.png", "aail_episode.gif"):

@@ -68,16 +68,22 @@ def store(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SqlModelStore]:
     spec = qnet_spec(hidden=(16,))
     with SqlModelStore(f"sqlite:///{path}") as s:
         for g, goal in enumerate(GOAL_IDS):
-            models = (("task", task_model_name("particle", goal), g),
-                      ("impact", impact_model_name("particle", goal), 500 + g))  # fmt: skip
+            models = (
+                ("task", task_model_name("particle", goal), g),
+                ("impact", impact_model_name("particle", goal), 500 + g),
+            )
             for kind, name, seed in models:
-                s.create_model(name, env="particle", kind=kind, goals=[goal], obs_dim=8,
-                               n_actions=5)  # fmt: skip
+                s.create_model(
+                    name, env="particle", kind=kind, goals=[goal], obs_dim=8, n_actions=5
+                )
                 aliases = ("production", "partners") if kind == "task" else ("production",)
                 s.register_version(
-                    name, spec=spec, weights=safetensors.numpy.save(_tensors(seed)),
-                    lineage=Lineage(config={"alpha": ALPHA}, seed=seed), aliases=aliases,
-                )  # fmt: skip
+                    name,
+                    spec=spec,
+                    weights=safetensors.numpy.save(_tensors(seed)),
+                    lineage=Lineage(config={"alpha": ALPHA}, seed=seed),
+                    aliases=aliases,
+                )
         yield s
 
 
@@ -252,13 +258,28 @@ def test_report_renders_every_section_and_figure(suite_results: dict, tmp_path: 
     results = json.loads((out / "results.json").read_text())
     assert len(results["accuracy"]["series"]["λ = 0.95, ε = 0.001"]["accuracy"]) == 6  # k 0..5
     assert "partner driven by the likelihood nets" in readme  # the matched reference run
-    (out / "latency.json").write_text(json.dumps({
-        "command": "python benchmarks/session_bench.py", "generated": "now", "setup": "x",
-        "target": 1.5, "ratios": {"1 partner": 1.2},
-        "cases": [{"case": "act, 1 announced", "p50_ms": 0.5, "p90_ms": 0.6, "p99_ms": 0.9,
-                   "rps": 1900.0, "requests": 9500}],
-        "in_process": {"likelihood pass": 0.082},
-    }))  # fmt: skip
+    (out / "latency.json").write_text(
+        json.dumps(
+            {
+                "command": "python benchmarks/session_bench.py",
+                "generated": "now",
+                "setup": "x",
+                "target": 1.5,
+                "ratios": {"1 partner": 1.2},
+                "cases": [
+                    {
+                        "case": "act, 1 announced",
+                        "p50_ms": 0.5,
+                        "p90_ms": 0.6,
+                        "p99_ms": 0.9,
+                        "rps": 1900.0,
+                        "requests": 9500,
+                    }
+                ],
+                "in_process": {"likelihood pass": 0.082},
+            }
+        )
+    )
     readme = render_readme(out).read_text()
     assert "**1.20×** (target <= 1.5: met)" in readme and "| likelihood pass | 0.082 |" in readme
     (tmp_path / "paper").mkdir()
@@ -312,13 +333,18 @@ def test_every_timed_session_step_carries_the_partners_actions() -> None:
     obs_TD, actions_TP = session_bench.episode(3, 5)
     assert obs_TD.shape == (5, 12) and actions_TP.shape == (5, 2)
     bodies = [json.loads(b) for b in session_bench.step_bodies(obs_TD, actions_TP, True)]
-    assert bodies[1]["observed"] == [{"index": 1, "action": int(actions_TP[0, 0])},
-                                     {"index": 2, "action": int(actions_TP[0, 1])}]  # fmt: skip
+    assert bodies[1]["observed"] == [
+        {"index": 1, "action": int(actions_TP[0, 0])},
+        {"index": 2, "action": int(actions_TP[0, 1])},
+    ]
     assert bodies[0]["observed"][0]["action"] == int(actions_TP[-1, 0])  # the cycle wraps
-    assert all("observed" not in json.loads(b) for b in
-               session_bench.step_bodies(obs_TD, actions_TP, False))  # fmt: skip
-    script = wrk_server.lua_script("/v1/sessions/x/steps", session_bench.step_bodies(
-        obs_TD, actions_TP, True))  # fmt: skip
+    assert all(
+        "observed" not in json.loads(b)
+        for b in session_bench.step_bodies(obs_TD, actions_TP, False)
+    )
+    script = wrk_server.lua_script(
+        "/v1/sessions/x/steps", session_bench.step_bodies(obs_TD, actions_TP, True)
+    )
     assert script.count("[==[") == 5 and "i % #bodies + 1" in script
     act = json.loads(session_bench.act_bodies(obs_TD, ("b3", "c1"))[2])
     assert act["observation"] == pytest.approx(obs_TD[2].tolist(), abs=1e-6)

@@ -142,8 +142,18 @@ def test_claim_non_aligned_thresholds() -> None:
     assert [c.passed for c in claim.checks] == [True, False, False]
 
 
-NON_ALIGNED = [("a2", "b3"), ("a0", "e4"), ("a1", "d1"), ("b0", "e2"), ("a4", "d0"), ("a3", "e0"),
-               ("b4", "e3"), ("a0", "d4"), ("b1", "d0"), ("a2", "e4")]  # fmt: skip
+NON_ALIGNED = [
+    ("a2", "b3"),
+    ("a0", "e4"),
+    ("a1", "d1"),
+    ("b0", "e2"),
+    ("a4", "d0"),
+    ("a3", "e0"),
+    ("b4", "e3"),
+    ("a0", "d4"),
+    ("b1", "d0"),
+    ("a2", "e4"),
+]
 
 
 def test_targets_on_pairs() -> None:
@@ -183,8 +193,10 @@ def test_five_agent_target_needs_every_set() -> None:
     sets = [Scenario(f"set:{k}", "a2", goals[k], 2, 600 + k) for k in range(3)]
     results = []
     for k, s in enumerate(sets):
-        results += [cell(s, "sl", [-5.0] * 2, [-20.0] * 2),
-                    cell(s, "aail_bounded", [-5.0] * 2, [-20.0 + (0.5 if k else -0.1)] * 2)]  # fmt: skip
+        results += [
+            cell(s, "sl", [-5.0] * 2, [-20.0] * 2),
+            cell(s, "aail_bounded", [-5.0] * 2, [-20.0 + (0.5 if k else -0.1)] * 2),
+        ]
     [target] = targets_of(pair_groups(results), ("aail_bounded",))
     assert target.key == "T3" and target.verdict == "not met"
     assert "below SL in 1 of 3 sets (worst -0.10)" in target.checks[0].detail

@@ -18,10 +18,15 @@ T0 = datetime(2026, 1, 1, 12, 0, 0, tzinfo=UTC)
 
 def version(name: str, at_s: float, **config: object) -> ModelVersion:
     return ModelVersion(
-        name=name, version=1, spec={}, sha256="0" * 64, size_bytes=1,
+        name=name,
+        version=1,
+        spec={},
+        sha256="0" * 64,
+        size_bytes=1,
         created_at=(T0 + timedelta(seconds=at_s)).replace(tzinfo=None),  # stores give naive UTC
-        status="ready", lineage=Lineage(config=dict(config)),
-    )  # fmt: skip
+        status="ready",
+        lineage=Lineage(config=dict(config)),
+    )
 
 
 def test_networks_needed_match_the_paper() -> None:
@@ -36,10 +41,12 @@ def test_wall_time_is_split_at_the_last_registration_of_each_kind() -> None:
     # one command trains 2 tasks (registered at 100 s), then 2 impacts (at 160 s), ends at 170 s
     command = LoggedCommand("coexist train zoo", T0, T0 + timedelta(seconds=170), 170.0)
     versions = [
-        ("task", version("t/a", 99.0)), ("task", version("t/b", 100.0)),
-        ("impact", version("i/a", 159.0)), ("impact", version("i/b", 160.0)),
+        ("task", version("t/a", 99.0)),
+        ("task", version("t/b", 100.0)),
+        ("impact", version("i/a", 159.0)),
+        ("impact", version("i/b", 160.0)),
         ("joint", version("j/ab", 500.0)),  # registered by another command: not attributed
-    ]  # fmt: skip
+    ]
     costs = attribute_wall_times([command], versions)
     assert set(costs) == {"task", "impact"}
     assert costs["task"].wall_s == pytest.approx(100.0) and costs["task"].networks == 2

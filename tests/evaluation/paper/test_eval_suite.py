@@ -45,8 +45,14 @@ def test_fast_suite_writes_every_section(tmp_path: Path) -> None:
     assert "Hand-written words." in report
     assert "(fig4_zoo-run_task.png)" in report and (out / "fig4_zoo-run_task.png").exists()
     assert "| 1 | goal-aligned" in report and "| 4 | scaling" in report
-    for png in ("fig5_two_agents", "fig7_five_agents", "fig6_directions", "episode_strip",
-                "fig4_training", "fig_pairs"):  # fmt: skip
+    for png in (
+        "fig5_two_agents",
+        "fig7_five_agents",
+        "fig6_directions",
+        "episode_strip",
+        "fig4_training",
+        "fig_pairs",
+    ):
         assert (out / f"{png}.png").stat().st_size > 1000, png
         assert f"({png}.png)" in report
     cells = json.loads((out / "results.json").read_text())["cells"]
@@ -110,8 +116,14 @@ def test_server_backend_gives_the_engine_episodes(
             # every field of the request reaches the server, the temperature and seed too
             obs = np.random.default_rng(0).uniform(-1, 1, (3, 8))
             for temperature in (None, 3.0):
-                request = ActRequest("particle", "a2", obs, (PartnerSpec(1, goal="b3"),),
-                                     temperature=temperature, seed=7)  # fmt: skip
+                request = ActRequest(
+                    "particle",
+                    "a2",
+                    obs,
+                    (PartnerSpec(1, goal="b3"),),
+                    temperature=temperature,
+                    seed=7,
+                )
                 got, _ = backend.probs(request)
                 want, _ = EngineBackend(engine).probs(request)
                 np.testing.assert_allclose(got, want, rtol=1e-12)

@@ -30,9 +30,15 @@ import pytest
 
 CHROMIUM = os.environ.get("COEXIST_CHROMIUM", "/usr/bin/chromium")
 CHROMIUM_ARGS = [
-    "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-    "--disable-background-networking", "--disable-component-update", "--disable-sync",
-]  # fmt: skip
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+]
 VIEWPORT = {"width": 1366, "height": 768}  # a laptop screen
 # Where screenshots go: docs/console with COEXIST_SCREENSHOT_DIR=docs/console (the README's come
 # from such a run). Not by default: a tracked file rewritten mid-run makes the checkout "dirty",
@@ -75,11 +81,25 @@ def serve_console(store_url: str, data_dir: Path, *, admin: str, read: str) -> I
     port = _free_port()
     env = {
         **{k: v for k, v in os.environ.items() if not k.startswith("COEXIST_")},
-        "COEXIST_ADMIN_TOKEN": admin, "COEXIST_READ_TOKEN": read, "COEXIST_DATA_DIR": str(data_dir),
-        "COEXIST_REFRESH_INTERVAL_S": "0.5", "COEXIST_LOG_LEVEL": "warning",
-    }  # fmt: skip
-    cmd = [sys.executable, "-m", "cli.main", "serve", "--no-bootstrap", "--http-port", str(port),
-           "--grpc-port", "0", "--store-url", store_url]  # fmt: skip
+        "COEXIST_ADMIN_TOKEN": admin,
+        "COEXIST_READ_TOKEN": read,
+        "COEXIST_DATA_DIR": str(data_dir),
+        "COEXIST_REFRESH_INTERVAL_S": "0.5",
+        "COEXIST_LOG_LEVEL": "warning",
+    }
+    cmd = [
+        sys.executable,
+        "-m",
+        "cli.main",
+        "serve",
+        "--no-bootstrap",
+        "--http-port",
+        str(port),
+        "--grpc-port",
+        "0",
+        "--store-url",
+        store_url,
+    ]
     log = (data_dir / "serve.log").open("wb")
     process = subprocess.Popen(cmd, env=env, stdout=log, stderr=subprocess.STDOUT)
     url = f"http://127.0.0.1:{port}"

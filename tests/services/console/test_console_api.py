@@ -41,8 +41,13 @@ def engine(zoo_url: str) -> Iterator[InferenceEngine]:
 
 
 def _client(zoo_url: str, tmp_path: Path, **settings: Any) -> TestClient:
-    config = Settings(admin_token=SecretStr(ADMIN), data_dir=tmp_path, store_url=zoo_url,
-                      grpc_enabled=False, **settings)  # fmt: skip
+    config = Settings(
+        admin_token=SecretStr(ADMIN),
+        data_dir=tmp_path,
+        store_url=zoo_url,
+        grpc_enabled=False,
+        **settings,
+    )
     return TestClient(create_app(config))
 
 
@@ -80,19 +85,41 @@ def test_lanes_start_alike_and_differ_by_policy_only(engine: InferenceEngine) ->
 
 
 def test_a_particle_lane_is_coexist_runs_first_episode(engine: InferenceEngine) -> None:
-    frames = _play(engine, env="particle", ego_goal="a2", partner_goals=("b3", "c"),
-                   methods=("aail",), seed=9, max_steps=30)  # fmt: skip
+    frames = _play(
+        engine,
+        env="particle",
+        ego_goal="a2",
+        partner_goals=("b3", "c"),
+        methods=("aail",),
+        seed=9,
+        max_steps=30,
+    )
     summary = frames[-1]["lanes"][0]
     with live_http_server(inference_app(engine)) as url, CoexistClient(url) as sdk:
-        (run,) = run_episodes(sdk, ego_goal="a2", partner_goals=["b3", "c"], method="aail",
-                              episodes=1, seed=9, max_steps=30)  # fmt: skip
+        (run,) = run_episodes(
+            sdk,
+            ego_goal="a2",
+            partner_goals=["b3", "c"],
+            method="aail",
+            episodes=1,
+            seed=9,
+            max_steps=30,
+        )
     assert summary["length"] == run.length
     assert summary["returns"] == pytest.approx(list(run.returns), abs=1e-9)
 
 
 def test_frames_carry_distributions_weights_and_returns(engine: InferenceEngine) -> None:
-    frames = _play(engine, env="particle", ego_goal="a2", partner_goals=("b3",), inferred=(1,),
-                   methods=("aail",), seed=1, max_steps=12)  # fmt: skip
+    frames = _play(
+        engine,
+        env="particle",
+        ego_goal="a2",
+        partner_goals=("b3",),
+        inferred=(1,),
+        methods=("aail",),
+        seed=1,
+        max_steps=12,
+    )
     steps = [f for f in frames if f["type"] == "frame"]
     assert [f["t"] for f in steps] == list(range(len(steps)))
     running = 0.0

@@ -158,13 +158,21 @@ def test_changes_made_elsewhere_appear_without_a_reload(
     expect = _expect()
     page = open_page("registry?model=particle%2Ftask%2Fe0")
     expect(page.locator("#model-title")).to_have_text("particle/task/e0")
-    answer = httpx.put(f"{server['url']}/v1/registry/models/particle/task/c1/-/aliases/staging",
-                       json={"version": 1}, headers={"Authorization": f"Bearer {ADMIN}"})  # fmt: skip
+    answer = httpx.put(
+        f"{server['url']}/v1/registry/models/particle/task/c1/-/aliases/staging",
+        json={"version": 1},
+        headers={"Authorization": f"Bearer {ADMIN}"},
+    )
     assert answer.status_code == 200
     spec = qnet_spec(obs_dim=8, n_actions=5, hidden=(16,))
     with SqlModelStore(server["store_url"]) as store:  # another process registers a version
-        store.register_version("particle/task/e0", spec=spec, weights=qnet_weights(spec, seed=3),
-                               lineage=Lineage(registered_by="pytest"), aliases=("latest",))  # fmt: skip
+        store.register_version(
+            "particle/task/e0",
+            spec=spec,
+            weights=qnet_weights(spec, seed=3),
+            lineage=Lineage(registered_by="pytest"),
+            aliases=("latest",),
+        )
     expect(page.locator("#feed")).to_contain_text("particle/task/c1: staging → v1")
     expect(page.locator("#feed")).to_contain_text("particle/task/e0 v2 registered")
     staging = page.locator('#models-table tr[data-model="particle/task/c1"] td.aliases')
@@ -177,9 +185,12 @@ def test_archive_and_delete_through_the_page(open_page: Any, server: dict[str, s
     spec = qnet_spec(obs_dim=8, n_actions=5, hidden=(16,))
     with SqlModelStore(server["store_url"]) as store:  # a version no alias points at
         version = store.register_version(
-            "particle/task/d4", spec=spec, weights=qnet_weights(spec, seed=4),
-            lineage=Lineage(registered_by="pytest"), aliases=(),
-        ).version  # fmt: skip
+            "particle/task/d4",
+            spec=spec,
+            weights=qnet_weights(spec, seed=4),
+            lineage=Lineage(registered_by="pytest"),
+            aliases=(),
+        ).version
     page = open_page("registry?model=particle%2Ftask%2Fd4", token=ADMIN)
     row = page.locator(f'.versions-table tr[data-version="{version}"]')
     row.get_by_role("button", name=f"Archive particle/task/d4 version {version}").click()

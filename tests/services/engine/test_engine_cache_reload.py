@@ -253,8 +253,15 @@ def test_status_stats_and_envs(tiny_zoo) -> None:
     assert info.action_meanings == ("rest", "up", "down", "left", "right")
     assert info.obs_dims == {1: 4, 2: 8, 3: 12, 4: 16, 5: 20}
     assert info.observation_layouts[2] == [
-        "self.x", "self.y", "self.vx", "self.vy", "other1.x", "other1.y", "other1.vx", "other1.vy",
-    ]  # fmt: skip
+        "self.x",
+        "self.y",
+        "self.vx",
+        "self.vy",
+        "other1.x",
+        "other1.y",
+        "other1.vx",
+        "other1.vy",
+    ]
     assert info.state_layout == ("x", "y", "vx", "vy")
     assert info.methods == ("aail_bounded", "aail", "nail", "sl", "jl")
 

@@ -33,8 +33,9 @@ def kitchen_store(tmp_path) -> Iterator[SqlModelStore]:
         ("task", task_model_name("cooking", PARTNER), PARTNER),
         ("impact", impact_model_name("cooking", PARTNER), PARTNER),
     ):
-        store.create_model(name, env="cooking", kind=kind, goals=(goal,),
-                           obs_dim=SPEC.obs_dim, n_actions=5)  # fmt: skip
+        store.create_model(
+            name, env="cooking", kind=kind, goals=(goal,), obs_dim=SPEC.obs_dim, n_actions=5
+        )
         store.register_version(
             name,
             spec=SPEC.to_json(),

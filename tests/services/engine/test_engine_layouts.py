@@ -70,8 +70,9 @@ def test_every_layout_matches_the_reference(tiny_zoo, request: ActRequest) -> No
     # the request's temperature, else the task net's training α (none in the lineage: default)
     lineage_alpha = DEFAULT_TEMPERATURE if request.ego_goal == tiny_zoo.no_alpha_task else None
     alpha = request.temperature or lineage_alpha or tiny_zoo.alpha
-    ref = reference(tiny_zoo.store, request.observations[0], request.ego_goal, partners,
-                    request.method, alpha)  # fmt: skip
+    ref = reference(
+        tiny_zoo.store, request.observations[0], request.ego_goal, partners, request.method, alpha
+    )
     _check_row(result, ref)
     assert type(result.probs) is list and all(type(p) is float for p in result.probs)
 

@@ -148,8 +148,9 @@ def test_the_progress_guard_blends_only_inside_the_target(tiny_zoo) -> None:
     np.testing.assert_allclose(bounded[0], probs("aail")[0], atol=1e-12)
     np.testing.assert_allclose(bounded[1], probs("sl")[1], atol=1e-12)
     assert not np.allclose(probs("aail")[1], probs("sl")[1])  # the guard made a difference
-    [single] = engine.act(ActRequest("particle", "a2", obs_BD[1:], partners,
-                                     method="aail_bounded", regret_bound=1e6))  # fmt: skip
+    [single] = engine.act(
+        ActRequest("particle", "a2", obs_BD[1:], partners, method="aail_bounded", regret_bound=1e6)
+    )
     np.testing.assert_allclose(single.probs, bounded[1], atol=1e-12)  # the single-row path too
 
 
@@ -214,7 +215,7 @@ def test_engine_goal_distributions(tiny_zoo, method: str) -> None:
         ("impact", "d4", 1),
         ("impact", "e0", 2),
         ("impact", "b3", 2),
-    ]  # fmt: skip  (goals with probability 0 are not loaded)
+    ]  # goals with probability 0 are not loaded
 
 
 @pytest.mark.parametrize("combo", [("b3",), ("b3", "c1")])

@@ -57,8 +57,9 @@ def _register(store: SqlModelStore, goal_index: int, seed: int, aliases: tuple[s
     goal = GOAL_IDS[goal_index]
     alpha = ALPHAS.get(goal_index, 0.05)
     name = task_model_name("particle", goal)
-    store.create_model(name, env="particle", kind="task", goals=[goal], obs_dim=8, n_actions=5,
-                       exist_ok=True)  # fmt: skip
+    store.create_model(
+        name, env="particle", kind="task", goals=[goal], obs_dim=8, n_actions=5, exist_ok=True
+    )
     store.register_version(
         name,
         spec=SPEC,
@@ -109,8 +110,9 @@ class Naive:
         z -= z.max()
         return z - np.log(np.exp(z).sum())
 
-    def log_likelihoods(self, obs_D: np.ndarray, partners: list[int], actions: list[int],
-                        alpha: float | None = None) -> np.ndarray:  # fmt: skip
+    def log_likelihoods(
+        self, obs_D: np.ndarray, partners: list[int], actions: list[int], alpha: float | None = None
+    ) -> np.ndarray:
         blocks = obs_D.reshape(-1, 4)
         out = np.empty((len(partners), G))
         for p, (index, action) in enumerate(zip(partners, actions, strict=True)):
@@ -171,8 +173,9 @@ def test_pinned_versions_and_aliases_are_honoured(
     production = engine.goal_log_likelihoods("particle", obs, [1], [4])
     pinned = engine.goal_log_likelihoods("particle", obs, [1], [4], versions={name: 2})
     latest = engine.goal_log_likelihoods("particle", obs, [1], [4], alias="latest")
-    np.testing.assert_allclose(pinned, Naive(store, {name: 2}).log_likelihoods(obs, [1], [4]),
-                               atol=ATOL)  # fmt: skip
+    np.testing.assert_allclose(
+        pinned, Naive(store, {name: 2}).log_likelihoods(obs, [1], [4]), atol=ATOL
+    )
     np.testing.assert_allclose(latest, pinned, atol=1e-12)
     assert abs(pinned[0, 0] - production[0, 0]) > 1e-3  # goal 0 changed, the others did not
     np.testing.assert_allclose(pinned[0, 1:], production[0, 1:], atol=1e-12)
@@ -215,8 +218,9 @@ def test_the_softmax_is_boltzmann_log_likelihoods() -> None:
     for trial in range(600):
         n_goals, n_partners, n_actions = (int(rng.integers(1, n)) for n in (40, 6, 7))
         scale = float(rng.choice([1.0, 100.0, 1e30, 3e38]))
-        q_GPA = np.clip(rng.standard_normal((n_goals, n_partners, n_actions)) * scale,
-                        -3.4e38, 3.4e38).astype(np.float32)  # fmt: skip
+        q_GPA = np.clip(
+            rng.standard_normal((n_goals, n_partners, n_actions)) * scale, -3.4e38, 3.4e38
+        ).astype(np.float32)
         actions_P = rng.integers(0, n_actions, n_partners)
         if trial % 2:
             alpha: Any = float(rng.choice([0.02, 1e-6, 1e-300, 5.0]))
@@ -291,13 +295,18 @@ def test_one_stacked_group_and_one_forward_of_all_networks(
     ],
 )
 def test_bad_input_names_the_field(engine: InferenceEngine, kwargs: dict, field: str) -> None:
-    args: dict[str, Any] = {"env": "particle", "observation": np.zeros(8), "partners": [1],
-                            "actions": [0]}  # fmt: skip
+    args: dict[str, Any] = {
+        "env": "particle",
+        "observation": np.zeros(8),
+        "partners": [1],
+        "actions": [0],
+    }
     args.update(kwargs)
     extra = {k: args.pop(k) for k in ("temperature", "alias", "versions") if k in args}
     with pytest.raises(InvalidRequest) as err:
-        engine.goal_log_likelihoods(args["env"], args["observation"], args["partners"],
-                                    args["actions"], **extra)  # fmt: skip
+        engine.goal_log_likelihoods(
+            args["env"], args["observation"], args["partners"], args["actions"], **extra
+        )
     assert err.value.field == field, err.value
 
 

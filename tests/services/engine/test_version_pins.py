@@ -21,8 +21,12 @@ from services.grpc_api.gen.coexist.v1 import policy_pb2 as pb
 from services.settings import Settings
 
 OBS = [0.1, 0.4, 0.0, 0.0, 0.7, 0.6, 0.0, 0.0]
-ACT: dict[str, Any] = {"env": "particle", "ego_goal": "a2", "observation": OBS,
-                       "partners": [{"index": 1, "goal": "b3"}]}  # fmt: skip
+ACT: dict[str, Any] = {
+    "env": "particle",
+    "ego_goal": "a2",
+    "observation": OBS,
+    "partners": [{"index": 1, "goal": "b3"}],
+}
 UNUSED = [
     ("unknown model", "particle/task/zz"),
     ("another env", "cooking/task/a2"),
@@ -32,8 +36,9 @@ UNUSED = [
 
 @pytest.fixture
 def client(tiny_zoo_store: SqlModelStore, tmp_path: Path) -> Iterator[TestClient]:
-    settings = Settings(admin_token=SecretStr("pins-test-admin-token"), grpc_enabled=False,
-                        data_dir=tmp_path)  # fmt: skip
+    settings = Settings(
+        admin_token=SecretStr("pins-test-admin-token"), grpc_enabled=False, data_dir=tmp_path
+    )
     with TestClient(create_app(settings, store=tiny_zoo_store)) as test_client:
         yield test_client
 
@@ -52,8 +57,13 @@ def test_rest_refuses_a_pin_the_request_does_not_use(client: TestClient, name: s
 def test_grpc_refuses_a_pin_the_request_does_not_use(
     tiny_zoo_store: SqlModelStore, name: str
 ) -> None:
-    request = pb.ActRequest(env="particle", ego_goal="a2", observation=OBS, versions={name: 1},
-                            partners=[pb.PartnerSpec(index=1, goal="b3")])  # fmt: skip
+    request = pb.ActRequest(
+        env="particle",
+        ego_goal="a2",
+        observation=OBS,
+        versions={name: 1},
+        partners=[pb.PartnerSpec(index=1, goal="b3")],
+    )
     with live_grpc_server(tiny_zoo_store) as live, pytest.raises(grpc.RpcError) as caught:
         live.stub.Act(request, timeout=10)
     err: Any = caught.value
@@ -66,8 +76,9 @@ def test_a_session_refuses_a_pin_it_could_never_use(
 ) -> None:
     """A session may pin any task or impact network of its env (its beliefs weigh every goal),
     nothing else."""
-    settings = Settings(admin_token=SecretStr("pins-test-admin-token"), grpc_enabled=False,
-                        data_dir=tmp_path)  # fmt: skip
+    settings = Settings(
+        admin_token=SecretStr("pins-test-admin-token"), grpc_enabled=False, data_dir=tmp_path
+    )
     url = f"sqlite:///{session_zoo_template(tmp_path_factory)}"
     body = {"env": "particle", "ego_goal": "a2", "partners": [{"index": 1, "infer": True}]}
     with SqlModelStore(url) as store, TestClient(create_app(settings, store=store)) as client:

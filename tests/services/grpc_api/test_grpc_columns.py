@@ -31,9 +31,14 @@ def matrix(obs_BD: np.ndarray) -> pb.Matrix:
 
 def batch(**changes: Any) -> pb.ActBatchRequest:
     fields: dict[str, Any] = {
-        "env": "particle", "ego_goal": "b3", "observations": [pb.Vector(values=r) for r in OBS_BD],
-        "partners": PARTNERS, "method": "aail", "temperature": 0.3, "seed": 11,
-    }  # fmt: skip
+        "env": "particle",
+        "ego_goal": "b3",
+        "observations": [pb.Vector(values=r) for r in OBS_BD],
+        "partners": PARTNERS,
+        "method": "aail",
+        "temperature": 0.3,
+        "seed": 11,
+    }
     fields.update(changes)
     return pb.ActBatchRequest(**fields)
 
@@ -83,8 +88,12 @@ def test_states_and_no_partners_in_columns(live: LiveServer) -> None:
     agents = OBS_BD[:4, :8].reshape(4, 2, 4)
     states = [pb.State(agents=[pb.Vector(values=a) for a in s]) for s in agents]
     fields: dict[str, Any] = {
-        "observations": [], "states": states, "ego_index": 0, "partners": [], "method": "sl",
-    }  # fmt: skip
+        "observations": [],
+        "states": states,
+        "ego_index": 0,
+        "partners": [],
+        "method": "sl",
+    }
     by_columns = live.stub.ActBatch(batch(**fields, format=COLUMNS))
     assert_columns_are_rows(by_columns.columns, live.stub.ActBatch(batch(**fields)).results, [])
     assert len(by_columns.columns.partner_weights) == 0
@@ -125,10 +134,14 @@ def test_matrix_errors_name_the_field(
 STATE = pb.State(agents=[pb.Vector(values=OBS_BD[0, :4]), pb.Vector(values=OBS_BD[0, 4:8])])
 TWO_INPUTS = [
     ("matrix and observations", {"observation_matrix": matrix(OBS_BD)}, "observation_matrix"),
-    ("matrix and states", {"observations": [], "states": [STATE], "observation_matrix": matrix(OBS_BD)}, "observation_matrix"),
+    (
+        "matrix and states",
+        {"observations": [], "states": [STATE], "observation_matrix": matrix(OBS_BD)},
+        "observation_matrix",
+    ),
     ("observations and states", {"states": [STATE]}, "observations"),
     ("an empty matrix and observations", {"observation_matrix": pb.Matrix()}, "observation_matrix"),
-]  # fmt: skip
+]
 
 
 @pytest.mark.parametrize(

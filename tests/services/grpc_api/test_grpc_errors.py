@@ -32,9 +32,11 @@ def field_of(err: grpc.RpcError) -> str | None:
 
 def act(**changes: Any) -> pb.ActRequest:
     fields: dict[str, Any] = {
-        "env": "particle", "ego_goal": "a2", "observation": OBS_2,
+        "env": "particle",
+        "ego_goal": "a2",
+        "observation": OBS_2,
         "partners": [pb.PartnerSpec(index=1, goal="b3")],
-    }  # fmt: skip
+    }
     fields.update(changes)
     return pb.ActRequest(**fields)
 
@@ -52,43 +54,91 @@ ACT_CASES = [
     ("unknown env", act(env="chess"), INVALID, "env"),
     ("unknown ego goal", act(ego_goal="z9"), INVALID, "ego_goal"),
     ("unknown method", act(method="magic"), INVALID, "method"),
-    ("unknown partner goal", act(partners=[pb.PartnerSpec(index=1, goal="z9")]), INVALID,
-     "partners[0].goal"),
-    ("partner out of range", act(partners=[pb.PartnerSpec(index=2, goal="b3")]), INVALID,
-     "partners[0].index"),
-    ("partner index 0", act(partners=[pb.PartnerSpec(index=0, goal="b3")]), INVALID,
-     "partners[0].index"),
+    (
+        "unknown partner goal",
+        act(partners=[pb.PartnerSpec(index=1, goal="z9")]),
+        INVALID,
+        "partners[0].goal",
+    ),
+    (
+        "partner out of range",
+        act(partners=[pb.PartnerSpec(index=2, goal="b3")]),
+        INVALID,
+        "partners[0].index",
+    ),
+    (
+        "partner index 0",
+        act(partners=[pb.PartnerSpec(index=0, goal="b3")]),
+        INVALID,
+        "partners[0].index",
+    ),
     ("partner without goal", act(partners=[pb.PartnerSpec(index=1)]), INVALID, "partners[0].goal"),
-    ("probs not summing to 1", act(partners=[pb.PartnerSpec(index=1, goal_probs={"b3": 0.5,
-     "c": 0.4})]), INVALID, "partners[0].goal_probs"),
-    ("negative probability", act(partners=[pb.PartnerSpec(index=1, goal_probs={"b3": 1.5,
-     "c": -0.5})]), INVALID, "partners[0].goal_probs"),
+    (
+        "probs not summing to 1",
+        act(partners=[pb.PartnerSpec(index=1, goal_probs={"b3": 0.5, "c": 0.4})]),
+        INVALID,
+        "partners[0].goal_probs",
+    ),
+    (
+        "negative probability",
+        act(partners=[pb.PartnerSpec(index=1, goal_probs={"b3": 1.5, "c": -0.5})]),
+        INVALID,
+        "partners[0].goal_probs",
+    ),
     ("negative temperature", act(temperature=-0.1), INVALID, "temperature"),
     ("zero temperature", act(temperature=0.0), INVALID, "temperature"),
     ("NaN temperature", act(temperature=NAN), INVALID, "temperature"),
-    ("negative regret bound", act(method="aail_bounded", regret_bound=-0.1), INVALID,
-     "regret_bound"),
+    (
+        "negative regret bound",
+        act(method="aail_bounded", regret_bound=-0.1),
+        INVALID,
+        "regret_bound",
+    ),
     ("NaN regret bound", act(regret_bound=NAN), INVALID, "regret_bound"),
     ("regret bound with nail", act(method="nail", regret_bound=0.1), INVALID, "regret_bound"),
     ("negative seed", act(seed=-1), INVALID, "seed"),
     ("bad alias", act(alias="no spaces allowed"), INVALID, "alias"),
     ("version 0", act(versions={"particle/task/a2": 0}), INVALID, "versions[particle/task/a2]"),
     ("observation and state", act(state=state([0.1, 0.2, 0, 0])), INVALID, "observation"),
-    ("state row too short", act(observation=[], state=state([0.1, 0.2, 0]), ego_index=0),
-     INVALID, "state"),
-    ("state with NaN", act(observation=[], state=state([0.1, 0.2, 0, 0], [NAN, 0, 0, 0])),
-     INVALID, "state"),
-    ("ego index out of range", act(observation=[], state=state([0.1, 0.2, 0, 0]), ego_index=3),
-     INVALID, "ego_index"),
+    (
+        "state row too short",
+        act(observation=[], state=state([0.1, 0.2, 0]), ego_index=0),
+        INVALID,
+        "state",
+    ),
+    (
+        "state with NaN",
+        act(observation=[], state=state([0.1, 0.2, 0, 0], [NAN, 0, 0, 0])),
+        INVALID,
+        "state",
+    ),
+    (
+        "ego index out of range",
+        act(observation=[], state=state([0.1, 0.2, 0, 0]), ego_index=3),
+        INVALID,
+        "ego_index",
+    ),
     ("no task model", act(ego_goal="e4"), NOT_FOUND, "ego_goal"),
-    ("no impact model", act(partners=[pb.PartnerSpec(index=1, goal="e4")]), NOT_FOUND,
-     "partners[0].goal"),
-    ("pinned version missing", act(versions={"particle/task/a2": 9}), NOT_FOUND,
-     "versions[particle/task/a2]"),
+    (
+        "no impact model",
+        act(partners=[pb.PartnerSpec(index=1, goal="e4")]),
+        NOT_FOUND,
+        "partners[0].goal",
+    ),
+    (
+        "pinned version missing",
+        act(versions={"particle/task/a2": 9}),
+        NOT_FOUND,
+        "versions[particle/task/a2]",
+    ),
     ("alias missing", act(alias="staging"), NOT_FOUND, "ego_goal"),
-    ("no joint model", act(method="jl", partners=[pb.PartnerSpec(index=1, goal="c")]),
-     NOT_FOUND, "method"),
-]  # fmt: skip
+    (
+        "no joint model",
+        act(method="jl", partners=[pb.PartnerSpec(index=1, goal="c")]),
+        NOT_FOUND,
+        "method",
+    ),
+]
 
 
 @pytest.mark.parametrize(
@@ -106,10 +156,11 @@ def test_act_errors_name_the_field(
 
 def batch(**changes: Any) -> pb.ActBatchRequest:
     fields: dict[str, Any] = {
-        "env": "particle", "ego_goal": "a2",
+        "env": "particle",
+        "ego_goal": "a2",
         "observations": [pb.Vector(values=OBS_2)] * 4,
         "partners": [pb.PartnerSpec(index=1, goal="b3")],
-    }  # fmt: skip
+    }
     fields.update(changes)
     return pb.ActBatchRequest(**fields)
 
@@ -117,14 +168,29 @@ def batch(**changes: Any) -> pb.ActBatchRequest:
 BATCH_CASES = [
     ("oversized", batch(observations=[pb.Vector(values=OBS_2)] * (MAX_BATCH + 1)), "observations"),
     ("empty", batch(observations=[]), "observations"),
-    ("ragged rows", batch(observations=[pb.Vector(values=OBS_2), pb.Vector(values=OBS_2[:4])]),
-     "observations"),
-    ("NaN in row 2", batch(observations=[pb.Vector(values=OBS_2)] * 2 + [pb.Vector(
-     values=[NAN] * 8)]), "observations[2]"),
-    ("NaN in state 1", batch(observations=[], states=[state([0.1, 0.2, 0, 0], [0.3, 0.4, 0, 0]),
-     state([0.1, 0.2, 0, 0], [0.3, INF, 0, 0])]), "states[1]"),
+    (
+        "ragged rows",
+        batch(observations=[pb.Vector(values=OBS_2), pb.Vector(values=OBS_2[:4])]),
+        "observations",
+    ),
+    (
+        "NaN in row 2",
+        batch(observations=[pb.Vector(values=OBS_2)] * 2 + [pb.Vector(values=[NAN] * 8)]),
+        "observations[2]",
+    ),
+    (
+        "NaN in state 1",
+        batch(
+            observations=[],
+            states=[
+                state([0.1, 0.2, 0, 0], [0.3, 0.4, 0, 0]),
+                state([0.1, 0.2, 0, 0], [0.3, INF, 0, 0]),
+            ],
+        ),
+        "states[1]",
+    ),
     ("states and observations", batch(states=[state([0.1, 0.2, 0, 0])]), "observations"),
-]  # fmt: skip
+]
 
 
 @pytest.mark.parametrize(
@@ -156,8 +222,11 @@ def test_episode_errors_name_the_step(live: LiveServer) -> None:
     assert info.value.code() == INVALID and field_of(info.value) == "settings"
     assert info.value.details().startswith("step[0]: settings: ")
 
-    steps = [pb.EpisodeStep(settings=settings, observation=OBS_2), pb.EpisodeStep(observation=OBS_2),
-             pb.EpisodeStep(observation=OBS_2[:5])]  # fmt: skip
+    steps = [
+        pb.EpisodeStep(settings=settings, observation=OBS_2),
+        pb.EpisodeStep(observation=OBS_2),
+        pb.EpisodeStep(observation=OBS_2[:5]),
+    ]
     responses = live.stub.Episode(iter(steps))
     assert next(responses).method == "aail_bounded" and next(responses).method == "aail_bounded"
     with pytest.raises(grpc.RpcError) as info:

@@ -13,9 +13,12 @@ from services.grpc_api.gen.coexist.v1 import policy_pb2 as pb
 
 def _message(observation: list[float], *, goal: str = "b3", seed: int | None = None):
     message = pb.ActRequest(
-        env="particle", ego_goal="a2", observation=observation,
-        partners=[pb.PartnerSpec(index=1, goal=goal)], method="aail",
-    )  # fmt: skip
+        env="particle",
+        ego_goal="a2",
+        observation=observation,
+        partners=[pb.PartnerSpec(index=1, goal=goal)],
+        method="aail",
+    )
     if seed is not None:
         message.seed = seed
     return message

@@ -43,19 +43,28 @@ def assert_same(response: pb.ActResponse, expected: ActResult, partner_indices: 
         zip(partner_indices, expected.partner_weights, strict=True)
     )
     got = [
-        (m.role, m.name, m.version, m.sha256, m.goal,
-         m.partner_index if m.HasField("partner_index") else None)
+        (
+            m.role,
+            m.name,
+            m.version,
+            m.sha256,
+            m.goal,
+            m.partner_index if m.HasField("partner_index") else None,
+        )
         for m in response.models
-    ]  # fmt: skip
+    ]
     want = [(m.role, m.name, m.version, m.sha256, m.goal, m.partner_index) for m in expected.models]
     assert got == want
 
 
 def test_act_equals_engine(live: LiveServer) -> None:
     request = pb.ActRequest(
-        env="particle", ego_goal="a2", observation=OBS_2,
-        partners=[pb.PartnerSpec(index=1, goal="b3")], seed=7,
-    )  # fmt: skip
+        env="particle",
+        ego_goal="a2",
+        observation=OBS_2,
+        partners=[pb.PartnerSpec(index=1, goal="b3")],
+        seed=7,
+    )
     response = live.stub.Act(request)
     [expected] = live.engine.act(
         ActRequest("particle", "a2", np.array([OBS_2]), (PartnerSpec(1, goal="b3"),), seed=7)
@@ -88,16 +97,26 @@ def test_act_batch_equals_engine_row_by_row(live: LiveServer) -> None:
     partners = [pb.PartnerSpec(index=2, goal="c"), pb.PartnerSpec(index=1, goal="d4")]
     response = live.stub.ActBatch(
         pb.ActBatchRequest(
-            env="particle", ego_goal="b3", observations=[pb.Vector(values=r) for r in obs_BD],
-            partners=partners, method="nail", temperature=0.3, seed=11,
+            env="particle",
+            ego_goal="b3",
+            observations=[pb.Vector(values=r) for r in obs_BD],
+            partners=partners,
+            method="nail",
+            temperature=0.3,
+            seed=11,
         )
-    )  # fmt: skip
+    )
     expected = live.engine.act(
         ActRequest(
-            "particle", "b3", obs_BD, (PartnerSpec(2, goal="c"), PartnerSpec(1, goal="d4")),
-            method="nail", temperature=0.3, seed=11,
+            "particle",
+            "b3",
+            obs_BD,
+            (PartnerSpec(2, goal="c"), PartnerSpec(1, goal="d4")),
+            method="nail",
+            temperature=0.3,
+            seed=11,
         )
-    )  # fmt: skip
+    )
     assert len(response.results) == 16
     for got, want in zip(response.results, expected, strict=True):
         assert_same(got, want, [2, 1])
@@ -132,15 +151,27 @@ def test_list_envs_describes_the_particle_world(live: LiveServer) -> None:
     env = envs["particle"]
     assert env.name == "particle" and len(env.goals) == 35 and "a2" in env.goals
     assert list(env.action_meanings) == ["rest", "up", "down", "left", "right"]
-    assert env.max_agents == 5 and env.pair_obs_dim == 8 and list(env.state_layout) == [
-        "x", "y", "vx", "vy",
-    ]  # fmt: skip
+    assert (
+        env.max_agents == 5
+        and env.pair_obs_dim == 8
+        and list(env.state_layout)
+        == [
+            "x",
+            "y",
+            "vx",
+            "vy",
+        ]
+    )
     assert [(layout.n_agents, layout.obs_dim) for layout in env.observation_layouts] == [
         (n, 4 * n) for n in range(1, 6)
     ]
     assert list(env.observation_layouts[1].features)[:5] == [
-        "self.x", "self.y", "self.vx", "self.vy", "other1.x",
-    ]  # fmt: skip
+        "self.x",
+        "self.y",
+        "self.vx",
+        "self.vy",
+        "other1.x",
+    ]
     assert set(env.methods) == {"aail_bounded", "aail", "nail", "sl", "jl"}
 
 

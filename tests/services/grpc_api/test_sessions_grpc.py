@@ -71,11 +71,16 @@ def grpc_error(live: LiveServer, steps: list[pb.EpisodeStep]) -> tuple[Any, str 
 def test_an_episode_gives_the_answers_and_beliefs_of_a_rest_session(
     live: LiveServer, rest: TestClient
 ) -> None:
-    created = rest.post("/v1/sessions", json={
-        "env": "particle", "ego_goal": "a2", "seed": 9,
-        "partners": [{"index": 1, "goal": "c1", "infer": True}, {"index": 2, "goal": "b3"}],
-        "belief": {"forgetting": 0.9, "floor": 0.002, "blend_mass": 0.95, "blend_max_goals": 4},
-    }).json()  # fmt: skip
+    created = rest.post(
+        "/v1/sessions",
+        json={
+            "env": "particle",
+            "ego_goal": "a2",
+            "seed": 9,
+            "partners": [{"index": 1, "goal": "c1", "infer": True}, {"index": 2, "goal": "b3"}],
+            "belief": {"forgetting": 0.9, "floor": 0.002, "blend_mass": 0.95, "blend_max_goals": 4},
+        },
+    ).json()
     belief = pb.BeliefSettings(forgetting=0.9, floor=0.002, blend_mass=0.95, blend_max_goals=4)
     rng = np.random.default_rng(2)
     obs_TD = [random_observation(rng, n_agents=3) for _ in range(6)]
@@ -155,18 +160,40 @@ def test_new_settings_keep_the_belief_and_inference_may_start_mid_stream(live: L
 @pytest.mark.parametrize(
     ("field", "steps"),
     [
-        ("observed", lambda s: [_with_observed(pb.EpisodeStep(settings=s, observation=OBS_2), 1, 0)]),
-        ("observed[0].index", lambda s: [pb.EpisodeStep(settings=s, observation=OBS_2),
-                                         _with_observed(pb.EpisodeStep(observation=OBS_2), 2, 0)]),
-        ("observed[0].action", lambda s: [pb.EpisodeStep(settings=s, observation=OBS_2),
-                                          _with_observed(pb.EpisodeStep(observation=OBS_2), 1, 7)]),
+        (
+            "observed",
+            lambda s: [_with_observed(pb.EpisodeStep(settings=s, observation=OBS_2), 1, 0)],
+        ),
+        (
+            "observed[0].index",
+            lambda s: [
+                pb.EpisodeStep(settings=s, observation=OBS_2),
+                _with_observed(pb.EpisodeStep(observation=OBS_2), 2, 0),
+            ],
+        ),
+        (
+            "observed[0].action",
+            lambda s: [
+                pb.EpisodeStep(settings=s, observation=OBS_2),
+                _with_observed(pb.EpisodeStep(observation=OBS_2), 1, 7),
+            ],
+        ),
         ("observation", lambda s: [pb.EpisodeStep(settings=s, observation=OBS_2[:5])]),
-        ("belief.floor", lambda s: [pb.EpisodeStep(
-            settings=episode_settings(belief=pb.BeliefSettings(floor=0.5)), observation=OBS_2)]),
-        ("partners[0].infer", lambda s: [pb.EpisodeStep(
-            settings=episode_settings(method="jl"), observation=OBS_2)]),
+        (
+            "belief.floor",
+            lambda s: [
+                pb.EpisodeStep(
+                    settings=episode_settings(belief=pb.BeliefSettings(floor=0.5)),
+                    observation=OBS_2,
+                )
+            ],
+        ),
+        (
+            "partners[0].infer",
+            lambda s: [pb.EpisodeStep(settings=episode_settings(method="jl"), observation=OBS_2)],
+        ),
     ],
-)  # fmt: skip
+)
 def test_bad_inferring_steps_are_invalid_argument_naming_the_field(
     live: LiveServer, field: str, steps: Any
 ) -> None:

@@ -41,10 +41,18 @@ def test_tritonclient_gets_the_probabilities_of_v1_act(server: Server) -> None:
     with Client(server.http_url) as client:
         want = client.act("particle", "a2", OBS, partners={1: "b3"}, seed=7)
     done = subprocess.run(
-        [sys.executable, str(HERE / "triton_calls.py"), server.http_url.removeprefix("http://"),
-         server.grpc_target, json.dumps(OBS)],
-        capture_output=True, text=True, timeout=120, check=False,
-    )  # fmt: skip
+        [
+            sys.executable,
+            str(HERE / "triton_calls.py"),
+            server.http_url.removeprefix("http://"),
+            server.grpc_target,
+            json.dumps(OBS),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
     assert done.returncode == 0, done.stderr[-3000:]
     answers = json.loads(done.stdout)
     for transport in ("http", "grpc"):
@@ -72,9 +80,10 @@ def test_rest_v2_metadata_and_health(server: Server) -> None:
 def test_goals_may_come_as_parameters_and_batches_as_rows(server: Server) -> None:
     body = {
         "parameters": {"ego_goal": "a2", "partner_goals": "b3", "seed": 7},
-        "inputs": [{"name": "observation", "datatype": "FP64", "shape": [2, 8],
-                    "data": [*OBS, *OBS]}],
-    }  # fmt: skip
+        "inputs": [
+            {"name": "observation", "datatype": "FP64", "shape": [2, 8], "data": [*OBS, *OBS]}
+        ],
+    }
     response = _infer(server, body)
     assert response.status_code == 200, response.text
     outputs = {o["name"]: o for o in response.json()["outputs"]}
@@ -89,21 +98,47 @@ def test_goals_may_come_as_parameters_and_batches_as_rows(server: Server) -> Non
 @pytest.mark.parametrize(
     ("body", "field"),
     [
-        ({"inputs": [{"name": "observation", "datatype": "FP32", "shape": [7],
-                      "data": OBS[:7]}], "parameters": {"ego_goal": "a2"}}, "inputs[observation][0]"),
-        ({"inputs": [{"name": "observation", "datatype": "FP32", "shape": [8], "data": OBS}]},
-         "inputs[ego_goal]"),
-        ({"inputs": [{"name": "obs", "datatype": "FP32", "shape": [8], "data": OBS}]},
-         "inputs[obs]"),
-        ({"inputs": [{"name": "observation", "datatype": "FP32", "shape": [8], "data": OBS}],
-          "parameters": {"ego_goal": "a2", "seed": "x"}}, "parameters.seed"),
-        ({"inputs": [{"name": "observation", "datatype": "FP32", "shape": [8], "data": OBS}],
-          "parameters": {"ego_goal": "zz"}}, "ego_goal"),
-        ({"inputs": [{"name": "observation", "datatype": "FP32", "shape": [9], "data": OBS}],
-          "parameters": {"ego_goal": "a2"}}, "inputs[observation]"),
+        (
+            {
+                "inputs": [
+                    {"name": "observation", "datatype": "FP32", "shape": [7], "data": OBS[:7]}
+                ],
+                "parameters": {"ego_goal": "a2"},
+            },
+            "inputs[observation][0]",
+        ),
+        (
+            {"inputs": [{"name": "observation", "datatype": "FP32", "shape": [8], "data": OBS}]},
+            "inputs[ego_goal]",
+        ),
+        (
+            {"inputs": [{"name": "obs", "datatype": "FP32", "shape": [8], "data": OBS}]},
+            "inputs[obs]",
+        ),
+        (
+            {
+                "inputs": [{"name": "observation", "datatype": "FP32", "shape": [8], "data": OBS}],
+                "parameters": {"ego_goal": "a2", "seed": "x"},
+            },
+            "parameters.seed",
+        ),
+        (
+            {
+                "inputs": [{"name": "observation", "datatype": "FP32", "shape": [8], "data": OBS}],
+                "parameters": {"ego_goal": "zz"},
+            },
+            "ego_goal",
+        ),
+        (
+            {
+                "inputs": [{"name": "observation", "datatype": "FP32", "shape": [9], "data": OBS}],
+                "parameters": {"ego_goal": "a2"},
+            },
+            "inputs[observation]",
+        ),
         ({"inputs": "nope"}, "inputs"),
     ],
-)  # fmt: skip
+)
 def test_bad_rest_input_is_a_4xx_naming_the_field(
     server: Server, body: dict[str, Any], field: str
 ) -> None:

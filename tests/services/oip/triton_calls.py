@@ -38,9 +38,11 @@ def main(http_target: str, grpc_target: str, observation: list[float]) -> dict[s
         for n in ("probabilities", "action", "greedy_action")
     ]
     result = http.infer(
-        "particle", _inputs(triton_http, observation, True), outputs=outputs,
+        "particle",
+        _inputs(triton_http, observation, True),
+        outputs=outputs,
         parameters={"seed": 7, "method": "aail_bounded"},
-    )  # fmt: skip
+    )
     answers["http"] = {
         "live": http.is_server_live(),
         "ready": http.is_server_ready(),
@@ -51,9 +53,10 @@ def main(http_target: str, grpc_target: str, observation: list[float]) -> dict[s
     }
     grpc = triton_grpc.InferenceServerClient(grpc_target)
     result = grpc.infer(
-        "particle", _inputs(triton_grpc, observation, False),
+        "particle",
+        _inputs(triton_grpc, observation, False),
         parameters={"seed": 7, "method": "aail_bounded"},
-    )  # fmt: skip
+    )
     metadata = grpc.get_model_metadata("particle", as_json=True)
     answers["grpc"] = {
         "live": grpc.is_server_live(),

@@ -37,8 +37,7 @@ def client(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[TestClien
         ) as url,
         SqlModelStore(url) as store,
     ):
-        store.create_model(NAME, env="particle", kind="task", goals=("a3",), obs_dim=8,
-                           n_actions=5)  # fmt: skip
+        store.create_model(NAME, env="particle", kind="task", goals=("a3",), obs_dim=8, n_actions=5)
         with TestClient(create_app(settings, store=store)) as test_client:
             yield test_client
 

@@ -65,9 +65,13 @@ def test_act_returns_the_contract_shape(act_client) -> None:
     }
     task, impact = body["models"]
     assert task == {
-        "role": "task", "name": "particle/task/a2", "version": 1, "sha256": expected.models[0].sha256,
-        "partner_index": None, "goal": "a2",
-    }  # fmt: skip
+        "role": "task",
+        "name": "particle/task/a2",
+        "version": 1,
+        "sha256": expected.models[0].sha256,
+        "partner_index": None,
+        "goal": "a2",
+    }
     assert (impact["role"], impact["name"], impact["partner_index"]) == (
         "impact",
         "particle/impact/b3",

@@ -10,16 +10,20 @@ import pytest
 MEANINGS = ("rest", "up", "down", "left", "right")
 CASES: dict[str, dict[str, Any]] = {
     "aail, 2 partners": {
-        "ego_goal": "e0", "width": 12, "method": "aail",
+        "ego_goal": "e0",
+        "width": 12,
+        "method": "aail",
         "partners": [{"index": 2, "goal": "c"}, {"index": 1, "goal": "a2"}],
     },
     "aail, goal_probs": {
-        "ego_goal": "a2", "width": 8, "method": "aail",
+        "ego_goal": "a2",
+        "width": 8,
+        "method": "aail",
         "partners": [{"index": 1, "goal_probs": {"b3": 0.3, "c": 0.7}}],
     },
     "sl": {"ego_goal": "c1", "width": 8, "method": "sl", "partners": [{"index": 1, "goal": "b3"}]},
     "sl alone": {"ego_goal": "c1", "width": 4, "method": "sl", "partners": []},
-}  # fmt: skip
+}
 
 
 def _body(case: dict[str, Any], rows: int) -> dict[str, Any]:
@@ -57,9 +61,18 @@ def test_columns_equal_rows_with_the_same_seed(act_client, case: dict[str, Any],
     assert "format" not in rows_answer.json()  # the default answer is unchanged
     columns = columns_answer.json()
     assert set(columns) == {
-        "format", "method", "models", "probs", "actions", "greedy_actions", "action_meanings",
-        "task_entropies", "task_weights", "partner_indices", "partner_weights",
-    }  # fmt: skip
+        "format",
+        "method",
+        "models",
+        "probs",
+        "actions",
+        "greedy_actions",
+        "action_meanings",
+        "task_entropies",
+        "task_weights",
+        "partner_indices",
+        "partner_weights",
+    }
     assert_columns_are_rows(columns, results)
     explicit_rows = act_client.post("/v1/act:batch", json={**body, "format": "rows"}).json()
     assert explicit_rows["results"] == results
@@ -68,9 +81,14 @@ def test_columns_equal_rows_with_the_same_seed(act_client, case: dict[str, Any],
 def test_columns_from_states(act_client) -> None:
     states = np.random.default_rng(2).random((3, 2, 4)).round(4).tolist()
     body = {
-        "env": "particle", "ego_goal": "a2", "states": states, "ego_index": 1,
-        "partners": [{"index": 1, "goal": "b3"}], "seed": 1, "format": "columns",
-    }  # fmt: skip
+        "env": "particle",
+        "ego_goal": "a2",
+        "states": states,
+        "ego_index": 1,
+        "partners": [{"index": 1, "goal": "b3"}],
+        "seed": 1,
+        "format": "columns",
+    }
     columns = act_client.post("/v1/act:batch", json=body).json()
     by_obs = {
         **body,

@@ -48,9 +48,13 @@ def test_both_batch_answers_match_the_documented_schema(engine_over_zoo, fmt: st
     checked against the operation's schema (its `format` field and its anyOf answer)."""
     operation = schema["/v1/act:batch"]["POST"]
     body: dict[str, Any] = {
-        "env": "particle", "ego_goal": "a2", "partners": [{"index": 1, "goal": "b3"}],
-        "observations": [[0.1, 0.4, 0, 0, 0.7, 0.6, 0, 0]] * 3, "seed": 1, "format": fmt,
-    }  # fmt: skip
+        "env": "particle",
+        "ego_goal": "a2",
+        "partners": [{"index": 1, "goal": "b3"}],
+        "observations": [[0.1, 0.4, 0, 0, 0.7, 0.6, 0, 0]] * 3,
+        "seed": 1,
+        "format": fmt,
+    }
     case = operation.Case(body=body, media_type="application/json")
     response = case.call()
     assert response.status_code == 200, response.text

@@ -10,8 +10,13 @@ import pytest
 from services.rest import json_body
 
 JSON = {"content-type": "application/json"}
-BODY = {"env": "particle", "ego_goal": "a2", "observation": [0.1, 0.4, 0, 0, 0.7, 0.6, 0, 0],
-        "partners": [{"index": 1, "goal": "b3"}], "seed": 3}  # fmt: skip
+BODY = {
+    "env": "particle",
+    "ego_goal": "a2",
+    "observation": [0.1, 0.4, 0, 0, 0.7, 0.6, 0, 0],
+    "partners": [{"index": 1, "goal": "b3"}],
+    "seed": 3,
+}
 
 
 def _refuse_stdlib(monkeypatch: pytest.MonkeyPatch) -> list[bytes]:

@@ -51,9 +51,11 @@ def test_a_default_step_is_the_act_with_the_whole_belief(engine: InferenceEngine
             log_b = update_log_belief(log_b[None], lik, log_prior[None], config)[0]
         goal_probs = blend_goal_probs(log_b, GOAL_IDS)
         assert list(goal_probs) == list(GOAL_IDS)
-        expected = engine.act(ActRequest(
-            "particle", "a2", obs[None], (PartnerSpec(1, goal_probs=goal_probs),), seed=3 + t
-        ))[0]  # fmt: skip
+        expected = engine.act(
+            ActRequest(
+                "particle", "a2", obs[None], (PartnerSpec(1, goal_probs=goal_probs),), seed=3 + t
+            )
+        )[0]
         answer = session.step(obs, [Observed(1, action)] if t else [])
         assert answer.result == expected
         assert sum(m.role == "impact" for m in answer.result.models) == len(GOAL_IDS)

@@ -53,8 +53,14 @@ def inferred(seed: int | None = 5, **kwargs: Any) -> SessionSettings:
     return SessionSettings("particle", "a2", (SessionPartner(1, infer=True),), seed=seed, **kwargs)
 
 
-def run_partner(store: SessionStore, session_id: str, engine: InferenceEngine, goal: str,
-                steps: int, seed: int = 0) -> list[Any]:  # fmt: skip
+def run_partner(
+    store: SessionStore,
+    session_id: str,
+    engine: InferenceEngine,
+    goal: str,
+    steps: int,
+    seed: int = 0,
+) -> list[Any]:
     """Steps whose partner acts by `goal`'s task policy; the answers."""
     rng, previous, answers = np.random.default_rng(seed), None, []
     for _ in range(steps):
@@ -87,10 +93,14 @@ def test_belief_moves_to_the_goal_whose_policy_the_partner_follows(
 def test_a_step_acts_with_the_beliefs_blend_and_seed_plus_t(engine: InferenceEngine) -> None:
     config = BeliefConfig(forgetting=0.9, floor=1e-3)
     settings = SessionSettings(
-        "particle", "a2",
+        "particle",
+        "a2",
         (SessionPartner(1, goal="c1", infer=True), SessionPartner(2, goal="d4")),
-        seed=11, belief=config, blend_mass=0.9, blend_max_goals=3,
-    )  # fmt: skip
+        seed=11,
+        belief=config,
+        blend_mass=0.9,
+        blend_max_goals=3,
+    )
     session = Session(engine, settings)
     log_prior = prior_log_probs(GOAL_IDS, announced="c1")
     log_b = initial_log_belief(log_prior, config)
@@ -102,10 +112,15 @@ def test_a_step_acts_with_the_beliefs_blend_and_seed_plus_t(engine: InferenceEng
             lik = engine.goal_log_likelihoods("particle", previous, [1], [2])
             log_b = update_log_belief(log_b[None], lik, log_prior[None], config)[0]
         goal_probs = blend_goal_probs(log_b, GOAL_IDS, 0.9, 3)
-        expected = engine.act(ActRequest(
-            "particle", "a2", obs[None], (PartnerSpec(1, goal_probs=goal_probs),
-                                          PartnerSpec(2, goal="d4")), seed=11 + t,
-        ))[0]  # fmt: skip
+        expected = engine.act(
+            ActRequest(
+                "particle",
+                "a2",
+                obs[None],
+                (PartnerSpec(1, goal_probs=goal_probs), PartnerSpec(2, goal="d4")),
+                seed=11 + t,
+            )
+        )[0]
         answer = session.step(obs, observed)
         assert answer.step == t
         assert answer.result == expected
@@ -304,8 +319,11 @@ BAD_SETTINGS = [
 def test_bad_settings_are_refused_at_creation_naming_the_field(
     engine: InferenceEngine, field: str, change: dict[str, Any]
 ) -> None:
-    fields: dict[str, Any] = {"env": "particle", "ego_goal": "a2",
-                              "partners": (SessionPartner(1, infer=True),)}  # fmt: skip
+    fields: dict[str, Any] = {
+        "env": "particle",
+        "ego_goal": "a2",
+        "partners": (SessionPartner(1, infer=True),),
+    }
     fields.update(change)
     store = SessionStore(engine)
     with pytest.raises(InvalidRequest) as err:

@@ -50,10 +50,11 @@ def store(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SqlModelStore]:
         import safetensors.numpy
 
         opened.register_version(
-            task_model_name("particle", MOVED_GOAL), spec=spec,
+            task_model_name("particle", MOVED_GOAL),
+            spec=spec,
             weights=safetensors.numpy.save(tensors),
             lineage=Lineage(config={"alpha": 0.05}, seed=4242, registered_by="pytest"),
-        )  # fmt: skip
+        )
         yield opened
 
 
@@ -221,10 +222,14 @@ def test_an_episode_scores_ahead_after_each_answer(store: SqlModelStore) -> None
     for t in range(5):
         step = pb.EpisodeStep(observation=random_observation(rng).tolist())
         if t == 0:
-            step.settings.CopyFrom(pb.EpisodeSettings(
-                env="particle", ego_goal="a2", seed=2,
-                partners=[pb.PartnerSpec(index=1, infer=True)],
-            ))  # fmt: skip
+            step.settings.CopyFrom(
+                pb.EpisodeSettings(
+                    env="particle",
+                    ego_goal="a2",
+                    seed=2,
+                    partners=[pb.PartnerSpec(index=1, infer=True)],
+                )
+            )
         else:
             step.observed.add(index=1, action=t % 5)
         steps.append(step)

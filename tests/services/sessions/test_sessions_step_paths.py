@@ -141,8 +141,13 @@ def test_rest_answers_are_the_core_written_out(engine: InferenceEngine) -> None:
     with TestClient(app) as client:
         ids = []
         for belief in blends:
-            body = {"env": "particle", "ego_goal": "a2", "partners": [{"index": 1, "infer": True}],
-                    "seed": 3, "belief": belief}  # fmt: skip
+            body = {
+                "env": "particle",
+                "ego_goal": "a2",
+                "partners": [{"index": 1, "infer": True}],
+                "seed": 3,
+                "belief": belief,
+            }
             ids.append(client.post("/v1/sessions", json=body).json()["session_id"])
         cores = [
             Session(engine, settings(**belief), sid)

@@ -39,9 +39,14 @@ pytestmark = pytest.mark.slow  # Ray's start alone takes ~9 s on 2 cores
 
 PG_URL = os.environ.get("COEXIST_TEST_PG_URL", "postgresql://postgres@127.0.0.1:5432/test")
 TINY: dict[str, Any] = dict(
-    total_steps=60, warmup_steps=10, envs_per_net=4, batch_size=16, hidden=(16,),
-    eval_episodes=4, eval_steps=20,
-)  # fmt: skip
+    total_steps=60,
+    warmup_steps=10,
+    envs_per_net=4,
+    batch_size=16,
+    hidden=(16,),
+    eval_episodes=4,
+    eval_steps=20,
+)
 GOALS = ["a2", "b3", "c"]
 COMBOS = [["a2", "b3"]]
 
@@ -78,8 +83,11 @@ def store_url(tmp_path: Path) -> Iterator[str]:
 
 
 def _configs() -> tuple[TaskConfig, ImpactConfig, JointConfig]:
-    return (replace(TaskConfig(), **TINY), replace(ImpactConfig(), **TINY),
-            replace(JointConfig(), **TINY))  # fmt: skip
+    return (
+        replace(TaskConfig(), **TINY),
+        replace(ImpactConfig(), **TINY),
+        replace(JointConfig(), **TINY),
+    )
 
 
 def _registry(store: SqlModelStore) -> dict[str, Any]:
@@ -177,8 +185,20 @@ def test_train_task_cli_with_the_ray_backend(
 
     monkeypatch.setattr(cli.train, "_configs", lambda steps, env="particle": _configs())
     run_dir = tmp_path / "cli-run"
-    args = ["train", "task", "--goals", "a2,b3,c", "--goals-per-batch", "2", "--backend", "ray",
-            "--store-url", store_url, "--run-dir", str(run_dir)]  # fmt: skip
+    args = [
+        "train",
+        "task",
+        "--goals",
+        "a2,b3,c",
+        "--goals-per-batch",
+        "2",
+        "--backend",
+        "ray",
+        "--store-url",
+        store_url,
+        "--run-dir",
+        str(run_dir),
+    ]
     result = CliRunner().invoke(app, args)
     assert result.exit_code == 0, result.output
     assert "trained networks" in result.output  # the summary table

@@ -33,10 +33,18 @@ from trainer.cooking.learners import train_cooking_tasks
 from trainer.zoo import RunState, run_impacts, run_tasks
 
 TINY: dict[str, Any] = dict(
-    total_steps=30, warmup_steps=5, envs_per_net=2, batch_size=16, hidden=(16,),
-    replay_size=500, eval_episodes=2, eval_steps=10, pool_episodes=2, pool_steps=5,
+    total_steps=30,
+    warmup_steps=5,
+    envs_per_net=2,
+    batch_size=16,
+    hidden=(16,),
+    replay_size=500,
+    eval_episodes=2,
+    eval_steps=10,
+    pool_episodes=2,
+    pool_steps=5,
     episode_steps=20,
-)  # fmt: skip
+)
 FIG8 = ["TomatoLettuceSalad", "CarrotBanana"]
 
 
@@ -52,11 +60,26 @@ def test_cooking_pipeline_registers_networks_the_engine_serves(tmp_path: Path) -
     run = RunState.open(tmp_path / "run", "fp", resume=False)
     tasks = run_tasks(store, FIG8, task_cfg, seed=0, run=run, gate_retries=0, **common)
     # tiny task networks fail their gates: train the impact network against `latest` anyway
-    impacts = run_impacts(store, ["CarrotBanana"], impact_cfg, seed=0, run=run,
-                          production_parents_only=False, **common)  # fmt: skip
+    impacts = run_impacts(
+        store,
+        ["CarrotBanana"],
+        impact_cfg,
+        seed=0,
+        run=run,
+        production_parents_only=False,
+        **common,
+    )
     partners = RunState.open(tmp_path / "partners", "fp2", resume=False)
-    run_tasks(store, ["CarrotBanana"], task_cfg, seed=1, run=partners, serve_alias="partners",
-              gate_retries=0, **common)  # fmt: skip
+    run_tasks(
+        store,
+        ["CarrotBanana"],
+        task_cfg,
+        seed=1,
+        run=partners,
+        serve_alias="partners",
+        gate_retries=0,
+        **common,
+    )
 
     task_v = store.resolve("cooking/task/TomatoLettuceSalad@latest")
     assert task_v.spec["obs_dim"] == 188 and task_v.spec["n_actions"] == 5
@@ -77,9 +100,15 @@ def test_cooking_pipeline_registers_networks_the_engine_serves(tmp_path: Path) -
     obs_BND = BatchedCookingWorld("coexistence", np.array([FIG8] * 3)).observe()
     engine = InferenceEngine(store)
     results = engine.act(
-        ActRequest(env="cooking", ego_goal="TomatoLettuceSalad", observations=obs_BND[:, 0],
-                   partners=(PartnerSpec(index=1, goal="CarrotBanana"),), alias="latest", seed=0)
-    )  # fmt: skip
+        ActRequest(
+            env="cooking",
+            ego_goal="TomatoLettuceSalad",
+            observations=obs_BND[:, 0],
+            partners=(PartnerSpec(index=1, goal="CarrotBanana"),),
+            alias="latest",
+            seed=0,
+        )
+    )
     assert len(results) == 3
     for r in results:
         assert len(r.probs) == 5 and abs(sum(r.probs) - 1) < 1e-9 and 0 <= r.action < 5
@@ -88,9 +117,14 @@ def test_cooking_pipeline_registers_networks_the_engine_serves(tmp_path: Path) -
             "cooking/impact/CarrotBanana",
         ]
     [right] = engine.act(
-        ActRequest(env="cooking", ego_goal="CarrotBanana", observations=obs_BND[:1, 1],
-                   method="sl", alias="latest")
-    )  # fmt: skip
+        ActRequest(
+            env="cooking",
+            ego_goal="CarrotBanana",
+            observations=obs_BND[:1, 1],
+            method="sl",
+            alias="latest",
+        )
+    )
     assert right.models[0].version == 2  # `latest` moved to the partner population's network
     store.close()
 
@@ -99,11 +133,26 @@ def test_a_config_for_another_world_is_refused(tmp_path: Path) -> None:
     store = SqlModelStore(f"sqlite:///{tmp_path / 'models.db'}")
     run = RunState.open(tmp_path / "run", "fp", resume=False)
     with pytest.raises(ValueError, match="does not train env 'cooking'"):
-        run_tasks(store, FIG8, TaskConfig(), seed=0, goals_per_batch=5, run=run,
-                  progress=_no_progress, env="cooking")  # fmt: skip
+        run_tasks(
+            store,
+            FIG8,
+            TaskConfig(),
+            seed=0,
+            goals_per_batch=5,
+            run=run,
+            progress=_no_progress,
+            env="cooking",
+        )
     with pytest.raises(ValueError, match="does not train env 'particle'"):
-        run_tasks(store, ["a2"], CookingTaskConfig(), seed=0, goals_per_batch=5, run=run,
-                  progress=_no_progress)  # fmt: skip
+        run_tasks(
+            store,
+            ["a2"],
+            CookingTaskConfig(),
+            seed=0,
+            goals_per_batch=5,
+            run=run,
+            progress=_no_progress,
+        )
     store.close()
 
 
@@ -135,8 +184,9 @@ def _always(action: int) -> StackedQNet:
 
 def test_impact_gate_sees_no_difference_when_the_ego_rests_anyway() -> None:
     cfg = replace(CookingImpactConfig(), **{**TINY, "eval_episodes": 3, "eval_steps": 40})
-    partner = train_cooking_tasks(["CarrotBanana"], replace(CookingTaskConfig(), **TINY), seed=5,
-                                  evaluate=False).nets  # fmt: skip
+    partner = train_cooking_tasks(
+        ["CarrotBanana"], replace(CookingTaskConfig(), **TINY), seed=5, evaluate=False
+    ).nets
     [gate] = cooking_impact_gates(_always(0), partner, ["CarrotBanana"], cfg, seed=6)
     # the partner draws the same random numbers beside either ego: identical episodes
     assert gate.partner_completion_rate == gate.partner_completion_rate_resting_ego
@@ -155,8 +205,20 @@ def test_train_zoo_cli_for_the_kitchen(tmp_path: Path, monkeypatch: pytest.Monke
         tiny = functools.partial(getattr(cooking_config, name), **TINY)
         monkeypatch.setattr(cooking_config, name, tiny)
     url = f"sqlite:///{tmp_path / 'models.db'}"
-    args = ["train", "zoo", "--env", "cooking", "--goals", ",".join(FIG8), "--steps", "12",
-            "--store-url", url, "--run-dir", str(tmp_path / "run")]  # fmt: skip
+    args = [
+        "train",
+        "zoo",
+        "--env",
+        "cooking",
+        "--goals",
+        ",".join(FIG8),
+        "--steps",
+        "12",
+        "--store-url",
+        url,
+        "--run-dir",
+        str(tmp_path / "run"),
+    ]
     result = CliRunner().invoke(app, args)
     assert result.exit_code == 0, result.output
     store = SqlModelStore(url)
@@ -173,6 +235,7 @@ def test_train_zoo_cli_for_the_kitchen(tmp_path: Path, monkeypatch: pytest.Monke
         store.resolve("cooking/impact/CarrotBanana@latest")
     assert "impact networks train only against `production`" in " ".join(result.output.split())
     store.close()
-    refused = CliRunner().invoke(app, ["train", "joint", "--env", "cooking", "--combos",
-                                       "TomatoLettuceSalad+CarrotBanana"])  # fmt: skip
+    refused = CliRunner().invoke(
+        app, ["train", "joint", "--env", "cooking", "--combos", "TomatoLettuceSalad+CarrotBanana"]
+    )
     assert refused.exit_code != 0 and "particle world only" in refused.output

@@ -29,8 +29,12 @@ def _dish_ready(n_envs: int) -> CookingState:
     s = start_states(get_layout("coexistence"), n_envs)
     s.agent_rc[:, 0], s.agent_rc[:, 1] = (3, 2), (3, 7)
     s.obj_holder[:, LEFT_PLATE], s.obj_holder[:, RIGHT_PLATE] = 0, 1
-    for item, plate in ((TOMATO, LEFT_PLATE), (LETTUCE, LEFT_PLATE), (CARROT, RIGHT_PLATE),
-                        (BANANA, RIGHT_PLATE)):  # fmt: skip
+    for item, plate in (
+        (TOMATO, LEFT_PLATE),
+        (LETTUCE, LEFT_PLATE),
+        (CARROT, RIGHT_PLATE),
+        (BANANA, RIGHT_PLATE),
+    ):
         s.obj_plate[:, item], s.obj_state[:, item] = plate, CHOPPED
     return s
 
@@ -105,8 +109,11 @@ def test_impact_reward_adds_the_partner_reward_only_when_asked(variant: str) -> 
 
 def test_impact_reward_is_the_change_of_the_partners_soft_value_on_its_own_view() -> None:
     cfg = replace(CookingImpactConfig(), **SMALL, impact_reward="value_change")  # type: ignore[arg-type]
-    partner = StackedQNet(QNetSpec(obs_dim=188, n_actions=5, hidden=(8,)), 1,
-                          generator=torch.Generator().manual_seed(0))  # fmt: skip
+    partner = StackedQNet(
+        QNetSpec(obs_dim=188, n_actions=5, hidden=(8,)),
+        1,
+        generator=torch.Generator().manual_seed(0),
+    )
     rollout = CookingImpactRollout(["CarrotBanana"], partner, cfg, seed=3)
     k = rollout.kitchens[0]
     before = k.obs_BND[:, 1].copy()  # the partner (right cook)'s own observation
@@ -126,8 +133,13 @@ def test_impact_reward_is_the_change_of_the_partners_soft_value_on_its_own_view(
 
 @pytest.mark.parametrize("first_prob", [0.0, 1.0])
 def test_helper_hands_over_first_or_after_its_own_dish(first_prob: float) -> None:
-    settings = {**SMALL, "episode_steps": 60, "handover_first_prob": first_prob,
-                "handover_delay_max": 5, "scripted_start_prob": 0.0}  # fmt: skip
+    settings = {
+        **SMALL,
+        "episode_steps": 60,
+        "handover_first_prob": first_prob,
+        "handover_delay_max": 5,
+        "scripted_start_prob": 0.0,
+    }
     cfg = replace(CookingTaskConfig(), **settings)  # type: ignore[arg-type]
     k = Kitchens("CarrotBanana", 2, cfg, seed=0)
     if first_prob == 0.0:

@@ -80,9 +80,11 @@ def test_the_spoiling_step_is_penalised_in_training_only() -> None:
 
 def _carrot_first_states(other_order_prob: float) -> int:
     cfg = replace(
-        CookingTaskConfig(), pool_other_order_prob=other_order_prob, pool_episodes=6,
+        CookingTaskConfig(),
+        pool_other_order_prob=other_order_prob,
+        pool_episodes=6,
         pool_idle_max=0,
-    )  # fmt: skip
+    )
     pool = Kitchens("CarrotBanana", 1, cfg, 3).pool
     assert pool is not None
     obj = _objects(BatchedCookingWorld("coexistence", FIG8))

@@ -25,10 +25,18 @@ from trainer.report import print_summary
 from trainer.zoo import RunState, run_impacts, run_tasks
 
 TINY: dict[str, Any] = dict(
-    total_steps=20, warmup_steps=5, envs_per_net=2, batch_size=16, hidden=(16,),
-    replay_size=500, eval_episodes=2, eval_steps=10, pool_episodes=2, pool_steps=5,
+    total_steps=20,
+    warmup_steps=5,
+    envs_per_net=2,
+    batch_size=16,
+    hidden=(16,),
+    replay_size=500,
+    eval_episodes=2,
+    eval_steps=10,
+    pool_episodes=2,
+    pool_steps=5,
     episode_steps=20,
-)  # fmt: skip
+)
 GOAL = "CarrotBanana"
 
 
@@ -64,8 +72,16 @@ def test_no_impact_network_beside_a_failed_task_network(
         store.resolve(f"cooking/impact/{GOAL}@latest")
 
     # asked explicitly, the old fallback to `latest` still trains it (the particle default)
-    loose = run_impacts(store, [GOAL], impact_cfg, seed=0, run=run, production_parents_only=False,
-                        gate_retries=0, **common)  # fmt: skip
+    loose = run_impacts(
+        store,
+        [GOAL],
+        impact_cfg,
+        seed=0,
+        run=run,
+        production_parents_only=False,
+        gate_retries=0,
+        **common,
+    )
     assert store.resolve(f"cooking/impact/{GOAL}@latest").lineage.parents == (
         f"cooking/task/{GOAL}/1",
     )
@@ -91,8 +107,13 @@ def test_the_ray_impact_stage_skips_the_goals_the_local_loop_skips(
     for goal, aliases in ((GOAL, ()), (other, ("production",))):
         name = task_model_name("cooking", goal)
         store.create_model(name, env="cooking", kind="task", goals=[goal], obs_dim=8, n_actions=5)
-        store.register_version(name, spec=spec, weights=qnet_weights(spec, seed=1),
-                               lineage=Lineage(seed=1), aliases=aliases)  # fmt: skip
+        store.register_version(
+            name,
+            spec=spec,
+            weights=qnet_weights(spec, seed=1),
+            lineage=Lineage(seed=1),
+            aliases=aliases,
+        )
     stage = impact_stage([GOAL, other, "BananaSmoothie"], ImpactConfig(), seed=3, per_batch=2)
     with caplog.at_level(logging.WARNING, logger="trainer.zoo"):
         jobs = impact_jobs_with_parents(store, "cooking", stage.jobs)

@@ -164,9 +164,13 @@ def test_a_runner_that_loses_its_lease_stops_its_trainer(table: JobTable, tmp_pa
     could not renew: at its next renewal the runner stops its trainer and records nothing."""
     job = table.submit(JobSpec("task", goals="a2"), str(tmp_path / "jobs"))
     runner = JobRunner(
-        table, store_url="unused", poll_s=0.05, heartbeat_s=0.1, cancel_grace_s=0.5,
+        table,
+        store_url="unused",
+        poll_s=0.05,
+        heartbeat_s=0.1,
+        cancel_grace_s=0.5,
         command=sleeper,
-    )  # fmt: skip
+    )
     runner.start()
     try:
         (pid,) = wait_for(lambda: _started(job.run_dir), "the trainer")
