@@ -12,8 +12,8 @@ Only the goals the suite needs are trained, with the trainer's own learners and 
 
 Quality gates are skipped (`evaluate=False`): tiny networks would fail them and get no alias.
 The numbers such a zoo produces test the harness, not the paper. Torch runs on one thread while
-it trains: for networks this small, a second thread only adds synchronisation (5× slower on a
-busy 2-core machine).
+it trains: for networks this small, a second thread only adds synchronisation
+(`docs/performance.md`).
 """
 
 from __future__ import annotations

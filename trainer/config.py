@@ -7,7 +7,7 @@ what the 2-core budget and the particle world's dense reward call for:
 
 | field | ours | reference | why |
 |---|---|---|---|
-| hidden | 128-128 | 256-128-128 | the pair view has 8 inputs; 128-128 passes the gates at ~3x the speed |
+| hidden | 128-128 | 256-128-128 | the pair view has 8 inputs; 128-128 passes the gates and trains faster (`docs/performance.md`) |
 | lr | 3e-4 | 1e-4 | 1e-3 left 5 of 8 hard goals >15 % behind the scripted controller; 3e-4 over 12k steps closed the gap |
 | gamma | 0.9 | 0.5 | one push changes the next position by at most 2 % of the world: with γ = 0.5 (horizon 2) the Q gaps between actions stay below α and the Boltzmann policy near uniform |
 | alpha | 0.02 | 0.02-0.05 | lower end: sharp enough to reach the target area reliably, soft enough for JSD weights to mean something |

@@ -162,7 +162,7 @@ def _row_layers(net: LoadedNet) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
 def _partition(nets: Sequence[LoadedNet], members: list[int], spec: QNetSpec) -> Partition:
     layers = [_row_layers(nets[j]) for j in members]
     row_weights = [
-        # one copy per layer from the nets' own (in, out) layouts (~4x cheaper than stacking
+        # one copy per layer from the nets' own (in, out) layouts (cheaper than stacking
         # the (out, in) tensors and transposing the stack: a top-k blend makes many groups)
         (np.concatenate([n[k][0] for n in layers]), np.concatenate([n[k][1] for n in layers]))
         for k in range(len(spec.layer_sizes))

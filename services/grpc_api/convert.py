@@ -20,11 +20,10 @@
 Field names follow the REST API: a single request's rows are `observation` / `state` (the engine
 calls them `observations[0]`), a batch of states is `states[b]`, a row of a batch's
 `observation_matrix` is `observation_matrix[b]`. A matrix and the columns are read into and
-filled from numpy in one call each (`np.array(values)`, `extend(ndarray)`): microseconds for a
-256-row batch, where reading one `Vector` message per row costs about 1 µs a row. Unset proto3
-fields take the REST
-defaults: method "aail_bounded", alias "production", no temperature, no seed; an unset belief field the
-`SessionSettings` / `BeliefConfig` default. `infer` is refused outside an Episode (a unary call
+filled from numpy in one call each (`np.array(values)`, `extend(ndarray)`), not one `Vector`
+message per row. Unset proto3 fields take the REST defaults: method "aail_bounded", alias
+"production", no temperature, no seed; an unset belief field the `SessionSettings` /
+`BeliefConfig` default. `infer` is refused outside an Episode (a unary call
 has no history of the partner's actions).
 """
 
@@ -163,8 +162,8 @@ def act_batch_request(message: pb.ActBatchRequest, source: str) -> ActRequest:
     if len(lengths) > 1:
         raise InvalidRequest("observations", f"rows of different lengths {sorted(lengths)}")
     width = lengths.pop() if lengths else 0
-    # one pass over the rows' containers, no list in between: 0.22 ms for 256 rows of 20
-    # against 0.35 ms for a flat list comprehension
+    # one pass over the rows' containers, no list in between (cheaper than a flat list
+    # comprehension: `docs/performance.md`)
     flat = np.fromiter(chain.from_iterable(rows), dtype=np.float64, count=len(rows) * width)
     return _request(message, flat.reshape(len(rows), width))
 
@@ -290,7 +289,7 @@ def _fill(
     action_meanings: Sequence[str],
 ) -> None:
     """Write one result into `message`. `shared` is the serialized part every row of a request
-    has in common (method, models): merging those bytes is ~3x faster than building the model
+    has in common (method, models): merging those bytes is cheaper than building the model
     messages again for each of a batch's rows."""
     message.MergeFromString(shared)
     message.probs.extend(result.probs)

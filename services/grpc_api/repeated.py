@@ -3,8 +3,8 @@
 A robot calls `Act` every control step with the same env, goals, partners, method and alias;
 only the observation (and perhaps the seed) changes, and the answer names the same models each
 time. Converting those settings to the engine's `ActRequest` and serialising the answer's
-method and models cost ~15 µs of a ~120 µs call, more than the blend's arithmetic for one
-partner, so both are remembered in small bounded maps:
+method and models cost more than the blend's arithmetic for one partner
+(`docs/performance.md`), so both are remembered in small bounded maps:
 
 | memo        | key                                          | value                               |
 |-------------|----------------------------------------------|-------------------------------------|

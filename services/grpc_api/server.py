@@ -1,5 +1,5 @@
-"""The gRPC server: grpcio's *sync* server on a thread pool (it beat `grpc.aio` by ~1.6x on this
-kind of machine, /work/shared/PERF-NOTES.md), serving
+"""The gRPC server: grpcio's *sync* server on a thread pool (faster than `grpc.aio` for
+these calls: `docs/performance.md`), serving
 
 | service                          | what                                                     |
 |----------------------------------|----------------------------------------------------------|

@@ -14,7 +14,7 @@ reward's shape. A dish pays +20 once, after 20-50 scripted steps (`envs.cooking.
 | spoil_penalty       | 2.0     | -        | -2 per needed ingredient newly on a plate that can never be served (`trainer.cooking.shaping`): the mistake that ended most failed CarrotBanana runs costs something at once |
 | lr, target_every    | 1e-3, 100 | 3e-4, 250 | value must travel back ~50 steps: more frequent target copies and a larger step (3e-4 / 250 learned nothing in 4 000 steps) |
 | batch_size          | 256     | 128      | dish transitions are rare in the replay                |
-| envs_per_net        | 16      | 16       | the scripted other cook (~0.2 ms per kitchen and step) dominates the step time |
+| envs_per_net        | 16      | 16       | the scripted other cook dominates the step time (`docs/performance.md`) |
 | episode_steps       | 120     | 150      | the slowest dish (~60 steps) plus `linger_steps`       |
 | total_steps         | 48 000  | 12 000   | with the three rows below, 5 of 5 CarrotBanana seeds passed by 48 000 (4 of them by 36 000); without them 8 of 16 (`reports/cooking/README.md`) |
 | handover_delay_max  | 30      | -        | the helper's hand-over step; 60 left the CarrotBanana cook waiting most of the time |
