@@ -15,9 +15,7 @@ from __future__ import annotations
 
 import os
 import signal
-import socket
 import subprocess
-import sys
 import time
 import uuid
 from collections.abc import Iterator, Sequence
@@ -30,6 +28,7 @@ import httpx
 import psycopg
 import pytest
 import torch
+from serve_process import COEXIST, free_port
 from sqlalchemy.engine import make_url
 
 from model_store.entities import Lineage
@@ -43,13 +42,6 @@ ZOO_GOALS = ("a2", "b3")
 SPEC = QNetSpec(obs_dim=8, n_actions=5, hidden=(16,))
 OBS = [0.1, 0.4, 0.0, 0.0, 0.7, 0.6, 0.0, 0.0]
 REPO = Path(__file__).resolve().parents[2]
-COEXIST = (sys.executable, "-m", "cli.main")  # the `coexist` command of this checkout
-
-
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return int(sock.getsockname()[1])
 
 
 @contextmanager

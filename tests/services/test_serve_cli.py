@@ -4,38 +4,17 @@ from __future__ import annotations
 
 import os
 import signal
-import socket
 import subprocess
 import sys
-import time
 from pathlib import Path
 
-import httpx
 import pytest
 from coexist_client import CoexistClient, GrpcCoexistClient
+from serve_process import free_port, serve_command, wait_ready
 
 from model_store.sql import SqlModelStore
 
 OBS = [0.1, 0.4, 0.0, 0.0, 0.7, 0.6, 0.0, 0.0]
-
-
-def _free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return int(sock.getsockname()[1])
-
-
-def _wait_ready(url: str, process: subprocess.Popen[bytes], timeout: float = 60.0) -> None:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        assert process.poll() is None, process.communicate()[0].decode()
-        try:
-            if httpx.get(f"{url}/readyz", timeout=1.0).status_code == 200:
-                return
-        except httpx.TransportError:
-            pass
-        time.sleep(0.2)
-    raise AssertionError("server did not become ready")
 
 
 @pytest.mark.parametrize("workers", [1, 2])
@@ -43,27 +22,14 @@ def test_serve_answers_rest_and_grpc_then_stops_gracefully(
     tiny_zoo_store: SqlModelStore, tmp_path: Path, workers: int
 ) -> None:
     """With two uvicorn workers both bind the gRPC port too (SO_REUSEPORT)."""
-    http_port, grpc_port = _free_port(), _free_port()
+    http_port, grpc_port = free_port(), free_port()
     env = {**os.environ, "COEXIST_DEV_MODE": "1", "COEXIST_DATA_DIR": str(tmp_path)}
-    cmd = [
-        sys.executable,
-        "-m",
-        "cli.main",
-        "serve",
-        "--no-bootstrap",
-        "--http-port",
-        str(http_port),
-        "--grpc-port",
-        str(grpc_port),
-        "--workers",
-        str(workers),
-        "--store-url",
-        tiny_zoo_store.url.render_as_string(hide_password=False),
-    ]
+    store_url = tiny_zoo_store.url.render_as_string(hide_password=False)
+    cmd = serve_command(store_url, http_port, grpc_port, "--workers", str(workers))
     process = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     try:
         url = f"http://127.0.0.1:{http_port}"
-        _wait_ready(url, process)
+        wait_ready(url, process)
         partners = {1: "b3"}
         with CoexistClient(url) as rest, GrpcCoexistClient(f"127.0.0.1:{grpc_port}") as grpc:
             a = rest.act("particle", "a2", OBS, partners=partners, seed=3)

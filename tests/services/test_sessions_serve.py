@@ -8,13 +8,13 @@ import os
 import shutil
 import signal
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 from coexist_client import CoexistClient, CoexistError, GrpcCoexistClient
+from serve_process import free_port, serve_command, wait_ready
 from session_zoo import session_zoo_template
-from test_serve_cli import OBS, _free_port, _wait_ready
+from test_serve_cli import OBS
 
 
 @pytest.mark.slow
@@ -22,31 +22,17 @@ from test_serve_cli import OBS, _free_port, _wait_ready
 def test_sessions_need_one_worker(
     tmp_path_factory: pytest.TempPathFactory, tmp_path: Path, workers: int
 ) -> None:
-    http_port, grpc_port = _free_port(), _free_port()
+    http_port, grpc_port = free_port(), free_port()
     env = {**os.environ, "COEXIST_DEV_MODE": "1", "COEXIST_DATA_DIR": str(tmp_path)}
     env.pop("COEXIST_WORKERS", None)
     private = tmp_path / "models.db"  # the server may write (migrations): a private copy
     shutil.copy(session_zoo_template(tmp_path_factory), private)
     store_url = f"sqlite:///{private}"
-    cmd = [
-        sys.executable,
-        "-m",
-        "cli.main",
-        "serve",
-        "--no-bootstrap",
-        "--http-port",
-        str(http_port),
-        "--grpc-port",
-        str(grpc_port),
-        "--workers",
-        str(workers),
-        "--store-url",
-        store_url,
-    ]
+    cmd = serve_command(store_url, http_port, grpc_port, "--workers", str(workers))
     process = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     try:
         url = f"http://127.0.0.1:{http_port}"
-        _wait_ready(url, process)
+        wait_ready(url, process)
         with CoexistClient(url) as rest, GrpcCoexistClient(f"127.0.0.1:{grpc_port}") as grpc:
             if workers == 1:
                 with rest.create_session("particle", "a2", partners={1: None}) as session:

@@ -17,22 +17,13 @@ from evaluation.cooking.suite import (
 )
 from model_store.sql.sql_store import SqlModelStore
 from services.engine import InferenceEngine
+from tests.trainer.cooking.tiny import TINY_COOKING
 from trainer.cooking.config import CookingImpactConfig, CookingTaskConfig
 from trainer.learners import train_impacts, train_tasks
 from trainer.publish import publish_batch
 from trainer.zoo import load_task_nets
 
-TINY = dict(
-    total_steps=20,
-    warmup_steps=5,
-    envs_per_net=2,
-    batch_size=16,
-    hidden=(16,),
-    replay_size=500,
-    pool_episodes=2,
-    pool_steps=5,
-    episode_steps=20,
-)
+TINY = TINY_COOKING
 FIG8 = ["TomatoLettuceSalad", "CarrotBanana"]
 
 
@@ -41,10 +32,10 @@ def store(tmp_path_factory: pytest.TempPathFactory) -> SqlModelStore:
     """Task and impact networks (`production`) and a partner population (`partners`)."""
     path = tmp_path_factory.mktemp("cooking") / "models.db"
     store = SqlModelStore(f"sqlite:///{path}")
-    task_cfg = replace(CookingTaskConfig(), **TINY)  # type: ignore[arg-type]
+    task_cfg = replace(CookingTaskConfig(), **TINY)
     tasks = train_tasks(FIG8, task_cfg, seed=0, evaluate=False)
     publish_batch(store, tasks, env="cooking")
-    impact_cfg = replace(CookingImpactConfig(), **TINY)  # type: ignore[arg-type]
+    impact_cfg = replace(CookingImpactConfig(), **TINY)
     partner_nets, _ = load_task_nets(store, "cooking", ["CarrotBanana"])
     impact = train_impacts(["CarrotBanana"], partner_nets, impact_cfg, seed=1, evaluate=False)
     publish_batch(store, impact, env="cooking")

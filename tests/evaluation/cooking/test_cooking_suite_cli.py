@@ -24,21 +24,12 @@ from services.engine import InferenceEngine
 from tests.evaluation.paper.test_eval_suite import (
     live_http,  # a uvicorn thread on 127.0.0.1 serving an engine
 )
+from tests.trainer.cooking.tiny import TINY_COOKING
 from trainer.cooking.config import CookingImpactConfig, CookingTaskConfig
 from trainer.learners import train_impacts, train_tasks
 from trainer.publish import publish_batch
 
-TINY = dict(
-    total_steps=20,
-    warmup_steps=5,
-    envs_per_net=2,
-    batch_size=16,
-    hidden=(16,),
-    replay_size=500,
-    pool_episodes=2,
-    pool_steps=5,
-    episode_steps=20,
-)
+TINY = TINY_COOKING
 FIG8 = ["TomatoLettuceSalad", "CarrotBanana"]
 
 
@@ -47,10 +38,10 @@ def store_url(tmp_path_factory: pytest.TempPathFactory) -> str:
     """A tiny cooking zoo: the left cook's networks (`production`) and a right cook (`partners`)."""
     url = f"sqlite:///{tmp_path_factory.mktemp('cooking-cli') / 'models.db'}"
     with SqlModelStore(url) as store:
-        task_cfg = replace(CookingTaskConfig(), **TINY)  # type: ignore[arg-type]
+        task_cfg = replace(CookingTaskConfig(), **TINY)
         tasks = train_tasks(FIG8, task_cfg, seed=0, evaluate=False)
         publish_batch(store, tasks, env="cooking")
-        impact_cfg = replace(CookingImpactConfig(), **TINY)  # type: ignore[arg-type]
+        impact_cfg = replace(CookingImpactConfig(), **TINY)
         partner_nets = train_tasks(["CarrotBanana"], task_cfg, seed=2, evaluate=False)
         impact = train_impacts(
             ["CarrotBanana"], partner_nets.nets, impact_cfg, seed=1, evaluate=False

@@ -16,9 +16,7 @@ from __future__ import annotations
 import os
 import shutil
 import signal
-import socket
 import subprocess
-import sys
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -27,6 +25,7 @@ from typing import Any
 
 import httpx
 import pytest
+from serve_process import free_port, serve_command
 
 CHROMIUM = os.environ.get("COEXIST_CHROMIUM", "/usr/bin/chromium")
 CHROMIUM_ARGS = [
@@ -69,16 +68,10 @@ def sync_playwright() -> Any:
     return start()
 
 
-def _free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return int(sock.getsockname()[1])
-
-
 @contextmanager
 def serve_console(store_url: str, data_dir: Path, *, admin: str, read: str) -> Iterator[str]:
     """`coexist serve` (REST only) over `store_url`, reads behind `read`; yields its URL."""
-    port = _free_port()
+    port = free_port()
     env = {
         **{k: v for k, v in os.environ.items() if not k.startswith("COEXIST_")},
         "COEXIST_ADMIN_TOKEN": admin,
@@ -87,19 +80,7 @@ def serve_console(store_url: str, data_dir: Path, *, admin: str, read: str) -> I
         "COEXIST_REFRESH_INTERVAL_S": "0.5",
         "COEXIST_LOG_LEVEL": "warning",
     }
-    cmd = [
-        sys.executable,
-        "-m",
-        "cli.main",
-        "serve",
-        "--no-bootstrap",
-        "--http-port",
-        str(port),
-        "--grpc-port",
-        "0",
-        "--store-url",
-        store_url,
-    ]
+    cmd = serve_command(store_url, port)
     log = (data_dir / "serve.log").open("wb")
     process = subprocess.Popen(cmd, env=env, stdout=log, stderr=subprocess.STDOUT)
     url = f"http://127.0.0.1:{port}"

@@ -42,10 +42,10 @@ CASES: list[tuple[str, dict[str, Any], str, str]] = [
     ("unhashable ego goal", {"ego_goal": ["a2"]}, "ego_goal", "unknown goal"),
     (
         "unhashable partner goal",
-        {"partners": (PartnerSpec(1, goal=["b3"]),)},
+        {"partners": (PartnerSpec(1, goal=["b3"]),)},  # type: ignore[arg-type]
         "partners[0].goal",
         "unknown goal",
-    ),  # type: ignore[arg-type]
+    ),
     ("unhashable method", {"method": ["aail"]}, "method", "unknown method"),
     ("unhashable alias", {"alias": ["production"]}, "alias", "must match"),
     ("unknown method", {"method": "greedy"}, "method", "unknown method"),
@@ -77,10 +77,10 @@ CASES: list[tuple[str, dict[str, Any], str, str]] = [
     ),
     (
         "partner index float",
-        {"partners": (PartnerSpec(1.0, goal="b3"),)},
+        {"partners": (PartnerSpec(1.0, goal="b3"),)},  # type: ignore[arg-type]
         "partners[0].index",
         "integer",
-    ),  # type: ignore[arg-type]
+    ),
     (
         "partner index bool",
         {"partners": (PartnerSpec(True, goal="b3"),)},
@@ -150,10 +150,10 @@ CASES: list[tuple[str, dict[str, Any], str, str]] = [
     ),
     (
         "probs: not numbers",
-        {"partners": (PartnerSpec(1, goal_probs={"b3": "1"}),)},
+        {"partners": (PartnerSpec(1, goal_probs={"b3": "1"}),)},  # type: ignore[dict-item]
         "partners[0].goal_probs",
         "finite",
-    ),  # type: ignore[dict-item]
+    ),
     ("partners not a list", {"partners": "b3"}, "partners", "list"),
     (
         "partner not a spec",

@@ -20,6 +20,7 @@ from model_store.errors import NotFound
 from model_store.sql.sql_store import SqlModelStore
 from policy.qnet import QNetSpec, StackedQNet
 from services.engine import ActRequest, InferenceEngine, PartnerSpec
+from tests.trainer.cooking.tiny import TINY_COOKING_GATED
 from trainer.config import GATE_RETRIES, TaskConfig
 from trainer.cooking import config as cooking_config
 from trainer.cooking.config import CookingImpactConfig, CookingTaskConfig
@@ -32,19 +33,7 @@ from trainer.cooking.gates import (
 from trainer.cooking.learners import train_cooking_tasks
 from trainer.zoo import RunState, run_impacts, run_tasks
 
-TINY: dict[str, Any] = dict(
-    total_steps=30,
-    warmup_steps=5,
-    envs_per_net=2,
-    batch_size=16,
-    hidden=(16,),
-    replay_size=500,
-    eval_episodes=2,
-    eval_steps=10,
-    pool_episodes=2,
-    pool_steps=5,
-    episode_steps=20,
-)
+TINY = {**TINY_COOKING_GATED, "total_steps": 30}
 FIG8 = ["TomatoLettuceSalad", "CarrotBanana"]
 
 

@@ -17,6 +17,7 @@ from model_store.errors import NotFound
 from model_store.naming import task_model_name
 from model_store.sql.sql_store import SqlModelStore
 from model_store.testing import qnet_spec, qnet_weights
+from tests.trainer.cooking.tiny import TINY_COOKING_GATED
 from trainer.backends.jobs import impact_jobs_with_parents, impact_stage
 from trainer.config import ImpactConfig
 from trainer.cooking.config import CookingImpactConfig, CookingTaskConfig
@@ -24,19 +25,7 @@ from trainer.cooking.gates import CookingTaskGate
 from trainer.report import print_summary
 from trainer.zoo import RunState, run_impacts, run_tasks
 
-TINY: dict[str, Any] = dict(
-    total_steps=20,
-    warmup_steps=5,
-    envs_per_net=2,
-    batch_size=16,
-    hidden=(16,),
-    replay_size=500,
-    eval_episodes=2,
-    eval_steps=10,
-    pool_episodes=2,
-    pool_steps=5,
-    episode_steps=20,
-)
+TINY = TINY_COOKING_GATED
 GOAL = "CarrotBanana"
 
 
