@@ -109,7 +109,18 @@ def validate_tags(tags: Mapping[str, str], field: str = "tags") -> dict[str, str
                 f"{field}.{key}: a string of at most {MAX_TAG_VALUE} characters",
                 field=f"{field}.{key}",
             )
+        validate_text(value, f"{field}.{key}")
     return dict(tags)
+
+
+def validate_text(value: object, field: str) -> str:
+    """A string for a text column: any characters but NUL, which PostgreSQL's text type cannot
+    hold (SQLite could; refusing it on both keeps the backends alike)."""
+    if not isinstance(value, str):
+        raise InvalidArgument(f"{field}: expected a string", field=field)
+    if "\x00" in value:
+        raise InvalidArgument(f"{field}: must not contain NUL (\\x00) characters", field=field)
+    return value
 
 
 def validate_idempotency_key(key: str, field: str = "idempotency_key") -> str:

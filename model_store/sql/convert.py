@@ -72,7 +72,7 @@ def decode_page_token(token: str) -> str:
         padded = token + "=" * (-len(token) % 4)
         data = json.loads(base64.urlsafe_b64decode(padded.encode()))
         after = data["after"]
-        if not isinstance(after, str):
+        if not isinstance(after, str) or "\x00" in after:  # no name holds NUL
             raise TypeError
         return after
     except (binascii.Error, ValueError, KeyError, TypeError, UnicodeDecodeError):

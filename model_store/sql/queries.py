@@ -37,6 +37,8 @@ def emit(
 
 
 def find_model(session: Session, name: str) -> ModelRow:
+    if "\x00" in name:  # no model has one (names are validated), and PostgreSQL cannot compare it
+        raise NotFound(f"model {name!r} not found", field="name")
     row = session.execute(
         select(ModelRow)
         .where(ModelRow.name == name)

@@ -28,6 +28,7 @@ from model_store.naming import (
     validate_goal,
     validate_model_name,
     validate_tags,
+    validate_text,
 )
 from model_store.sql import queries as q
 from model_store.sql.convert import (
@@ -126,8 +127,7 @@ class SqlModelStore(VersionOps, ModelStore):
                 raise InvalidArgument(
                     f"{key}: expected an integer in 1..{MAX_SIZE}, got {brief(value)}", field=key
                 )
-        if not isinstance(description, str):
-            raise InvalidArgument("description: expected a string", field="description")
+        validate_text(description, "description")
         tag_map = validate_tags(tags or {})
         with self._session(write=True) as session:
             existing = session.execute(select(ModelRow.id).where(ModelRow.name == name)).first()
@@ -177,6 +177,9 @@ class SqlModelStore(VersionOps, ModelStore):
             raise InvalidArgument(
                 f"page_size: expected 1..{MAX_PAGE_SIZE}, got {brief(page_size)}", field="page_size"
             )
+        for key, value in (("env", env), ("goal", goal), ("tag", tag)):
+            if value is not None:
+                validate_text(value, key)
         stmt = select(ModelRow).order_by(ModelRow.name).limit(page_size + 1)
         if env is not None:
             stmt = stmt.where(ModelRow.env == env)
@@ -214,8 +217,8 @@ class SqlModelStore(VersionOps, ModelStore):
         description: str | None = None,
         tags: Mapping[str, str] | None = None,
     ) -> RegisteredModel:
-        if description is not None and not isinstance(description, str):
-            raise InvalidArgument("description: expected a string", field="description")
+        if description is not None:
+            validate_text(description, "description")
         tag_map = validate_tags(tags) if tags is not None else None
         with self._session(write=True) as session:
             row = q.find_model(session, name)

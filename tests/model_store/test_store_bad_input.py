@@ -209,3 +209,53 @@ def test_postgres_closed_port_and_dropped_schema(pg_url: str) -> None:
     with pytest.raises(StoreUnavailable):
         store.get_model(NAME)
     store.close()
+
+
+def test_nul_characters_get_the_same_answer_on_both_backends(store: SqlModelStore) -> None:
+    """PostgreSQL's text type cannot hold NUL (it raised, a 503): a name or job id with one
+    names nothing (NotFound), a filter, description or tag value with one is refused naming its
+    field, a page token whose name holds one is not ours; SQLite answers the same."""
+    import base64
+    import json
+
+    from model_store.errors import InvalidArgument
+    from trainer.jobs.table import JobTable
+
+    store.create_model(NAME, env="particle", kind="task", goals=["a3"], obs_dim=8, n_actions=5)
+    raw = json.dumps({"after": "a\x00"}).encode()
+    token = base64.urlsafe_b64encode(raw).decode().rstrip("=")
+    refused = {
+        "env": lambda: store.list_models(env="particle\x00"),
+        "goal": lambda: store.list_models(goal="a3\x00"),
+        "tag": lambda: store.list_models(tag="k=v\x00"),
+        "page_token": lambda: store.list_models(page_token=token),
+        "description": lambda: store.update_model(NAME, description="x\x00y"),
+        "tags.k": lambda: store.update_model(NAME, tags={"k": "v\x00"}),
+    }
+    for field, call in refused.items():
+        with pytest.raises(InvalidArgument) as err:
+            call()
+        assert err.value.field == field
+    with pytest.raises(InvalidArgument, match="description"):
+        store.create_model(
+            "particle/task/a4",
+            env="particle",
+            kind="task",
+            goals=["a4"],
+            obs_dim=8,
+            n_actions=5,
+            description="\x00",
+        )
+    for call in (
+        lambda: store.get_model(NAME + "\x00"),
+        lambda: store.list_versions(NAME + "\x00"),
+        lambda: store.delete_model(NAME + "\x00"),
+    ):
+        with pytest.raises(NotFound):
+            call()
+    jobs = JobTable(store.url.render_as_string(hide_password=False))
+    for job_call in (jobs.get, jobs.status, jobs.cancel):
+        with pytest.raises(NotFound):
+            job_call("job\x00")
+    assert [m.name for m in store.list_models().items] == [NAME]  # nothing else was written
+    assert store.get_model(NAME).description == ""

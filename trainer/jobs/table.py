@@ -95,6 +95,12 @@ class Job:
         }
 
 
+def _check_id(job_id: str) -> None:
+    """An id with NUL is no job's (ids are made here), and PostgreSQL cannot compare it."""
+    if "\x00" in job_id:
+        raise NotFound(f"job {brief(job_id)} not found", field="id")
+
+
 class JobTable:
     """Rows of `training_jobs` in the database at `url` (the model store's)."""
 
@@ -126,6 +132,7 @@ class JobTable:
         return self.get(job_id)
 
     def get(self, job_id: str) -> Job:
+        _check_id(job_id)
         with self._read() as s, s.begin():
             row = s.get(TrainingJobRow, job_id)
             if row is None:
@@ -171,6 +178,7 @@ class JobTable:
 
     def status(self, job_id: str) -> JobStatus:
         """The row's status alone (what the runner polls while a job runs)."""
+        _check_id(job_id)
         with self._read() as s, s.begin():
             status = s.scalar(select(TrainingJobRow.status).where(TrainingJobRow.id == job_id))
         if status is None:
@@ -202,6 +210,7 @@ class JobTable:
 
         Asking again while it is `cancelling` changes nothing; a finished job is a `Conflict`.
         """
+        _check_id(job_id)
         with self._write() as s, s.begin():
             row = s.get(TrainingJobRow, job_id)
             if row is None:
