@@ -189,6 +189,8 @@ class VersionOps:
     def load_weights(self, name: str, version: int) -> bytes:
         _check_version_number(version)
         with self._session() as session:
+            if "\x00" in name:  # no model's (`queries.find_model` says so, as on every look-up)
+                q.find_model(session, name)
             found = session.execute(
                 select(VersionRow.weights, VersionRow.sha256)
                 .join(ModelRow, VersionRow.model_id == ModelRow.id)

@@ -250,6 +250,7 @@ def test_nul_characters_get_the_same_answer_on_both_backends(store: SqlModelStor
         lambda: store.get_model(NAME + "\x00"),
         lambda: store.list_versions(NAME + "\x00"),
         lambda: store.delete_model(NAME + "\x00"),
+        lambda: store.load_weights(NAME + "\x00", 1),
     ):
         with pytest.raises(NotFound):
             call()
