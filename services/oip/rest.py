@@ -15,9 +15,10 @@ from starlette.concurrency import run_in_threadpool
 
 from services.engine import InferenceEngine, InvalidRequest
 from services.oip import core
+from services.rest.json_body import FastJsonRoute
 from services.version import VERSION
 
-router = APIRouter(prefix="/v2", tags=["open inference protocol (v2)"])
+router = APIRouter(prefix="/v2", tags=["open inference protocol (v2)"], route_class=FastJsonRoute)
 
 
 def _engine(request: Request) -> InferenceEngine:

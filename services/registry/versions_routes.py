@@ -29,7 +29,7 @@ from services.deps import ReadAuth, SettingsDep, StoreDep, WriteAuth
 from services.registry.errors import ERROR_RESPONSES, ApiError
 from services.registry.multipart import Part, boundary_of, parse_form_data
 from services.registry.schemas import AliasOut, AliasSet, VersionOut
-from services.rest.json_body import FastJsonRoute
+from services.rest.json_body import FastJsonRoute, has_lone_surrogate
 
 router = APIRouter(responses=ERROR_RESPONSES, route_class=FastJsonRoute)
 FORM_OVERHEAD_BYTES = 1 << 20  # room for the spec, lineage and part headers beside the weights
@@ -78,9 +78,12 @@ def _json_part(parts: dict[str, Part], name: str, *, required: bool) -> Any:
             raise InvalidArtifact(f"{name}: missing form field", field=name)
         return None
     try:
-        return json.loads(parts[name].data)
+        value = json.loads(parts[name].data)
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise InvalidArtifact(f"{name}: not valid JSON ({exc})", field=name) from None
+    if has_lone_surrogate(value):  # `\ud800`: no UTF-8 encoder (database, answer) can write it
+        raise InvalidArtifact(f"{name}: not valid JSON (a lone surrogate escape)", field=name)
+    return value
 
 
 @router.post(

@@ -13,7 +13,8 @@ small, this is what keeps a large body from stalling `/healthz`).
 Where orjson reads a body differently, the standard parser runs as before:
 - orjson refuses the `NaN` / `Infinity` literals that `json.loads` accepts (and malformed JSON):
   a NaN observation is still refused by the engine's checks naming the field, malformed JSON
-  is still the same 422;
+  is still the same 422; a string with a lone surrogate (`"\\ud800"`), which `json.loads`
+  accepts and nothing downstream can encode as UTF-8, is a 422 too (as orjson says);
 - orjson reads an integer beyond 64 bits as a float. Every integer field of these bodies (seed,
   indices, versions, expected_step) is a scalar in an object, so a float of magnitude >= 2^63
   there sends the body to the standard parser (a version number of 10^30 is still the engine's
@@ -23,7 +24,9 @@ Where orjson reads a body differently, the standard parser runs as before:
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable, Coroutine
+from json import JSONDecodeError
 from json import loads as standard_loads
 from typing import Any
 
@@ -34,6 +37,7 @@ from starlette.concurrency import run_in_threadpool
 
 HUGE = 2.0**63  # orjson turns integer literals from here on into floats
 OFFLOAD_BYTES = 1 << 20  # bodies from this size on are parsed in a worker thread
+_SURROGATE = re.compile("[\ud800-\udfff]")
 
 
 def has_huge_scalar(value: Any) -> bool:
@@ -58,12 +62,33 @@ def has_huge_scalar(value: Any) -> bool:
     return False
 
 
+def has_lone_surrogate(value: Any) -> bool:
+    """Whether a parsed body holds a string (key or value) with a lone UTF-16 surrogate, which
+    `json.loads` accepts from a `\\ud800` escape and no UTF-8 encoder (database, logs, answer)
+    can write."""
+    pending = [value]
+    while pending:
+        item = pending.pop()
+        if type(item) is str:
+            if _SURROGATE.search(item):
+                return True
+        elif type(item) is dict:
+            pending.extend(item.keys())
+            pending.extend(item.values())
+        elif type(item) is list:
+            pending.extend(item)
+    return False
+
+
 def parse_json(body: bytes) -> Any:
     """orjson, or the standard parser where it reads a body differently (module docstring)."""
     try:
         parsed = orjson.loads(body)
-    except orjson.JSONDecodeError:  # NaN / Infinity literals, malformed: as before
-        return standard_loads(body)
+    except orjson.JSONDecodeError as err:  # NaN / Infinity literals, malformed: as before
+        parsed = standard_loads(body)
+        if has_lone_surrogate(parsed):  # what orjson refused: not valid Unicode, a 422
+            raise JSONDecodeError(str(err), body.decode(errors="replace"), 0) from None
+        return parsed
     if has_huge_scalar(parsed):  # an integer orjson read as a float: as before
         return standard_loads(body)
     return parsed

@@ -147,6 +147,24 @@ def test_bad_rest_input_is_a_4xx_naming_the_field(
     assert response.json()["error"]["field"] == field
 
 
+def test_a_lone_surrogate_in_the_body_is_a_422(server: Server) -> None:
+    """`"id": "x\\ud800"` parsed into a str nothing can encode; echoed back it was a 500."""
+    body = {
+        "id": "x",
+        "parameters": {"ego_goal": "a2", "partner_goals": "b3"},
+        "inputs": [{"name": "observation", "datatype": "FP64", "shape": [1, 8], "data": OBS}],
+    }
+    raw = json.dumps(body).replace('"x"', '"x\\ud800"')
+    response = httpx.post(
+        f"{server.http_url}/v2/models/particle/infer",
+        content=raw,
+        headers={"content-type": "application/json"},
+        timeout=10.0,
+    )
+    assert response.status_code == 422, response.text
+    assert response.json()["error"]["field"] == "body"
+
+
 def test_bad_grpc_input_is_invalid_argument_naming_the_field(server: Server) -> None:
     request = pb.ModelInferRequest(model_name="particle")
     request.parameters["ego_goal"].string_param = "a2"

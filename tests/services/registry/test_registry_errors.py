@@ -134,6 +134,9 @@ def test_validation_errors_name_the_field(client: TestClient) -> None:
     _error(client.get(f"{BASE}/models", params={"env": "a\x00"}), 422, "env")
     _error(client.get(f"{BASE}/models", params={"tag": "k=\x00"}), 422, "tag")
     _error(client.get(f"{BASE}/models/particle%00/task/a3"), 404, "name")
+    lone = json.dumps({**MODEL, "description": "x"}).replace('"x"', '"x\\ud800"')
+    headers = {**AUTH, "content-type": "application/json"}
+    _error(client.post(f"{BASE}/models", content=lone, headers=headers), 422, "body")
 
 
 @pytest.mark.parametrize(
@@ -163,6 +166,9 @@ def test_upload_shape_errors(client: TestClient) -> None:
     )
     _error(no_weights, 422, "weights")
     _error(_upload(client, lineage=(None, b'{"seed": "x"}')), 422, "lineage.seed")
+    # a lone surrogate escape: json.loads takes it, no UTF-8 encoder can write it (was a 500)
+    lone = (None, b'{"registered_by": "x\\ud800"}')
+    _error(_upload(client, lineage=lone), 422, "lineage")
     as_json = client.post(f"{BASE}/models/{NAME}/-/versions", json={"spec": SPEC}, headers=AUTH)
     _error(as_json, 415)
     truncated = client.post(

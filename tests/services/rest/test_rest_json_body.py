@@ -57,3 +57,16 @@ def test_only_scalars_outside_number_vectors_are_checked_for_huge_integers() -> 
     assert json_body.has_huge_scalar({"observed": [{"index": 1, "action": -1e19}]})
     assert not json_body.has_huge_scalar({"observations": [[1e30, 0.5], [0.1, 0.2]]})
     assert not json_body.has_huge_scalar({"seed": 2**62, "temperature": 0.05})
+
+
+def test_a_lone_surrogate_is_a_422_not_a_string_nothing_can_encode(act_client) -> None:
+    """`json.loads` reads `"\\ud800"` into a str that no UTF-8 encoder (database, log, answer)
+    can write; orjson refuses it, and so does the fallback now: the body's 422."""
+    lone = json.dumps(BODY).replace('"a2"', '"a2\\ud800"')
+    answer = act_client.post("/v1/act", content=lone, headers=JSON)
+    assert answer.status_code == 422 and answer.json()["error"]["field"] == "body"
+    with pytest.raises(json.JSONDecodeError):
+        json_body.parse_json(b'{"k\\udc00": 1}')  # in a key too
+    assert json_body.has_lone_surrogate([{"a": ["x", "\ud800"]}])
+    assert not json_body.has_lone_surrogate({"a": "\U0001f600 fine", "b": [1.5, None]})
+    assert json_body.parse_json(b'{"a": "\\ud83d\\ude00", "n": NaN}')["a"] == "\U0001f600"
