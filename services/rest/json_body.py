@@ -14,7 +14,8 @@ Where orjson reads a body differently, the standard parser runs as before:
 - orjson refuses the `NaN` / `Infinity` literals that `json.loads` accepts (and malformed JSON):
   a NaN observation is still refused by the engine's checks naming the field, malformed JSON
   is still the same 422; a string with a lone surrogate (`"\\ud800"`), which `json.loads`
-  accepts and nothing downstream can encode as UTF-8, is a 422 too (as orjson says);
+  accepts and nothing downstream can encode as UTF-8, is a 422 too (as orjson says), and so is
+  a body nested deeper than the standard parser's recursion goes;
 - orjson reads an integer beyond 64 bits as a float. Every integer field of these bodies (seed,
   indices, versions, expected_step) is a scalar in an object, so a float of magnitude >= 2^63
   there sends the body to the standard parser (a version number of 10^30 is still the engine's
@@ -85,7 +86,10 @@ def parse_json(body: bytes) -> Any:
     try:
         parsed = orjson.loads(body)
     except orjson.JSONDecodeError as err:  # NaN / Infinity literals, malformed: as before
-        parsed = standard_loads(body)
+        try:
+            parsed = standard_loads(body)
+        except RecursionError:  # nested deeper than the standard parser goes (orjson: 1024)
+            raise JSONDecodeError(str(err), body.decode(errors="replace"), 0) from None
         if has_lone_surrogate(parsed):  # what orjson refused: not valid Unicode, a 422
             raise JSONDecodeError(str(err), body.decode(errors="replace"), 0) from None
         return parsed

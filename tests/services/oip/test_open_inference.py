@@ -148,7 +148,8 @@ def test_bad_rest_input_is_a_4xx_naming_the_field(
 
 
 def test_a_lone_surrogate_in_the_body_is_a_422(server: Server) -> None:
-    """`"id": "x\\ud800"` parsed into a str nothing can encode; echoed back it was a 500."""
+    """`"id": "x\\ud800"` parsed into a str nothing can encode (echoed back: a 500), and a body
+    nested too deeply for the standard parser."""
     body = {
         "id": "x",
         "parameters": {"ego_goal": "a2", "partner_goals": "b3"},
@@ -163,6 +164,14 @@ def test_a_lone_surrogate_in_the_body_is_a_422(server: Server) -> None:
     )
     assert response.status_code == 422, response.text
     assert response.json()["error"]["field"] == "body"
+    deep = b"[" * 50_000 + b"]" * 50_000  # the standard parser's RecursionError was a 500 too
+    response = httpx.post(
+        f"{server.http_url}/v2/models/particle/infer",
+        content=deep,
+        headers={"content-type": "application/json"},
+        timeout=10.0,
+    )
+    assert response.status_code == 422, response.text
 
 
 def test_bad_grpc_input_is_invalid_argument_naming_the_field(server: Server) -> None:

@@ -70,3 +70,13 @@ def test_a_lone_surrogate_is_a_422_not_a_string_nothing_can_encode(act_client) -
     assert json_body.has_lone_surrogate([{"a": ["x", "\ud800"]}])
     assert not json_body.has_lone_surrogate({"a": "\U0001f600 fine", "b": [1.5, None]})
     assert json_body.parse_json(b'{"a": "\\ud83d\\ude00", "n": NaN}')["a"] == "\U0001f600"
+
+
+def test_a_body_nested_too_deeply_is_a_422(act_client) -> None:
+    """orjson stops at depth 1024 and the standard parser then raised RecursionError (a 500
+    where nothing caught it); both are the body's 422 now."""
+    deep = b'{"observation": ' + b"[" * 50_000 + b"]" * 50_000 + b"}"
+    answer = act_client.post("/v1/act", content=deep, headers=JSON)
+    assert answer.status_code == 422 and answer.json()["error"]["field"] == "body"
+    with pytest.raises(json.JSONDecodeError):
+        json_body.parse_json(b"[" * 5_000 + b"]" * 5_000)
