@@ -88,9 +88,10 @@ def parse_json(body: bytes) -> Any:
     except orjson.JSONDecodeError as err:  # NaN / Infinity literals, malformed: as before
         try:
             parsed = standard_loads(body)
+            readable = not has_lone_surrogate(parsed)  # else not valid Unicode, as orjson says
         except RecursionError:  # nested deeper than the standard parser goes (orjson: 1024)
-            raise JSONDecodeError(str(err), body.decode(errors="replace"), 0) from None
-        if has_lone_surrogate(parsed):  # what orjson refused: not valid Unicode, a 422
+            readable = False
+        if not readable:  # the body's 422, as for malformed JSON
             raise JSONDecodeError(str(err), body.decode(errors="replace"), 0) from None
         return parsed
     if has_huge_scalar(parsed):  # an integer orjson read as a float: as before
