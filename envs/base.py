@@ -95,6 +95,22 @@ class Domain(Protocol):
         ...
 
 
+class DomainCounts:
+    """The parts of a `Domain` that follow from its fields alone; a domain may inherit them."""
+
+    action_meanings: tuple[str, ...]
+    max_agents: int
+
+    @property
+    def n_actions(self) -> int:
+        return len(self.action_meanings)
+
+    def _check_n(self, n_agents: int) -> None:
+        """A ValueError naming `n_agents` unless the domain's worlds can hold that many."""
+        if not 1 <= n_agents <= self.max_agents:
+            raise ValueError(f"n_agents: expected 1..{self.max_agents}, got {n_agents}")
+
+
 def check_goal(domain: Domain, goal: str, field: str = "goal") -> int:
     """Index of `goal` in the domain's catalogue, or a ValueError naming the field."""
     try:

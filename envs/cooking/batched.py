@@ -25,10 +25,9 @@ given `seed` (which only matters with `random_starts=True`).
 
 from __future__ import annotations
 
-from typing import NamedTuple
-
 import numpy as np
 
+from envs.batched import BatchedWorlds, StepResult
 from envs.cooking.layouts import Layout, get_layout
 from envs.cooking.observation import observations
 from envs.cooking.recipes import PLATE, RECIPE_NAMES, recipe_indices
@@ -47,14 +46,7 @@ from envs.cooking.world import (
 SUB_GOAL_REWARD = 1.0
 
 
-class StepResult(NamedTuple):
-    next_obs_BND: np.ndarray
-    rewards_BN: np.ndarray
-    terminated_B: np.ndarray
-    truncated_B: np.ndarray
-
-
-class BatchedCookingWorld:
+class BatchedCookingWorld(BatchedWorlds):
     """B independent kitchens of one layout with N agents each; see the module docstring."""
 
     def __init__(
@@ -74,14 +66,14 @@ class BatchedCookingWorld:
                 f"sub_goal_reward: expected a finite value >= 0, got {sub_goal_reward}"
             )
         self.layout = get_layout(layout)
-        self._recipes_BN = self._as_recipes(recipes_BN, None)
+        self._goals_BN = self._as_recipes(recipes_BN, None)
         self.max_steps = max_steps
         self.sub_goal_reward = float(sub_goal_reward)
         self.random_starts = random_starts
         self._rng = np.random.default_rng(seed)
         self._state = self._fresh(self.n_envs)
         self._steps_B = np.zeros(self.n_envs, dtype=np.int64)
-        self._best_BN = recipe_progress(self.layout, self._state, self._recipes_BN).count_BN
+        self._best_BN = recipe_progress(self.layout, self._state, self._goals_BN).count_BN
         self._last_obs_BND = self.observe()
 
     def reseed(self, seed: int | None) -> None:
@@ -104,22 +96,14 @@ class BatchedCookingWorld:
         return start_states(self.layout, n_envs, self._rng if self.random_starts else None)
 
     @property
-    def n_envs(self) -> int:
-        return int(self._recipes_BN.shape[0])
-
-    @property
-    def n_agents(self) -> int:
-        return int(self._recipes_BN.shape[1])
-
-    @property
     def recipes(self) -> np.ndarray:
         """Recipe indices, shape (B, N) (a copy)."""
-        return self._recipes_BN.copy()
+        return self._goals_BN.copy()
 
     goals = recipes
 
     def recipe_names(self, b: int = 0) -> tuple[str, ...]:
-        return tuple(RECIPE_NAMES[r] for r in self._recipes_BN[b])
+        return tuple(RECIPE_NAMES[r] for r in self._goals_BN[b])
 
     @property
     def state(self) -> CookingState:
@@ -134,8 +118,8 @@ class BatchedCookingWorld:
     def set_goals(self, recipes_BN: np.ndarray) -> None:
         """Replace the recipes (same B and N); states, counters and deliveries are kept, the
         sub-goal baseline restarts from the current progress of the new recipes."""
-        self._recipes_BN = self._as_recipes(recipes_BN, self._recipes_BN.shape)
-        self._best_BN = recipe_progress(self.layout, self._state, self._recipes_BN).count_BN
+        self._goals_BN = self._as_recipes(recipes_BN, self._goals_BN.shape)
+        self._best_BN = recipe_progress(self.layout, self._state, self._goals_BN).count_BN
 
     set_recipes = set_goals
 
@@ -148,31 +132,24 @@ class BatchedCookingWorld:
         """Start every kitchen afresh: from `states` if given, else from the layout's start."""
         self._state = self._fresh(self.n_envs) if states is None else self._checked(states)
         self._steps_B[:] = 0
-        self._best_BN = recipe_progress(self.layout, self._state, self._recipes_BN).count_BN
+        self._best_BN = recipe_progress(self.layout, self._state, self._goals_BN).count_BN
         return self.observe()
 
-    def reset_where(self, mask_B: np.ndarray) -> np.ndarray:
-        """Restart the masked kitchens and zero their step counters."""
-        mask_B = np.asarray(mask_B, dtype=bool)
-        if mask_B.shape != (self.n_envs,):
-            raise ValueError(f"mask_B: expected shape ({self.n_envs},), got {mask_B.shape}")
-        n_reset = int(mask_B.sum())
-        if n_reset == 0:
-            return self._last_obs_BND.copy()  # nothing changed since the last step
+    def _restart(self, mask_B: np.ndarray, n_reset: int) -> None:
+        """The masked kitchens back at their start (`reset_where`)."""
         fresh = self._fresh(n_reset)
         for mine, new in zip(self._state, fresh, strict=True):
             mine[mask_B] = new
         self._steps_B[mask_B] = 0
-        progress = recipe_progress(self.layout, self._state, self._recipes_BN).count_BN
+        progress = recipe_progress(self.layout, self._state, self._goals_BN).count_BN
         self._best_BN[mask_B] = progress[mask_B]
-        return self.observe()
 
     def step(self, actions_BN: np.ndarray) -> StepResult:
         """Advance every kitchen one step with the actions of every agent, shape (B, N)."""
         actions_BN = np.asarray(actions_BN)
-        if actions_BN.shape != self._recipes_BN.shape:
+        if actions_BN.shape != self._goals_BN.shape:
             raise ValueError(
-                f"actions_BN: expected shape {self._recipes_BN.shape}, got {actions_BN.shape}"
+                f"actions_BN: expected shape {self._goals_BN.shape}, got {actions_BN.shape}"
             )
         if actions_BN.dtype.kind not in "iu":
             raise ValueError(f"actions_BN: expected integers, got dtype {actions_BN.dtype}")
@@ -180,12 +157,12 @@ class BatchedCookingWorld:
             raise ValueError(f"actions_BN: expected values in 0..{N_ACTIONS - 1}")
         waiting_BN = ~self._state.delivered
         self._state, served_BN = step_state(
-            self.layout, self._state, actions_BN.astype(np.int64), self._recipes_BN
+            self.layout, self._state, actions_BN.astype(np.int64), self._goals_BN
         )
         self._steps_B += 1
         rewards_BN = DISH_REWARD * served_BN - TIME_PENALTY * waiting_BN
         if self.sub_goal_reward > 0:
-            count_BN = recipe_progress(self.layout, self._state, self._recipes_BN).count_BN
+            count_BN = recipe_progress(self.layout, self._state, self._goals_BN).count_BN
             gain_BN = np.maximum(count_BN - self._best_BN, 0) * waiting_BN
             self._best_BN = np.maximum(self._best_BN, count_BN)
             rewards_BN = rewards_BN + self.sub_goal_reward * gain_BN

@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from envs.base import BlendNormalisation
+from envs.base import BlendNormalisation, DomainCounts
 from envs.cooking.env import CookingEnv
 from envs.cooking.layouts import MAX_AGENTS
 from envs.cooking.observation import AGENT_DIM, SERVED, feature_names, obs_dim, select_agents
@@ -37,7 +37,7 @@ from envs.cooking.world import ACTION_MEANINGS
 from envs.scene import Scene, SceneFrame
 
 
-class CookingDomain:
+class CookingDomain(DomainCounts):
     """Domain description of the cooking world (implements `envs.base.Domain`)."""
 
     name = "cooking"
@@ -49,14 +49,6 @@ class CookingDomain:
     # standardising a nearly flat impact Q let it outvote the task (reports/cooking/README.md)
     blend_normalisation: BlendNormalisation = "none"
     goal_is_final: bool = True  # a served dish stays served; no time penalty after it
-
-    @property
-    def n_actions(self) -> int:
-        return len(self.action_meanings)
-
-    def _check_n(self, n_agents: int) -> None:
-        if not 1 <= n_agents <= self.max_agents:
-            raise ValueError(f"n_agents: expected 1..{self.max_agents}, got {n_agents}")
 
     def obs_dim(self, n_agents: int) -> int:
         self._check_n(n_agents)

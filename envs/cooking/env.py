@@ -35,8 +35,6 @@ from typing import Any
 
 import gymnasium
 import numpy as np
-from gymnasium.spaces import Box, Discrete
-from pettingzoo import ParallelEnv
 
 from envs.cooking.batched import SUB_GOAL_REWARD, BatchedCookingWorld
 from envs.cooking.layouts import BLENDER, BOARD, DELIVERY, Layout, get_layout
@@ -44,6 +42,7 @@ from envs.cooking.observation import observation_bounds
 from envs.cooking.recipes import BLENDED, CHOPPED, INGREDIENTS, PLATE, RECIPES, recipe_indices
 from envs.cooking.render import render_frame
 from envs.cooking.world import N_ACTIONS, CookingState
+from envs.parallel import OneWorldEnv
 
 
 def sub_goal_value(sub_goal_rewards: bool | float) -> float:
@@ -78,7 +77,7 @@ def check_recipes_fit(layout: Layout, recipes: Sequence[str]) -> None:
             )
 
 
-class CookingEnv(ParallelEnv[str, np.ndarray, int]):
+class CookingEnv(OneWorldEnv):
     """N cooks with their own recipes in one kitchen; see the module docstring."""
 
     metadata: dict[str, Any] = {  # noqa: RUF012 (PettingZoo's class attribute)
@@ -97,8 +96,6 @@ class CookingEnv(ParallelEnv[str, np.ndarray, int]):
         render_mode: str | None = None,
         random_starts: bool = False,
     ) -> None:
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode: expected None or 'rgb_array', got {render_mode!r}")
         self.layout = get_layout(layout)
         if isinstance(recipes, str) or len(recipes) != self.layout.n_agents:
             raise ValueError(
@@ -108,8 +105,7 @@ class CookingEnv(ParallelEnv[str, np.ndarray, int]):
         self.recipes: tuple[str, ...] = tuple(recipes)
         check_recipes_fit(self.layout, self.recipes)
         self.max_steps = max_steps
-        self.render_mode = render_mode
-        self.world = BatchedCookingWorld(
+        self.world: BatchedCookingWorld = BatchedCookingWorld(
             self.layout,
             recipe_indices(self.recipes)[None],
             max_steps=max_steps,
@@ -117,20 +113,8 @@ class CookingEnv(ParallelEnv[str, np.ndarray, int]):
             sub_goal_reward=sub_goal_value(sub_goal_rewards),
             random_starts=random_starts,
         )
-        self.possible_agents = [f"agent_{i}" for i in range(self.layout.n_agents)]
-        self.agents: list[str] = []
         low, high = observation_bounds(self.layout.n_agents)
-        # One space object per agent, built once: the API test wants the same object each call.
-        self._observation_spaces = {
-            a: Box(low, high, dtype=np.float32) for a in self.possible_agents
-        }
-        self._action_spaces = {a: Discrete(N_ACTIONS) for a in self.possible_agents}
-
-    def observation_space(self, agent: str) -> Box:
-        return self._observation_spaces[agent]
-
-    def action_space(self, agent: str) -> Discrete:
-        return self._action_spaces[agent]
+        self._setup_agents(self.layout.n_agents, low, high, N_ACTIONS, render_mode)
 
     def reset(
         self, seed: int | None = None, options: dict[str, Any] | None = None
@@ -142,12 +126,7 @@ class CookingEnv(ParallelEnv[str, np.ndarray, int]):
             raise ValueError(
                 f'options["state"]: expected a CookingState, got {type(start).__name__}'
             )
-        obs_1ND = self.world.reset(start)
-        self.agents = self.possible_agents[:]
-        return self._per_agent(obs_1ND[0]), self._infos()
-
-    def _per_agent(self, rows_N: np.ndarray) -> dict[str, Any]:
-        return {a: rows_N[i] for i, a in enumerate(self.possible_agents)}
+        return self._started(self.world.reset(start))
 
     def _infos(self) -> dict[str, dict[str, Any]]:
         delivered_N = self.world.state.delivered[0]
@@ -155,33 +134,6 @@ class CookingEnv(ParallelEnv[str, np.ndarray, int]):
             a: {"recipe": self.recipes[i], "delivered": bool(delivered_N[i])}
             for i, a in enumerate(self.possible_agents)
         }
-
-    def step(
-        self, actions: dict[str, int]
-    ) -> tuple[
-        dict[str, np.ndarray],
-        dict[str, float],
-        dict[str, bool],
-        dict[str, bool],
-        dict[str, dict[str, Any]],
-    ]:
-        if not self.agents:
-            raise ValueError("step: the episode is over (or never started); call reset() first")
-        missing = [a for a in self.agents if a not in actions]
-        if missing:
-            raise ValueError(f"actions: missing an action for {', '.join(missing)}")
-        actions_1N = np.array([[int(actions[a]) for a in self.possible_agents]], dtype=np.int64)
-        if np.any(actions_1N < 0) or np.any(actions_1N >= N_ACTIONS):
-            raise ValueError(f"actions: expected values in 0..{N_ACTIONS - 1}, got {actions}")
-        result = self.world.step(actions_1N)
-        obs = self._per_agent(result.next_obs_BND[0])
-        rewards = {a: float(r) for a, r in self._per_agent(result.rewards_BN[0]).items()}
-        terminated = dict.fromkeys(self.agents, bool(result.terminated_B[0]))
-        truncated = dict.fromkeys(self.agents, bool(result.truncated_B[0]))
-        infos = self._infos()
-        if result.terminated_B[0] or result.truncated_B[0]:
-            self.agents = []
-        return obs, rewards, terminated, truncated, infos
 
     def state(self) -> np.ndarray:
         """agent_0's observation: it holds every agent's and object's absolute position."""
@@ -192,9 +144,6 @@ class CookingEnv(ParallelEnv[str, np.ndarray, int]):
             gymnasium.logger.warn("render() needs render_mode='rgb_array' at construction")
             return None
         return render_frame(self.layout, self.world.state, self.recipes)
-
-    def close(self) -> None:
-        pass
 
 
 def parallel_env(**kwargs: Any) -> CookingEnv:

@@ -19,10 +19,9 @@ simply continues it. Everything is deterministic given `seed`.
 
 from __future__ import annotations
 
-from typing import NamedTuple
-
 import numpy as np
 
+from envs.batched import BatchedWorlds, StepResult
 from envs.particle.goals import N_GOALS
 from envs.particle.world import (
     STATE_DIM,
@@ -36,13 +35,6 @@ from envs.particle.world import (
 MAX_AGENTS = 5
 
 
-class StepResult(NamedTuple):
-    next_obs_BND: np.ndarray
-    rewards_BN: np.ndarray
-    terminated_B: np.ndarray
-    truncated_B: np.ndarray
-
-
 def _as_goals(goals_BN: np.ndarray) -> np.ndarray:
     goals_BN = np.asarray(goals_BN)
     if goals_BN.ndim != 2 or goals_BN.shape[0] < 1 or not 1 <= goals_BN.shape[1] <= MAX_AGENTS:
@@ -54,7 +46,7 @@ def _as_goals(goals_BN: np.ndarray) -> np.ndarray:
     return goals_BN.astype(np.int64)
 
 
-class BatchedParticleWorld:
+class BatchedParticleWorld(BatchedWorlds):
     """B independent worlds of N agents each; see the module docstring for shapes."""
 
     def __init__(
@@ -68,14 +60,6 @@ class BatchedParticleWorld:
         self._state_BN4 = random_states(self._rng, self.n_envs, self.n_agents)
         self._steps_B = np.zeros(self.n_envs, dtype=np.int64)
         self._last_obs_BND = self.observe()
-
-    @property
-    def n_envs(self) -> int:
-        return int(self._goals_BN.shape[0])
-
-    @property
-    def n_agents(self) -> int:
-        return int(self._goals_BN.shape[1])
 
     @property
     def goals(self) -> np.ndarray:
@@ -120,17 +104,10 @@ class BatchedParticleWorld:
         self._steps_B[:] = 0
         return self.observe()
 
-    def reset_where(self, mask_B: np.ndarray) -> np.ndarray:
-        """Re-sample the start states of the masked worlds and zero their step counters."""
-        mask_B = np.asarray(mask_B, dtype=bool)
-        if mask_B.shape != (self.n_envs,):
-            raise ValueError(f"mask_B: expected shape ({self.n_envs},), got {mask_B.shape}")
-        n_reset = int(mask_B.sum())
-        if n_reset == 0:
-            return self._last_obs_BND.copy()  # nothing changed since the last step
+    def _restart(self, mask_B: np.ndarray, n_reset: int) -> None:
+        """Re-sample the start states of the masked worlds (`reset_where`)."""
         self._state_BN4[mask_B] = random_states(self._rng, n_reset, self.n_agents)
         self._steps_B[mask_B] = 0
-        return self.observe()
 
     def place(self, mask_B: np.ndarray, agent: int, states_M4: np.ndarray) -> np.ndarray:
         """Put `agent` of the masked worlds in the states `states_M4` (one row per masked world,

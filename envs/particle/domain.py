@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from envs.base import BlendNormalisation, check_goal
+from envs.base import BlendNormalisation, DomainCounts, check_goal
 from envs.particle.batched import MAX_AGENTS
 from envs.particle.env import ParticleCoexistenceEnv
 from envs.particle.goals import GOAL_IDS, TARGET_BOXES_G4
@@ -74,7 +74,7 @@ def _pair_columns(n_agents: int) -> np.ndarray:
     return columns
 
 
-class ParticleDomain:
+class ParticleDomain(DomainCounts):
     """Domain description of the particle world (implements `envs.base.Domain`)."""
 
     name = "particle"
@@ -85,14 +85,6 @@ class ParticleDomain:
     # AAIL standardises each Q-vector before eq. 8 (policy.blend): the paper's evaluation here
     blend_normalisation: BlendNormalisation = "standardise"
     goal_is_final: bool = False  # the ego pays its distance to its target on every step
-
-    @property
-    def n_actions(self) -> int:
-        return len(self.action_meanings)
-
-    def _check_n(self, n_agents: int) -> None:
-        if not 1 <= n_agents <= self.max_agents:
-            raise ValueError(f"n_agents: expected 1..{self.max_agents}, got {n_agents}")
 
     def obs_dim(self, n_agents: int) -> int:
         self._check_n(n_agents)

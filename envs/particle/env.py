@@ -35,16 +35,15 @@ from typing import Any
 
 import gymnasium
 import numpy as np
-from gymnasium.spaces import Box, Discrete
-from pettingzoo import ParallelEnv
 
+from envs.parallel import OneWorldEnv
 from envs.particle.batched import MAX_AGENTS, BatchedParticleWorld
 from envs.particle.goals import goal_indices
 from envs.particle.render import render_frame
 from envs.particle.world import MAX_SPEED, N_ACTIONS, STATE_DIM, in_target, random_states
 
 
-class ParticleCoexistenceEnv(ParallelEnv[str, np.ndarray, int]):
+class ParticleCoexistenceEnv(OneWorldEnv):
     """N agents with independent goals in the particle world; see the module docstring."""
 
     metadata: dict[str, Any] = {  # noqa: RUF012 (PettingZoo's class attribute)
@@ -62,31 +61,17 @@ class ParticleCoexistenceEnv(ParallelEnv[str, np.ndarray, int]):
     ) -> None:
         if isinstance(goals, str) or not 1 <= len(goals) <= MAX_AGENTS:
             raise ValueError(f"goals: expected 1..{MAX_AGENTS} goal ids, got {goals!r}")
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode: expected None or 'rgb_array', got {render_mode!r}")
+        n = len(goals)
+        low = np.tile(np.array([0.0, 0.0, -MAX_SPEED, -MAX_SPEED], dtype=np.float32), n)
+        high = np.tile(np.array([1.0, 1.0, MAX_SPEED, MAX_SPEED], dtype=np.float32), n)
+        self._setup_agents(n, low, high, N_ACTIONS, render_mode)
         self.goals: tuple[str, ...] = tuple(goals)
         self._goals_N = goal_indices(self.goals)
         self.max_steps = max_steps
-        self.render_mode = render_mode
-        self.possible_agents = [f"agent_{i}" for i in range(len(self.goals))]
-        self.agents: list[str] = []
-        self._world = BatchedParticleWorld(self._goals_N[None], max_steps=max_steps, seed=0)
+        self.world: BatchedParticleWorld = BatchedParticleWorld(
+            self._goals_N[None], max_steps=max_steps, seed=0
+        )
         self._rng = np.random.default_rng()
-
-        n = len(self.goals)
-        low = np.tile(np.array([0.0, 0.0, -MAX_SPEED, -MAX_SPEED], dtype=np.float32), n)
-        high = np.tile(np.array([1.0, 1.0, MAX_SPEED, MAX_SPEED], dtype=np.float32), n)
-        # One space object per agent, built once: the API test wants the same object each call.
-        self._observation_spaces = {
-            a: Box(low, high, dtype=np.float32) for a in self.possible_agents
-        }
-        self._action_spaces = {a: Discrete(N_ACTIONS) for a in self.possible_agents}
-
-    def observation_space(self, agent: str) -> Box:
-        return self._observation_spaces[agent]
-
-    def action_space(self, agent: str) -> Discrete:
-        return self._action_spaces[agent]
 
     def _start_state(self, options: dict[str, Any] | None) -> np.ndarray:
         n = len(self.goals)
@@ -109,58 +94,23 @@ class ParticleCoexistenceEnv(ParallelEnv[str, np.ndarray, int]):
     ) -> tuple[dict[str, np.ndarray], dict[str, dict[str, Any]]]:
         if seed is not None:
             self._rng = np.random.default_rng(seed)
-        obs_1ND = self._world.reset(self._start_state(options))
-        self.agents = self.possible_agents[:]
-        return self._per_agent(obs_1ND[0]), self._infos()
-
-    def _per_agent(self, rows_N: np.ndarray) -> dict[str, Any]:
-        return {a: rows_N[i] for i, a in enumerate(self.possible_agents)}
+        return self._started(self.world.reset(self._start_state(options)))
 
     def _infos(self) -> dict[str, dict[str, Any]]:
-        inside_N = in_target(self._world.state[0], self._goals_N)
+        inside_N = in_target(self.world.state[0], self._goals_N)
         return {
             a: {"goal": self.goals[i], "in_target": bool(inside_N[i])}
             for i, a in enumerate(self.possible_agents)
         }
 
-    def step(
-        self, actions: dict[str, int]
-    ) -> tuple[
-        dict[str, np.ndarray],
-        dict[str, float],
-        dict[str, bool],
-        dict[str, bool],
-        dict[str, dict[str, Any]],
-    ]:
-        if not self.agents:
-            raise ValueError("step: the episode is over (or never started); call reset() first")
-        missing = [a for a in self.agents if a not in actions]
-        if missing:
-            raise ValueError(f"actions: missing an action for {', '.join(missing)}")
-        actions_1N = np.array([[int(actions[a]) for a in self.possible_agents]], dtype=np.int64)
-        if np.any(actions_1N < 0) or np.any(actions_1N >= N_ACTIONS):
-            raise ValueError(f"actions: expected values in 0..{N_ACTIONS - 1}, got {actions}")
-        result = self._world.step(actions_1N)
-        obs = self._per_agent(result.next_obs_BND[0])
-        rewards = {a: float(r) for a, r in self._per_agent(result.rewards_BN[0]).items()}
-        terminated = dict.fromkeys(self.agents, bool(result.terminated_B[0]))
-        truncated = dict.fromkeys(self.agents, bool(result.truncated_B[0]))
-        infos = self._infos()
-        if result.terminated_B[0] or result.truncated_B[0]:
-            self.agents = []
-        return obs, rewards, terminated, truncated, infos
-
     def state(self) -> np.ndarray:
-        return self._world.state[0].reshape(-1).astype(np.float32)
+        return self.world.state[0].reshape(-1).astype(np.float32)
 
     def render(self) -> np.ndarray | None:
         if self.render_mode is None:
             gymnasium.logger.warn("render() needs render_mode='rgb_array' at construction")
             return None
-        return render_frame(self._world.state[0], self.goals)
-
-    def close(self) -> None:
-        pass
+        return render_frame(self.world.state[0], self.goals)
 
 
 def parallel_env(**kwargs: Any) -> ParticleCoexistenceEnv:
