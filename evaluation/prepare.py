@@ -29,9 +29,9 @@ import torch
 from model_store.sql import SqlModelStore
 from model_store.store import ModelStore
 from trainer.config import ImpactConfig, JointConfig, TaskConfig
-from trainer.learners import train_impacts, train_joint, train_tasks
+from trainer.learners import combos_by_size, train_impacts, train_joint, train_tasks
 from trainer.publish import publish_batch
-from trainer.zoo import load_task_nets
+from trainer.zoo import load_partner_nets, load_task_nets
 
 TINY = dict(
     hidden=(16,),
@@ -119,12 +119,9 @@ def _train(
     batch = train_tasks(partners, task_cfg, seed=1, evaluate=False)
     publish_batch(store, batch, env=env, serve_alias=partner_alias, registered_by="coexist-eval")
 
-    by_size: dict[int, list[tuple[str, ...]]] = {}
-    for combo in combos:
-        by_size.setdefault(len(combo), []).append(tuple(combo))
-    for size, group in sorted(by_size.items()):
+    for size, group in combos_by_size(combos):
         start = time.perf_counter()
-        nets = [load_task_nets(store, env, [c[k] for c in group])[0] for k in range(1, size)]
+        nets, _ = load_partner_nets(store, env, group)
         batch = train_joint(group, nets, joint_cfg, seed=2000 + size)
         publish_batch(store, batch, env=env, registered_by="coexist-eval --fast")
         times.append(TrainingTime("joint", len(group), time.perf_counter() - start))

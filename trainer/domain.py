@@ -3,9 +3,11 @@
 Each environment the trainer knows has one folder, `trainer/<env>/`, whose `__init__.py`
 exports `TRAINER`, an object implementing `EnvTrainer`: the learners of the paper (task, impact,
 and where it applies the joint baseline) on that environment's rollouts, gated by its quality
-gates. `trainer.zoo`, `trainer.learners`, the job backends and the CLI reach an environment only
-through `env_trainer(name)`, so adding a third environment means adding `envs/<env>/` (its
-`Domain`, for the server) and `trainer/<env>/`, and nothing else in the trainer.
+gates (a trainer without the joint baseline subclasses `EnvTrainer`, sets `no_joint_reason` and
+inherits `train_joint`'s refusal). `trainer.zoo`, `trainer.learners`, the job backends and the
+CLI reach an environment only through `env_trainer(name)`, so adding a third environment means
+adding `envs/<env>/` (its `Domain`, for the server) and `trainer/<env>/`, and nothing else in
+the trainer.
 
 A configuration names its environment (`SoftQConfig.ENV`), so `trainer.learners.train_tasks`
 and its siblings dispatch on the configuration they are given.
@@ -89,8 +91,9 @@ class EnvTrainer(Protocol):
         seed: int,
         progress: ProgressFn | None,
     ) -> TrainedBatch:
-        """The joint-learner baseline; ValueError(`no_joint_reason`) where there is none."""
-        ...
+        """The joint-learner baseline; ValueError(`no_joint_reason`) where there is none: the
+        default, which a trainer without the baseline inherits by subclassing `EnvTrainer`."""
+        raise ValueError(self.no_joint_reason)
 
     def print_gates(self, batches: Sequence[TrainedBatch], console: Any = None) -> None:
         """Gate details beyond the summary table (nothing where the table says it all)."""

@@ -78,3 +78,12 @@ def chunked(items: Sequence[Any], size: int) -> list[list[Any]]:
     if size < 1:
         raise ValueError(f"batch size must be >= 1, got {size}")
     return [list(items[i : i + size]) for i in range(0, len(items), size)]
+
+
+def combos_by_size(combos: Sequence[Sequence[str]]) -> list[tuple[int, list[tuple[str, ...]]]]:
+    """Goal combinations grouped by their number of agents, fewest first: the joint networks of
+    one size train together (one batch, one seed and run key per size)."""
+    groups: dict[int, list[tuple[str, ...]]] = {}
+    for combo in combos:
+        groups.setdefault(len(combo), []).append(tuple(combo))
+    return sorted(groups.items())

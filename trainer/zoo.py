@@ -16,9 +16,10 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Literal
 
 import torch
 
@@ -29,12 +30,26 @@ from model_store.store import ModelStore
 from policy.qnet import QNetSpec, StackedQNet, tensors_from_safetensors
 from trainer.config import GATE_RETRIES, SoftQConfig
 from trainer.domain import env_trainer
-from trainer.learners import TrainedBatch, chunked, train_impacts, train_joint, train_tasks
+from trainer.learners import (
+    TrainedBatch,
+    chunked,
+    combos_by_size,
+    train_impacts,
+    train_joint,
+    train_tasks,
+)
 from trainer.loop import ProgressFactory
 from trainer.parallel import BatchJob, train_batches
 from trainer.publish import publish_batch
 
 log = logging.getLogger(__name__)
+
+# The stages' seeds: tasks from `seed`, impacts from `seed + IMPACT_SEED_OFFSET`, joint networks
+# of N agents `seed + JOINT_SEED_OFFSET + N`; gate retry `attempt` of a stage adds
+# `RETRY_SEED_STEP x attempt` (the job backends use the same, `trainer.backends.jobs`).
+IMPACT_SEED_OFFSET = 1000
+JOINT_SEED_OFFSET = 2000
+RETRY_SEED_STEP = 7919
 
 
 def load_task_nets(
@@ -57,6 +72,22 @@ def load_task_nets(
         tensors = tensors_from_safetensors(spec, store.load_weights(v.name, v.version))
         states.append({k: torch.from_numpy(a) for k, a in tensors.items()})
     return StackedQNet.from_members(spec, states), versions
+
+
+def load_partner_nets(
+    store: ModelStore, env: str, combos: Sequence[tuple[str, ...]]
+) -> tuple[list[StackedQNet], dict[tuple[str, ...], list[str]]]:
+    """For (ego, partner, ...) combinations of one size: the registered task networks of each
+    partner slot k = 1, 2, ... stacked over `combos` (as `train_joint` takes them), and each
+    combination's parents (its partners' task networks, "name/version")."""
+    slot_nets = []
+    parents: dict[tuple[str, ...], list[str]] = {c: [] for c in combos}
+    for slot in range(1, len(combos[0])):
+        nets, versions = load_task_nets(store, env, [c[slot] for c in combos])
+        slot_nets.append(nets)
+        for c, v in zip(combos, versions, strict=True):
+            parents[c].append(v.ref)
+    return slot_nets, parents
 
 
 @dataclass
@@ -124,45 +155,21 @@ def run_tasks(
     second fresh zoo of 35 goals one goal (`d3`) failed its first two attempts. Up to `workers`
     batches train at once, in as many processes (`trainer.parallel`: the same networks)."""
     check_config_env(config, env)
-    keys, jobs = [], []
-    for i, chunk in enumerate(chunked(goals, goals_per_batch)):
-        key = f"task:{','.join(chunk)}"
-        if key not in run.done:
-            keys.append(key)
-            label = f"task {chunk[0]}..{chunk[-1]}"
-            jobs.append(
-                BatchJob(
-                    label, config.total_steps, train_tasks, (chunk, config), {"seed": seed + i}
-                )
-            )
-    batches = []
-    for key, batch in zip(
-        keys, train_batches(jobs, workers=workers, progress=progress), strict=True
-    ):
-        run.record(key, publish_batch(store, batch, env=env, serve_alias=serve_alias))
-        batches.append(batch)
-    for attempt in range(1, gate_retries + 1):
-        key = f"task-retry-{attempt}"
-        failed = goals_without(store, env, "task", goals, serve_alias)
-        if key in run.done or not failed:
-            continue
-        retry_jobs = [
-            BatchJob(
-                retry_label("task", attempt, i, goals),
-                config.total_steps,
-                train_tasks,
-                (goals, config),
-                {"seed": seed + 7919 * attempt + i},  # a fresh seed per batch, deterministic
-            )
-            for i, goals in enumerate(retry_batches(failed))
-        ]
-        trained = train_batches(retry_jobs, workers=workers, progress=progress)
-        for i, batch in enumerate(trained):
-            versions = publish_batch(store, batch, env=env, serve_alias=serve_alias)
-            run.record(f"{key}:{i}", versions)
-            batches.append(batch)
-        run.record(key, [])  # its batches' versions are recorded under their own keys
-    return batches
+    return _run_gated(
+        store,
+        "task",
+        goals,
+        [],
+        config,
+        seed=seed,
+        goals_per_batch=goals_per_batch,
+        gate_retries=gate_retries,
+        workers=workers,
+        run=run,
+        progress=progress,
+        env=env,
+        serve_alias=serve_alias,
+    )
 
 
 def retry_batches(failed: Sequence[str]) -> list[list[str]]:
@@ -214,71 +221,90 @@ def run_impacts(
     unserved = goals_without(store, env, "task", goals, "production") if strict else []
     if unserved:
         warn_unserved_parents(unserved, env)
-    trainable = [g for g in goals if g not in unserved]
-    first = []
-    for i, chunk in enumerate(chunked(goals, goals_per_batch)):
-        kept = [g for g in chunk if g in trainable]
-        key = f"impact:{','.join(kept)}"
-        if kept and key not in run.done:
-            first.append((kept, seed + 1000 + i, f"impact {kept[0]}..{kept[-1]}", key))
-    batches = _impact_batches(
-        store, first, config, run=run, progress=progress, env=env, workers=workers
+    return _run_gated(
+        store,
+        "impact",
+        goals,
+        unserved,
+        config,
+        seed=seed + IMPACT_SEED_OFFSET,
+        goals_per_batch=goals_per_batch,
+        gate_retries=gate_retries,
+        workers=workers,
+        run=run,
+        progress=progress,
+        env=env,
+        serve_alias="production",
     )
-    for attempt in range(1, gate_retries + 1):
-        key = f"impact-retry-{attempt}"
-        failed = goals_without(store, env, "impact", trainable, "production")
-        if key in run.done or not failed:
-            continue
-        retry_seed = seed + 1000 + 7919 * attempt  # a fresh seed per attempt, still deterministic
-        retry = [
-            (
-                goals,
-                retry_seed + i,
-                retry_label("impact", attempt, i, goals),
-                f"{key}:{i}",
-            )
-            for i, goals in enumerate(retry_batches(failed))
-        ]
-        batches += _impact_batches(
-            store, retry, config, run=run, progress=progress, env=env, workers=workers
-        )
-        run.record(key, [])  # its batches' versions are recorded under their own keys
-    return batches
 
 
-def _impact_batches(
+def _run_gated(
     store: ModelStore,
-    chunks: Sequence[tuple[list[str], int, str, str]],
+    kind: Literal["task", "impact"],
+    goals: Sequence[str],
+    skipped: Sequence[str],
     config: SoftQConfig,
     *,
+    seed: int,
+    goals_per_batch: int,
+    gate_retries: int,
+    workers: int,
     run: RunState,
     progress: ProgressFactory,
     env: str,
-    workers: int = 1,
+    serve_alias: str,
 ) -> list[TrainedBatch]:
-    """Train, gate and register the impact networks of each (goals, seed, label, run key)
-    chunk, parented to the task networks they learned beside."""
-    jobs: list[BatchJob] = []
-    parents: list[dict[tuple[str, ...], list[str]]] = []
-    for goals, seed, label, _key in chunks:
-        partner_nets, task_versions = load_task_nets(store, env, goals)
-        jobs.append(
-            BatchJob(
-                label,
-                config.total_steps,
-                train_impacts,
-                (goals, partner_nets, config),
-                {"seed": seed},
-            )
+    """The networks of `kind` for `goals` but the `skipped` ones, then the gate retries; the loop
+    of `run_tasks` and `run_impacts`.
+
+    Batch i of `goals` trains its goals left with seed `seed + i` under the run key
+    `{kind}:{goals}`; retry `attempt` trains the goals without a `serve_alias` version
+    (`retry_batches`) with seeds `seed + RETRY_SEED_STEP x attempt + i` under
+    `{kind}-retry-{attempt}:{i}`. Each batch is registered as soon as it is trained (an impact
+    network names the task network it learned beside as its parent)."""
+
+    def train(chunks: list[tuple[list[str], int, str, str]]) -> list[TrainedBatch]:
+        """Train and register each (goals, seed, progress label, run key) chunk."""
+        jobs, parents = [], []
+        for chunk, chunk_seed, label, _key in chunks:
+            learner: Callable[..., TrainedBatch] = train_tasks
+            args: tuple[object, ...] = (chunk, config)
+            parent: dict[tuple[str, ...], list[str]] | None = None
+            if kind == "impact":
+                partner_nets, task_versions = load_task_nets(store, env, chunk)
+                learner, args = train_impacts, (chunk, partner_nets, config)
+                parent = {(g,): [v.ref] for g, v in zip(chunk, task_versions, strict=True)}
+            jobs.append(BatchJob(label, config.total_steps, learner, args, {"seed": chunk_seed}))
+            parents.append(parent)
+        batches = []
+        trained = train_batches(jobs, workers=workers, progress=progress)
+        for (*_, key), parent, batch in zip(chunks, parents, trained, strict=True):
+            versions = publish_batch(store, batch, env=env, parents=parent, serve_alias=serve_alias)
+            run.record(key, versions)
+            batches.append(batch)
+        return batches
+
+    first = []
+    for i, chunk in enumerate(chunked(goals, goals_per_batch)):
+        kept = [g for g in chunk if g not in skipped]
+        key = f"{kind}:{','.join(kept)}"
+        if kept and key not in run.done:
+            first.append((kept, seed + i, f"{kind} {kept[0]}..{kept[-1]}", key))
+    batches = train(first)
+    trainable = [g for g in goals if g not in skipped]
+    for attempt in range(1, gate_retries + 1):
+        key = f"{kind}-retry-{attempt}"
+        failed = goals_without(store, env, kind, trainable, serve_alias)
+        if key in run.done or not failed:
+            continue
+        retry_seed = seed + RETRY_SEED_STEP * attempt  # a fresh seed per attempt, deterministic
+        batches += train(
+            [
+                (chunk, retry_seed + i, retry_label(kind, attempt, i, chunk), f"{key}:{i}")
+                for i, chunk in enumerate(retry_batches(failed))
+            ]
         )
-        parents.append(
-            {(g,): [f"{v.name}/{v.version}"] for g, v in zip(goals, task_versions, strict=True)}
-        )
-    batches = []
-    trained = train_batches(jobs, workers=workers, progress=progress)
-    for (_goals, _seed, _label, key), parent, batch in zip(chunks, parents, trained, strict=True):
-        run.record(key, publish_batch(store, batch, env=env, parents=parent))
-        batches.append(batch)
+        run.record(key, [])  # its batches' versions are recorded under their own keys
     return batches
 
 
@@ -294,25 +320,16 @@ def run_joint(
 ) -> list[TrainedBatch]:
     """JL networks; combinations with the same number of agents train together."""
     batches = []
-    by_size: dict[int, list[tuple[str, ...]]] = {}
-    for combo in combos:
-        by_size.setdefault(len(combo), []).append(tuple(combo))
-    for size, group in sorted(by_size.items()):
+    for size, group in combos_by_size(combos):
         key = "joint:" + ";".join("+".join(c) for c in group)
         if key in run.done:
             continue
-        partner_nets: list[StackedQNet] = []
-        parents: dict[tuple[str, ...], list[str]] = {c: [] for c in group}
-        for slot in range(1, size):
-            nets, versions = load_task_nets(store, env, [c[slot] for c in group])
-            partner_nets.append(nets)
-            for c, v in zip(group, versions, strict=True):
-                parents[c].append(f"{v.name}/{v.version}")
+        partner_nets, parents = load_partner_nets(store, env, group)
         batch = train_joint(
             group,
             partner_nets,
             config,
-            seed=seed + 2000 + size,
+            seed=seed + JOINT_SEED_OFFSET + size,
             progress=progress(f"joint {size} agents", config.total_steps),
         )
         run.record(key, publish_batch(store, batch, env=env, parents=parents))

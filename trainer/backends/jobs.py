@@ -20,8 +20,8 @@ through the store as safetensors only).
 Stages run in order (tasks and their gate retries, then impacts, then joint): an impact job
 needs the task versions registered before it, exactly as in the local pipeline (and in the
 kitchen a `production` one: `impact_jobs_with_parents` drops the other goals, as
-`trainer.zoo.run_impacts` skips them). Seeds, keys and
-the retry rule mirror `trainer.zoo`'s loops; the Ray tests compare the two registries.
+`trainer.zoo.run_impacts` skips them). Seeds (`trainer.zoo`'s offsets), keys and the retry
+rule mirror `trainer.zoo`'s loops; the Ray tests compare the two registries.
 """
 
 from __future__ import annotations
@@ -32,13 +32,16 @@ from typing import Any, cast
 
 from model_store.defaults import open_store
 from model_store.store import ModelStore
-from policy.qnet import StackedQNet
 from trainer.config import GATE_RETRIES, ImpactConfig, JointConfig, SoftQConfig, TaskConfig
 from trainer.domain import Kind, TrainedBatch
-from trainer.learners import chunked, train_impacts, train_joint, train_tasks
+from trainer.learners import chunked, combos_by_size, train_impacts, train_joint, train_tasks
 from trainer.loop import TrainingCurves
 from trainer.zoo import (
+    IMPACT_SEED_OFFSET,
+    JOINT_SEED_OFFSET,
+    RETRY_SEED_STEP,
     goals_without,
+    load_partner_nets,
     load_task_nets,
     production_parents_required,
     retry_batches,
@@ -46,11 +49,6 @@ from trainer.zoo import (
 )
 
 from .once import RegisteredHook, publish_once
-
-# Seeds of the stages: the same as trainer.zoo's loops.
-IMPACT_SEED_OFFSET = 1000
-JOINT_SEED_OFFSET = 2000
-RETRY_SEED_STEP = 7919
 
 
 @dataclass(frozen=True)
@@ -159,11 +157,8 @@ def without_goals(jobs: Sequence[BatchJob], skipped: Sequence[str]) -> tuple[Bat
 
 def joint_stage(combos: Sequence[Sequence[str]], config: JointConfig, *, seed: int) -> Stage:
     """Combinations with the same number of agents train together (as `run_joint`)."""
-    by_size: dict[int, list[tuple[str, ...]]] = {}
-    for combo in combos:
-        by_size.setdefault(len(combo), []).append(tuple(combo))
     jobs = []
-    for i, (size, group) in enumerate(sorted(by_size.items())):
+    for i, (size, group) in enumerate(combos_by_size(combos)):
         key = "joint:" + ";".join("+".join(c) for c in group)
         jobs.append(BatchJob("joint", tuple(group), seed + JOINT_SEED_OFFSET + size, i, key))
     return Stage(tuple(jobs), config)
@@ -210,13 +205,7 @@ def train_batch(
             parents = {(g,): [v.ref] for g, v in zip(goals, task_versions, strict=True)}
             batch = train_impacts(goals, partner_nets, cast(ImpactConfig, config), seed=job.seed)
         else:
-            slot_nets: list[StackedQNet] = []
-            parents = {m: [] for m in job.members}
-            for slot in range(1, len(job.members[0])):
-                nets, versions = load_task_nets(store, env, [m[slot] for m in job.members])
-                slot_nets.append(nets)
-                for member, v in zip(job.members, versions, strict=True):
-                    parents[member].append(v.ref)
+            slot_nets, parents = load_partner_nets(store, env, job.members)
             batch = train_joint(job.members, slot_nets, cast(JointConfig, config), seed=job.seed)
         registered = publish_once(
             store,

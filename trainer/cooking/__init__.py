@@ -11,12 +11,14 @@ from trainer.cooking import config
 from trainer.cooking.config import CookingImpactConfig, CookingTaskConfig
 from trainer.cooking.gates import print_cooking_gates
 from trainer.cooking.learners import train_cooking_impacts, train_cooking_tasks
+from trainer.domain import EnvTrainer
 from trainer.learners import TrainedBatch
 from trainer.loop import ProgressFn
 
 
-class CookingTrainer:
-    """`trainer.domain.EnvTrainer` of the kitchen (no joint-learner baseline)."""
+class CookingTrainer(EnvTrainer):
+    """`trainer.domain.EnvTrainer` of the kitchen (no joint-learner baseline: `train_joint` is
+    the protocol's refusal)."""
 
     # An impact network learned beside a task network that cannot cook learns to help a partner
     # that fails anyway (the first cooking zoo did: parent `latest`, a 75 % CarrotBanana network).
@@ -55,17 +57,6 @@ class CookingTrainer:
             progress=progress,
             evaluate=evaluate,
         )
-
-    def train_joint(
-        self,
-        combos: Sequence[Sequence[str]],
-        partner_task_nets: Sequence[StackedQNet],
-        config: Any,
-        *,
-        seed: int,
-        progress: ProgressFn | None,
-    ) -> TrainedBatch:
-        raise ValueError(self.no_joint_reason)
 
     def print_gates(self, batches: Sequence[TrainedBatch], console: Any = None) -> None:
         print_cooking_gates(batches, console)

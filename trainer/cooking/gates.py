@@ -134,6 +134,15 @@ def _sampled(
     return sample_boltzmann_t(q_GEA, alpha, gen).numpy()
 
 
+def _seated(kitchens: list[Kitchens], focal_GE: np.ndarray, other_GE: np.ndarray) -> np.ndarray:
+    """Actions (G, E, 2) of both seats: in the kitchens of network g the focal cook plays
+    focal_GE[g], the other cook other_GE[g]."""
+    actions = np.zeros((*focal_GE.shape, 2), dtype=np.int64)
+    for g, k in enumerate(kitchens):
+        actions[g, :, k.focal], actions[g, :, k.other] = focal_GE[g], other_GE[g]
+    return actions
+
+
 def cooking_task_gates(
     nets: StackedQNet, recipes: Sequence[str], config: CookingTaskConfig, seed: int
 ) -> list[CookingTaskGate]:
@@ -147,11 +156,8 @@ def cooking_task_gates(
                 focal_GE = _sampled(nets, views, config.alpha, generator)
             else:
                 focal_GE = np.stack([k.scripted_focal() for k in kitchens])
-            actions = np.zeros((len(kitchens), config.eval_episodes, 2), dtype=np.int64)
-            for g, k in enumerate(kitchens):
-                actions[g, :, k.focal] = focal_GE[g]
-                actions[g, :, k.other] = k.scripted_other(config.partner_random_prob)
-            return actions
+            others = np.stack([k.scripted_other(config.partner_random_prob) for k in kitchens])
+            return _seated(kitchens, focal_GE, others)
 
         return act
 
@@ -196,10 +202,7 @@ def cooking_impact_gates(
             if ego_acts:
                 impact_views = np.stack([COOKING.impact_view(o, 2, 1) for o in ego_obs])
                 ego_GE = _sampled(impact_nets, impact_views, config.alpha, ego_gen)
-            actions = np.zeros((len(kitchens), config.eval_episodes, 2), dtype=np.int64)
-            for g, k in enumerate(kitchens):
-                actions[g, :, k.focal], actions[g, :, k.other] = partner_GE[g], ego_GE[g]
-            return actions
+            return _seated(kitchens, partner_GE, ego_GE)
 
         return act
 
