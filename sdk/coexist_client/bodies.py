@@ -22,11 +22,13 @@ other check is the server's, so the SDK and the server cannot disagree about wha
 
 from __future__ import annotations
 
+import inspect
 import math
-from collections.abc import Mapping, Sequence
-from typing import Any
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any, TypedDict, TypeVar, Unpack
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from coexist_client.errors import InvalidArgument
 
@@ -98,17 +100,34 @@ def _finite_rows(values: Any, field: str, ndim: int) -> list[Any]:
     return rows
 
 
-def _settings(
+class Settings(TypedDict, total=False):
+    """The policy settings that acts, batches and sessions take as keywords (`**settings`).
+    Left out: no partners, method "aail_bounded", alias "production", the rest None (the
+    server's temperature and regret bound, unseeded, the alias's versions)."""
+
+    partners: Partners
+    method: str
+    temperature: float | None
+    regret_bound: float | None
+    seed: int | None
+    alias: str
+    versions: Mapping[str, int] | None
+
+
+def policy_settings(
     env: str,
     ego_goal: str,
-    partners: Partners,
-    method: str,
-    temperature: float | None,
-    seed: int | None,
-    alias: str,
-    versions: Mapping[str, int] | None,
+    *,
+    partners: Partners = None,
+    method: str = "aail_bounded",
+    temperature: float | None = None,
     regret_bound: float | None = None,
+    seed: int | None = None,
+    alias: str = "production",
+    versions: Mapping[str, int] | None = None,
 ) -> dict[str, Any]:
+    """The JSON fields of `Settings`, common to every body: the one place their defaults live
+    and an unknown keyword is refused (TypeError); mypy checks `Settings` against it."""
     for name, value in (("temperature", temperature), ("regret_bound", regret_bound)):
         if value is not None and not math.isfinite(value):
             raise _bad(name, "expected a finite number")
@@ -125,67 +144,66 @@ def _settings(
     }
 
 
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def shows_settings(function: F) -> F:
+    """`function` (one taking `**settings: Unpack[Settings]` last) signed with those keywords
+    spelled out, defaults included, so help(), IDEs and `inspect.signature` show them all."""
+    signature = inspect.signature(function)
+    *own, settings = signature.parameters.values()
+    assert settings.kind is settings.VAR_KEYWORD, function
+    keywords = inspect.signature(policy_settings).parameters.values()
+    shared = [p for p in keywords if p.kind is p.KEYWORD_ONLY]
+    function.__signature__ = signature.replace(  # type: ignore[attr-defined]
+        parameters=[*own, *shared]
+    )
+    return function
+
+
+@shows_settings
 def act_body(
     env: str,
     ego_goal: str,
-    observation: Any = None,
+    observation: ArrayLike | None = None,
     *,
-    state: Any = None,
+    state: ArrayLike | None = None,
     ego_index: int = 0,
-    partners: Partners = None,
-    method: str = "aail_bounded",
-    temperature: float | None = None,
-    regret_bound: float | None = None,
-    seed: int | None = None,
-    alias: str = "production",
-    versions: Mapping[str, int] | None = None,
+    **settings: Unpack[Settings],
 ) -> dict[str, Any]:
     """The JSON body of `POST /v1/act`."""
-    body = _settings(
-        env, ego_goal, partners, method, temperature, seed, alias, versions, regret_bound
-    )
+    body = policy_settings(env, ego_goal, **settings)
     body.update(observation_fields(observation, state, ego_index))
     return body
 
 
-def observation_fields(observation: Any, state: Any, ego_index: int) -> dict[str, Any]:
-    """`{"observation": [...]}` or `{"state": [[...], ...], "ego_index": i}` (exactly one given)."""
+def observation_fields(
+    observation: Any, state: Any, ego_index: int, *, batch: bool = False
+) -> dict[str, Any]:
+    """`{"observation": [...]}` or `{"state": [[...], ...], "ego_index": i}` (exactly one given);
+    with `batch`, `observations` or `states` (+ `ego_index`), one rank more."""
+    field, state_field = ("observations", "states") if batch else ("observation", "state")
+    rank = 2 if batch else 1
     if (observation is None) == (state is None):
-        raise _bad("observation", "give exactly one of observation and state (+ ego_index)")
+        raise _bad(field, f"give exactly one of {field} and {state_field} (+ ego_index)")
     if observation is not None:
-        return {"observation": _finite_rows(observation, "observation", 1)}
-    return {"state": _finite_rows(state, "state", 2), "ego_index": ego_index}
+        return {field: _finite_rows(observation, field, rank)}
+    return {state_field: _finite_rows(state, state_field, rank + 1), "ego_index": ego_index}
 
 
+@shows_settings
 def act_batch_body(
     env: str,
     ego_goal: str,
-    observations: Any = None,
+    observations: ArrayLike | None = None,
     *,
-    states: Any = None,
+    states: ArrayLike | None = None,
     ego_index: int = 0,
-    partners: Partners = None,
-    method: str = "aail_bounded",
-    temperature: float | None = None,
-    regret_bound: float | None = None,
-    seed: int | None = None,
-    alias: str = "production",
-    versions: Mapping[str, int] | None = None,
-    columns: bool = False,
+    **settings: Unpack[Settings],
 ) -> dict[str, Any]:
-    """The JSON body of `POST /v1/act:batch`; `columns`: ask for the columnar answer."""
-    body = _settings(
-        env, ego_goal, partners, method, temperature, seed, alias, versions, regret_bound
-    )
-    if columns:
-        body["format"] = "columns"
-    if (observations is None) == (states is None):
-        raise _bad("observations", "give exactly one of observations and states (+ ego_index)")
-    if observations is not None:
-        body["observations"] = _finite_rows(observations, "observations", 2)
-    else:
-        body["states"] = _finite_rows(states, "states", 3)
-        body["ego_index"] = ego_index
+    """The JSON body of `POST /v1/act:batch` (rows; `columns_exchange` asks for columns)."""
+    body = policy_settings(env, ego_goal, **settings)
+    body.update(observation_fields(observations, states, ego_index, batch=True))
     return body
 
 
@@ -201,24 +219,21 @@ def _inferring(partners: Partners, infer: Sequence[int]) -> list[dict[str, Any]]
     return specs
 
 
+@shows_settings
 def session_body(
     env: str,
     ego_goal: str,
     *,
-    partners: Partners = None,
     infer: Sequence[int] = (),
-    method: str = "aail_bounded",
-    temperature: float | None = None,
-    regret_bound: float | None = None,
-    seed: int | None = None,
-    alias: str = "production",
-    versions: Mapping[str, int] | None = None,
     belief: Mapping[str, Any] | None = None,
+    **settings: Unpack[Settings],
 ) -> dict[str, Any]:
     """The JSON body of `POST /v1/sessions` (also an Episode's settings): `act_body`'s
-    fields without the observation, `infer` marked on partners, plus `belief` (forgetting, floor, temperature,
-    blend_mass, blend_max_goals; left out: the server's defaults)."""
-    body = _settings(env, ego_goal, None, method, temperature, seed, alias, versions, regret_bound)
+    fields without the observation, `infer` marked on partners (who may be `{i: None}`), plus
+    `belief` (forgetting, floor, temperature, blend_mass, blend_max_goals; left out: the
+    server's defaults)."""
+    partners = settings.pop("partners", None)
+    body = policy_settings(env, ego_goal, **settings)
     body["partners"] = _inferring(partners, infer)
     if belief is not None:
         if not isinstance(belief, Mapping):

@@ -36,6 +36,7 @@ def act_exchange(transport: Any, body: dict[str, Any]) -> Plan[Action]:
 
 
 def columns_exchange(transport: Any, body: dict[str, Any]) -> Plan[ActionColumns]:
+    body = {**body, "format": "columns"}  # an `act_batch_body`, answered as columns
     if not transport.grpc:
         return ActionColumns.from_json((yield Http("POST", "/v1/act:batch", body)))
     request = proto.act_batch_request(body)

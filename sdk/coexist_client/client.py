@@ -31,11 +31,9 @@ from __future__ import annotations
 import inspect
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Any, Literal, ParamSpec
+from typing import Any, Concatenate, Literal, ParamSpec, TypeVar, Unpack
 
-from numpy.typing import ArrayLike
-
-from coexist_client.bodies import Partners, act_batch_body, act_body, session_body
+from coexist_client.bodies import Settings, act_batch_body, act_body, session_body, shows_settings
 from coexist_client.calls import act_exchange, columns_exchange, envs_exchange, health_exchange
 from coexist_client.exchange import (
     AsyncClosing,
@@ -54,6 +52,7 @@ from coexist_client.types import Action, ActionColumns, EnvInfo, Health
 
 DEFAULT_URL = "http://127.0.0.1:8000"
 P = ParamSpec("P")
+T = TypeVar("T")
 DEFAULT_TARGET = "127.0.0.1:50051"
 Protocol = Literal["http", "grpc"]
 
@@ -104,74 +103,39 @@ class ClientCore(Core):
             )
 
 
-def act(
-    core: ClientCore,
-    env: str,
-    ego_goal: str,
-    observation: ArrayLike | None = None,
-    *,
-    state: ArrayLike | None = None,
-    ego_index: int = 0,
-    partners: Partners = None,
-    method: str = "aail_bounded",
-    temperature: float | None = None,
-    regret_bound: float | None = None,
-    seed: int | None = None,
-    alias: str = "production",
-    versions: Mapping[str, int] | None = None,
-) -> Plan[Action]:
-    """One action for one observation (or state + ego_index)."""
-    body = act_body(
-        env,
-        ego_goal,
-        observation,
-        state=state,
-        ego_index=ego_index,
-        partners=partners,
-        method=method,
-        temperature=temperature,
-        regret_bound=regret_bound,
-        seed=seed,
-        alias=alias,
-        versions=versions,
+def _sent(
+    name: str,
+    body: Callable[P, dict[str, Any]],
+    exchange: Callable[[Any, dict[str, Any]], Plan[T]],
+    doc: str,
+) -> Callable[Concatenate[ClientCore, P], Plan[T]]:
+    """The plan `name`: `body(...)` built and sent by `exchange`. Signed as `body` with `core`
+    first and the exchange's result, so the methods made of it show the real parameters."""
+
+    def plan(core: ClientCore, /, *args: P.args, **kwargs: P.kwargs) -> Plan[T]:
+        return (yield from exchange(core.transport, body(*args, **kwargs)))
+
+    plan.__name__ = plan.__qualname__ = name
+    plan.__doc__ = doc
+    signature = inspect.signature(body)
+    core = inspect.Parameter(
+        "core", inspect.Parameter.POSITIONAL_OR_KEYWORD, annotation="ClientCore"
     )
-    return (yield from act_exchange(core.transport, body))
+    plan.__signature__ = signature.replace(  # type: ignore[attr-defined]
+        parameters=[core, *signature.parameters.values()],
+        return_annotation=inspect.signature(exchange).return_annotation,
+    )
+    return plan
 
 
-def act_batch_columns(
-    core: ClientCore,
-    env: str,
-    ego_goal: str,
-    observations: ArrayLike | None = None,
-    *,
-    states: ArrayLike | None = None,
-    ego_index: int = 0,
-    partners: Partners = None,
-    method: str = "aail_bounded",
-    temperature: float | None = None,
-    regret_bound: float | None = None,
-    seed: int | None = None,
-    alias: str = "production",
-    versions: Mapping[str, int] | None = None,
-) -> Plan[ActionColumns]:
+act = _sent("act", act_body, act_exchange, "One action for one observation (or state + ego_index).")
+act_batch_columns = _sent(
+    "act_batch_columns",
+    act_batch_body,
+    columns_exchange,
     """Many observations (or states + ego_index) in one vectorised request, answered as arrays,
-    one per field (the server's columnar format)."""
-    body = act_batch_body(
-        env,
-        ego_goal,
-        observations,
-        states=states,
-        ego_index=ego_index,
-        partners=partners,
-        method=method,
-        temperature=temperature,
-        regret_bound=regret_bound,
-        seed=seed,
-        alias=alias,
-        versions=versions,
-        columns=True,
-    )
-    return (yield from columns_exchange(core.transport, body))
+    one per field (the server's columnar format).""",
+)
 
 
 def _rows(columns: Callable[P, Plan[ActionColumns]]) -> Callable[P, Plan[list[Action]]]:
@@ -201,22 +165,17 @@ def health(core: ClientCore) -> Plan[Health]:
     return (yield from health_exchange(core.transport))
 
 
+@shows_settings
 def open_session(
     core: ClientCore,
     env: str,
     ego_goal: str,
     *,
-    partners: Partners = None,
     infer: Sequence[int] = (),
-    method: str = "aail_bounded",
-    temperature: float | None = None,
-    regret_bound: float | None = None,
-    seed: int | None = None,
-    alias: str = "production",
-    versions: Mapping[str, int] | None = None,
     belief: Mapping[str, Any] | None = None,
     expect_steps: bool = True,
     episode: bool = False,
+    **settings: Unpack[Settings],
 ) -> Plan[Opened]:
     """A session: settings given once, then `step(obs)` (or `act(obs)`) per step, step t
     seeded with seed + t. Partners' goals are announced, or inferred by the server from their
@@ -224,28 +183,16 @@ def open_session(
     prior); `belief`: forgetting, floor, temperature, blend_mass, blend_max_goals (left out:
     the server's). Over gRPC an `Episode` stream; over HTTP a REST session, or with `episode`
     and no goal inferred plain `POST /v1/act` per step (no state on the server)."""
-    body = session_body(
-        env,
-        ego_goal,
-        partners=partners,
-        infer=infer,
-        method=method,
-        temperature=temperature,
-        regret_bound=regret_bound,
-        seed=seed,
-        alias=alias,
-        versions=versions,
-        belief=belief,
-    )
+    body = session_body(env, ego_goal, infer=infer, belief=belief, **settings)
     if core.transport.grpc:
         return (yield from open_stream(body))
     inferring = any(p.get("infer") for p in body["partners"]) or belief is not None
     if episode and not inferring:
-        settings = {k: v for k, v in body.items() if k != "belief"}
-        settings["partners"] = [
+        fields = {k: v for k, v in body.items() if k != "belief"}
+        fields["partners"] = [
             {k: v for k, v in p.items() if k != "infer"} for p in body["partners"]
         ]
-        return Opened("act", settings)
+        return Opened("act", fields)
     return (yield from open_rest(body, expect_steps))
 
 
@@ -283,6 +230,8 @@ class AsyncClient(ClientCore, AsyncClosing):
     def episode(self, env: str, ego_goal: str, **settings: Any) -> AsyncSession:
         """As `Client.episode`; the episode opens with `async with` or its first step (nothing
         is sent before), so `async with client.episode(...) as ep` needs no await."""
+        # a wrong argument fails here, as in any call; the plan runs from `async with` or a step
+        inspect.signature(open_session).bind(self, env, ego_goal, episode=True, **settings)
         plan = open_session(self, env, ego_goal, episode=True, **settings)
         return AsyncSession(self.transport, plan)
 
