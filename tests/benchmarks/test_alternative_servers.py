@@ -1,0 +1,136 @@
+"""benchmarks/alternative_servers.py and alternatives_bench.py: the alternatives' numpy AAIL is
+coexist's (the engine's probabilities and seeded actions, `policy.blend`'s reference blend),
+and, marked slow, the FastAPI alternative answers the benchmark's act with them."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+import alternative_servers  # noqa: E402
+import alternatives_bench  # noqa: E402
+import serving  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def store_url(tmp_path_factory: pytest.TempPathFactory) -> str:
+    url = f"sqlite:///{tmp_path_factory.mktemp('alternatives') / 'models.db'}"
+    serving.build_store(url)
+    return url
+
+
+def _act_body() -> dict:
+    body: dict = json.loads(serving.rest_bodies()["act"])
+    return body
+
+
+def _engine_results(url: str, body: dict, seeds: list[int]) -> list:
+    from model_store import open_store
+    from services.engine.engine import InferenceEngine
+    from services.engine.messages import ActRequest, PartnerSpec
+
+    partners = tuple(PartnerSpec(p["index"], goal=p["goal"]) for p in body["partners"])
+    obs = np.array([body["observation"]])
+    with open_store(url) as store:
+        engine = InferenceEngine(store)
+        return [
+            engine.act(ActRequest("particle", body["ego_goal"], obs, partners, "aail", seed=seed))[
+                0
+            ]
+            for seed in seeds
+        ]
+
+
+def test_numpy_aail_gives_the_engines_probs_and_seeded_actions(store_url: str) -> None:
+    body = _act_body()
+    assert body["method"] == "aail" and len(body["partners"]) == 4
+    policy = alternative_servers.NumpyAAIL(store_url)
+    assert sorted(policy.networks) == [
+        "particle/impact/a0",
+        "particle/impact/b2",
+        "particle/impact/c4",
+        "particle/impact/e1",
+        "particle/task/a2",
+    ]
+    partners = [(p["index"], p["goal"]) for p in body["partners"]]
+    probs = policy.probs(body["ego_goal"], body["observation"], partners)
+    seeds = list(range(20))
+    results = _engine_results(store_url, body, seeds)
+    np.testing.assert_allclose(probs, results[0].probs, rtol=0, atol=1e-5)
+    # a seed draws the same uniform, so the same action wherever the probs agree this well
+    assert [policy.sample(probs, s) for s in seeds] == [r.action for r in results]
+
+
+def test_the_aail_blend_is_policy_blends_reference() -> None:
+    from policy.blend import blend_vectorised
+
+    rng = np.random.default_rng(3)
+    cases = [(rng.normal(size=5), rng.normal(size=(p, 5))) for p in (0, 1, 4)]
+    flat = np.full(5, 2.0)
+    cases += [(flat, rng.normal(size=(2, 5))), (rng.normal(size=5), np.stack([flat, flat]))]
+    for q_task, q_impact in cases:
+        for alpha in (0.02, 0.5):
+            ours = alternative_servers.aail(q_task, q_impact, alpha)
+            reference = blend_vectorised("aail", q_task[None], q_impact[None], alpha).probs_BA[0]
+            np.testing.assert_allclose(ours, reference, rtol=0, atol=1e-9)
+
+
+def test_different_probs_stop_the_benchmark() -> None:
+    reference = np.array([0.5, 0.25, 0.25])
+    alternatives_bench.check_same_probs("fastapi", reference + 4e-6, reference)
+    with pytest.raises(SystemExit, match="not the same maths"):
+        alternatives_bench.check_same_probs(
+            "fastapi", reference + np.array([2e-5, -2e-5, 0]), reference
+        )
+    with pytest.raises(SystemExit, match="not the same maths"):
+        alternatives_bench.check_same_probs("ray", reference[:2], reference)
+
+
+def test_the_tables_show_medians_and_ratios_to_coexist() -> None:
+    def case(name: str, requests: int, p50: float) -> serving.Case:
+        return serving.Case("REST", name, 1, requests, 1.0, p50, 1, 0)
+
+    def server(scale: float) -> dict[str, serving.Case]:
+        return {
+            "no-op c=1": case("no-op c=1", 10000, 0.1),
+            "act c=1": case("act c=1", round(5000 / scale), 0.2 * scale),
+            "act c=32": case("act c=32", round(8000 / scale), 4.0 * scale),
+        }
+
+    rounds = [{"coexist": server(1.0), "fastapi": server(s)} for s in (2.0, 3.0, 2.5)]
+    figures = alternatives_bench.medians(rounds)
+    assert figures["fastapi"]["act_p50_ms"] == pytest.approx(0.5)
+    assert figures["fastapi"]["act_rps_c32"] == 3200
+    text = alternatives_bench.tables(figures)
+    assert "| FastAPI + numpy | 0.100 ms | 10,000 | 0.500 ms | 2,000 | 3,200 |" in text
+    assert "| FastAPI + numpy | 2.50x | 0.40x | 0.40x |" in text
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(shutil.which("taskset") is None, reason="taskset not installed")
+def test_the_fastapi_alternative_answers_the_act(store_url: str, tmp_path: Path) -> None:
+    import httpx
+
+    port = alternatives_bench.free_port()
+    server = alternatives_bench.start_alternative("fastapi", port, store_url, tmp_path / "log")
+    try:
+        probs = alternatives_bench.act_probs(port)
+        body = {**_act_body(), "seed": 7}
+        seeded = httpx.post(f"http://127.0.0.1:{port}/v1/act", json=body, timeout=10).json()
+        missing = {**body, "ego_goal": "zz"}
+        assert httpx.post(f"http://127.0.0.1:{port}/v1/act", json=missing).status_code == 404
+    finally:
+        alternatives_bench.stop_alternative(server)
+    assert server.returncode is not None
+    assert alternatives_bench.session_members(server.pid) == []
+    (result,) = _engine_results(store_url, body, [7])
+    alternatives_bench.check_same_probs("fastapi", probs, np.asarray(result.probs))
+    assert seeded["action"] == result.action
