@@ -235,18 +235,9 @@ def plain_app(url: str) -> Any:
 
 
 def serve_fastapi(port: int, url: str) -> None:
-    import uvicorn
+    from floor_servers import run_uvicorn
 
-    uvicorn.run(
-        plain_app(url),
-        host="127.0.0.1",
-        port=port,
-        workers=1,
-        loop="uvloop",
-        http="httptools",
-        log_level="warning",
-        access_log=False,
-    )
+    run_uvicorn(plain_app(url), port)
 
 
 def serve_ray(port: int, url: str, max_ongoing_requests: int | None = None) -> None:

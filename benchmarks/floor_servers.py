@@ -33,10 +33,15 @@ def rest_app() -> Any:
 
 
 def serve_rest(port: int) -> None:
+    run_uvicorn(rest_app(), port)
+
+
+def run_uvicorn(app: Any, port: int) -> None:
+    """`app` on uvicorn with the settings `coexist serve` uses (loopback), until stopped."""
     import uvicorn
 
     uvicorn.run(
-        rest_app(),
+        app,
         host="127.0.0.1",
         port=port,
         workers=1,
