@@ -11,6 +11,8 @@ import time
 import httpx
 
 COEXIST = (sys.executable, "-m", "cli.main")  # the `coexist` command of this checkout
+# a particle observation of two agents (ego, partner: x, y, vx, vy each) that the tiny zoo acts on
+OBS = [0.1, 0.4, 0.0, 0.0, 0.7, 0.6, 0.0, 0.0]
 
 
 def free_port() -> int:

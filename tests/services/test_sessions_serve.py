@@ -12,9 +12,8 @@ from pathlib import Path
 
 import pytest
 from coexist_client import CoexistClient, CoexistError, GrpcCoexistClient
-from serve_process import free_port, serve_command, wait_ready
+from serve_process import OBS, free_port, serve_command, wait_ready
 from session_zoo import session_zoo_template
-from test_serve_cli import OBS
 
 
 @pytest.mark.slow

@@ -10,11 +10,9 @@ from pathlib import Path
 
 import pytest
 from coexist_client import CoexistClient, GrpcCoexistClient
-from serve_process import free_port, serve_command, wait_ready
+from serve_process import OBS, free_port, serve_command, wait_ready
 
 from model_store.sql import SqlModelStore
-
-OBS = [0.1, 0.4, 0.0, 0.0, 0.7, 0.6, 0.0, 0.0]
 
 
 @pytest.mark.parametrize("workers", [1, 2])
