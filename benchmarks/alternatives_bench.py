@@ -45,7 +45,6 @@ import statistics
 import subprocess
 import sys
 import tempfile
-import time
 from dataclasses import asdict
 from pathlib import Path
 
@@ -56,7 +55,15 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from serving import Case, build_store, rest_bodies, run_wrk  # noqa: E402
-from wrk_server import LOAD_CPU, SERVER_CPU, free_port, start_server, stop  # noqa: E402
+from wrk_server import (  # noqa: E402
+    LOAD_CPU,
+    SERVER_CPU,
+    free_port,
+    http_ok,
+    start_server,
+    stop,
+    wait_ready,
+)
 
 SERVERS = ("coexist", "fastapi", "ray")
 LABELS = {
@@ -90,18 +97,12 @@ def start_alternative(
         server = subprocess.Popen(
             command, stdout=out, stderr=subprocess.STDOUT, start_new_session=True
         )
-    deadline = time.monotonic() + READY_S
-    while time.monotonic() < deadline:
-        if server.poll() is not None:
-            raise SystemExit(
-                f"the {kind} server exited with {server.returncode}:\n{log.read_text()[-3000:]}"
-            )
-        try:
-            if httpx.get(f"http://127.0.0.1:{port}/healthz", timeout=2).status_code == 200:
-                return server
-        except httpx.HTTPError:
-            pass
-        time.sleep(0.5)
+    health = f"http://127.0.0.1:{port}/healthz"
+    log_tail = lambda: f":\n{log.read_text()[-3000:]}"  # noqa: E731  (read once it exited)
+    if wait_ready(
+        server, lambda: http_ok(health, timeout=2), f"the {kind} server", READY_S, log_tail
+    ):
+        return server
     stop_alternative(server)
     raise SystemExit(f"the {kind} server did not answer within {READY_S:g} s")
 

@@ -6,6 +6,7 @@ pinned to one CPU, and `wrk` on the other posting a list of JSON bodies in turn 
 | `start_server` | `coexist serve --no-bootstrap` (REST only) on `taskset -c SERVER_CPU`, |
 |                | waits for `/readyz`                                                   |
 | `start_floor`  | a bare REST or gRPC server (`floor_servers.py`) on the same CPU, ready |
+| `wait_ready`   | polls a started server until it answers (or exits: SystemExit)       |
 | `stop`         | ends a server started here and waits for it                           |
 | `lua_script`   | a wrk script POSTing the bodies in turn (one wrk thread: a counter)   |
 | `run_wrk`      | 1 s of warm-up, then the timed run, c = 1, on `taskset -c LOAD_CPU`   |
@@ -19,6 +20,7 @@ import re
 import socket
 import subprocess
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import httpx
@@ -122,16 +124,8 @@ def start_server(
         url,
     ]
     server = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL)
-    deadline = time.monotonic() + 120
-    while time.monotonic() < deadline:
-        if server.poll() is not None:
-            raise SystemExit(f"the server exited with {server.returncode}")
-        try:
-            if httpx.get(f"http://127.0.0.1:{port}/readyz", timeout=1).status_code == 200:
-                return server
-        except httpx.HTTPError:
-            pass
-        time.sleep(0.3)
+    if wait_ready(server, lambda: http_ok(f"http://127.0.0.1:{port}/readyz"), "the server", 120):
+        return server
     server.kill()
     raise SystemExit("the server did not become ready within 120 s")
 
@@ -148,23 +142,43 @@ def start_floor(kind: str, port: int) -> subprocess.Popen[bytes]:
         str(port),
     ]
     server = subprocess.Popen(command, stdout=subprocess.DEVNULL)
-    deadline = time.monotonic() + 60
-    while time.monotonic() < deadline:
-        if server.poll() is not None:
-            raise SystemExit(f"the {kind} floor exited with {server.returncode}")
-        if _floor_answers(kind, port):
-            return server
-        time.sleep(0.2)
+    if wait_ready(server, lambda: _floor_answers(kind, port), f"the {kind} floor", 60):
+        return server
     server.kill()
     raise SystemExit(f"the {kind} floor did not answer within 60 s")
 
 
+def wait_ready(
+    server: subprocess.Popen[bytes],
+    ready: Callable[[], bool],
+    what: str,
+    seconds: float,
+    exited: Callable[[], str] = lambda: "",
+) -> bool:
+    """Poll `ready` every 0.3 s until it is true (True) or `seconds` have passed (False; the
+    caller stops the server). A server that exits first is `SystemExit`, saying `what` exited
+    and, after its return code, `exited()` (a log's tail)."""
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        if server.poll() is not None:
+            raise SystemExit(f"{what} exited with {server.returncode}{exited()}")
+        if ready():
+            return True
+        time.sleep(0.3)
+    return False
+
+
+def http_ok(url: str, timeout: float = 1.0) -> bool:
+    """Whether a GET of `url` answers 200 (a refused or timed-out connection: False)."""
+    try:
+        return httpx.get(url, timeout=timeout).status_code == 200
+    except httpx.HTTPError:
+        return False
+
+
 def _floor_answers(kind: str, port: int) -> bool:
     if kind == "rest":
-        try:
-            return httpx.get(f"http://127.0.0.1:{port}/healthz", timeout=1).status_code == 200
-        except httpx.HTTPError:
-            return False
+        return http_ok(f"http://127.0.0.1:{port}/healthz")
     import grpc
     from grpc_health.v1 import health_pb2, health_pb2_grpc
 
