@@ -5,8 +5,9 @@
  * stacked matmul makes one BLAS call per network and layer and the weights stream from the
  * caches meanwhile; here the whole stack is one loop over the members, with AVX2 and FMA, that
  * takes a member's rows in blocks of 4, 2 or 1 and loads each weight once per block (a
- * session's 4 partners through 35 impact networks: 4 rows a member). The GIL is released
- * while it runs.
+ * session's 4 partners through 35 impact networks: 4 rows a member), fetching the next
+ * member's weights into the caches while it computes a member's last block (`layer_avx2`).
+ * The GIL is released while it runs.
  *
  * Order of operations (fixed, so the results do not depend on the batch or on the other rows):
  * - output o of a layer in a full group of 8 outputs: acc = b[o], then for i = 0 .. I-1
@@ -67,8 +68,14 @@ __attribute__((target("avx2,fma"))) static void tail_avx2(const float *x, const 
  * by row. Every output follows the order of the header comment, whatever R and the group. */
 __attribute__((target("avx2,fma"), always_inline)) static inline void
 layer_rows_avx2(const float *x, int x_step, const float *W, const float *b, float *y, int y_step,
-                int n_i, int n_o, const int R) {
+                int n_i, int n_o, const int R, const char *next, const int fetch) {
     const int V = R == 4 ? 3 : R == 2 ? 4 : 8;
+    /* `fetch`: the next member's weights of this layer (`next`, n_i x n_o floats), a few lines
+     * per input step of the output groups (all of them by the groups' end), the rest after */
+    const size_t next_lines = (size_t)n_i * n_o * sizeof(float) / 64 + 1;
+    const char *next_end = fetch ? next + 64 * next_lines : next;
+    const int steps = n_o / (8 * V) * n_i; /* input steps of the output groups */
+    const int lines = fetch && steps ? (int)((next_lines + steps - 1) / steps) : 0;
     int ob = 0;
     for (; ob + 8 * V <= n_o; ob += 8 * V) {
         __m256 acc[4][8];
@@ -78,6 +85,9 @@ layer_rows_avx2(const float *x, int x_step, const float *W, const float *b, floa
             for (int v = 0; v < V; v++) acc[r][v] = _mm256_loadu_ps(b + ob + 8 * v);
         const float *w = W + ob;
         for (int i = 0; i < n_i; i++, w += n_o) {
+            if (fetch)
+                for (int l = 0; l < lines && next < next_end; l++, next += 64)
+                    _mm_prefetch(next, _MM_HINT_T0);
             __m256 wv[8];
 #pragma GCC unroll 8
             for (int v = 0; v < V; v++) wv[v] = _mm256_loadu_ps(w + 8 * v);
@@ -107,18 +117,32 @@ layer_rows_avx2(const float *x, int x_step, const float *W, const float *b, floa
 #pragma GCC unroll 4
         for (int r = 0; r < R; r++) _mm256_storeu_ps(y + (size_t)r * y_step + ob, acc[r]);
     }
+    if (fetch)
+        for (; next < next_end; next += 64) _mm_prefetch(next, _MM_HINT_T0);
     for (int r = 0; r < R; r++)
         tail_avx2(x + (size_t)r * x_step, W, b, y + (size_t)r * y_step, n_i, n_o, ob);
 }
 
-/* one layer on R = 1, 2 or 4 rows (`layer_rows_avx2` made for each R) */
+/* one layer on R = 1, 2 or 4 rows (`layer_rows_avx2` made for each R, with and without
+ * fetching `next`: the same weights of the next member, or NULL).
+ *
+ * Why fetch ahead: a session's belief passes read a stack of 35 networks' weights per call,
+ * which other work evicts from the caches between requests. Without it each member's weights
+ * arrive only as its own loads miss and the arithmetic waits on memory; with it the next
+ * member's weights stream in while this one computes. Prefetches change no result. */
 __attribute__((target("avx2,fma"))) static void layer_avx2(const float *x, int x_step,
                                                           const float *W, const float *b,
                                                           float *y, int y_step, int n_i,
-                                                          int n_o, int R) {
-    if (R == 4) layer_rows_avx2(x, x_step, W, b, y, y_step, n_i, n_o, 4);
-    else if (R == 2) layer_rows_avx2(x, x_step, W, b, y, y_step, n_i, n_o, 2);
-    else layer_rows_avx2(x, x_step, W, b, y, y_step, n_i, n_o, 1);
+                                                          int n_o, int R, const char *next) {
+    if (next == NULL) {
+        if (R == 4) layer_rows_avx2(x, x_step, W, b, y, y_step, n_i, n_o, 4, NULL, 0);
+        else if (R == 2) layer_rows_avx2(x, x_step, W, b, y, y_step, n_i, n_o, 2, NULL, 0);
+        else layer_rows_avx2(x, x_step, W, b, y, y_step, n_i, n_o, 1, NULL, 0);
+    } else {
+        if (R == 4) layer_rows_avx2(x, x_step, W, b, y, y_step, n_i, n_o, 4, next, 1);
+        else if (R == 2) layer_rows_avx2(x, x_step, W, b, y, y_step, n_i, n_o, 2, next, 1);
+        else layer_rows_avx2(x, x_step, W, b, y, y_step, n_i, n_o, 1, next, 1);
+    }
 }
 
 /* max(0, v), NaN kept (MAXPS returns its second operand when one is NaN) */
@@ -175,7 +199,13 @@ static void run(const Stack *s, const float *x, int x_members, int M, int P, int
                 const float *w = s->w[k] + (size_t)m * n_i * n_o, *b = s->b[k] + (size_t)m * n_o;
                 float *y = k == last ? out + ((size_t)m * P + p) * n_a : buf + (size_t)(k % 2) * ROW_BLOCK * width;
                 int y_step = k == last ? n_a : width;
-                layer_avx2(h, h_step, w, b, y, y_step, n_i, n_o, R);
+                /* the member's last block fetches the next member's weights of this layer;
+                 * not a block of one row: too little arithmetic to hide the fetch behind
+                 * (measured no faster from memory, slower from the caches) */
+                const float *next =
+                    R > 1 && p + R == P && m + 1 < M ? w + (size_t)n_i * n_o : NULL;
+                if (next != NULL) _mm_prefetch((const char *)(b + n_o), _MM_HINT_T0); /* bias */
+                layer_avx2(h, h_step, w, b, y, y_step, n_i, n_o, R, (const char *)next);
                 if (k < last)
                     for (int r = 0; r < R; r++) activate(y + (size_t)r * y_step, n_o, relu);
                 h = y;

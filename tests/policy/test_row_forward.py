@@ -76,11 +76,15 @@ def test_compiled_matches_numpy_and_float64(
 
 
 @compiled
-def test_member_offsets_pick_the_right_networks() -> None:
-    """Member m is network start + m: each alone gives its own row of the whole stack."""
-    rng = np.random.default_rng(0)
-    layers = stack(rng, (8, 32, 5), 7)
-    x = rng.standard_normal((7, 1, 8)).astype(np.float32)
+@pytest.mark.parametrize("sizes", SIZES)
+@pytest.mark.parametrize("rows", [1, 4, 6])
+def test_member_offsets_pick_the_right_networks(sizes: tuple[int, ...], rows: int) -> None:
+    """Member m is network start + m: each alone gives its own row of the whole stack, bit for
+    bit. The whole stack fetches each next member's weights ahead, a member alone fetches
+    nothing: the prefetches change no result."""
+    rng = np.random.default_rng(rows)
+    layers = stack(rng, sizes, 7)
+    x = rng.standard_normal((7, rows, sizes[0])).astype(np.float32)
     whole = row_forward(x, layers, 0, 7, "relu")
     for m in range(7):
         alone = row_forward(x[m : m + 1], layers, m, 1, "relu")
