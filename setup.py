@@ -4,8 +4,9 @@ reference of each runs instead):
 - `policy._blend_row`, the blend of eqs. 8-10 (policy/_blend_row.c; `policy.blend`);
 - `policy._belief_row`, a session's belief update and views and the goal likelihoods' table
   (policy/_belief_row.c; `policy.belief_compiled`);
-- `policy._row_forward`, a stack of small MLPs on a few rows, AVX2 and FMA chosen at run time
-  (policy/_row_forward.c; `policy.row_forward`).
+- `policy._row_forward`, a stack of small MLPs on a few rows, AVX2 and FMA (or AVX-512F)
+  chosen at run time (policy/_row_forward.c and the layer it includes twice,
+  policy/_row_forward_layer.h; `policy.row_forward`).
 
 Each is checked against its numpy reference within a stated tolerance (tests/policy/).
 Everything else is in pyproject.toml.
@@ -22,6 +23,7 @@ setup(
             include_dirs=[numpy.get_include()],
             extra_compile_args=["-O2"],
             libraries=["m"],
+            depends=[f"policy/{name}_layer.h"] if name == "_row_forward" else [],
             optional=True,
         )
         for name in ("_blend_row", "_belief_row", "_row_forward")

@@ -10,6 +10,9 @@ Run: `taskset -c 0 .venv/bin/python benchmarks/row_forward.py [--calls 300]`
 | 1 x 1024         | 1 x 1024       | a 256-row batch's task network on its 4 views per row  |
 | 4 x 256          | 4 x 256        | that batch's 4 impact networks                         |
 
+Each case runs at every vector width this CPU has (8 floats, AVX2; 16, AVX-512F: the same
+bits, `policy/_row_forward_layer.h`), so one run shows what the wider vectors are worth.
+
 Hot: the same call back to back. Cold: before each call the benchmark reads a buffer larger than
 the last-level cache, so the weights come from memory, which is how a server meets a session's
 stack of 35 networks: between two steps of a session its other work (parsing, answers, the other
@@ -31,7 +34,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from policy.row_forward import COMPILED, row_forward
+from policy.row_forward import COMPILED, row_forward, vector_widths
 from trainer.config import TaskConfig
 
 PAIR_OBS_DIM, N_ACTIONS = 8, 5  # the particle world's pair view and actions
@@ -75,23 +78,32 @@ def main() -> None:
         raise SystemExit("no compiled row forward on this machine: nothing to measure")
     rng = np.random.default_rng(0)
     evict = np.ones(EVICT_BYTES // 8)
-    print("| members x rows | hot µs | cold µs | cold / hot | cold weights GB/s | hot GFLOP/s |")
-    print("|---|---|---|---|---|---|")
+    widths = vector_widths()
+    print(
+        "| members x rows | lanes | hot µs | cold µs | cold / hot | cold weights GB/s | hot GFLOP/s |"
+    )
+    print("|---|---|---|---|---|---|---|")
     for members, rows in CASES:
         layers = stack(rng, members)
         x = rng.standard_normal((1, rows, PAIR_OBS_DIM)).astype(np.float32)
         weight_bytes = sum(w.nbytes + b.nbytes for w, b in layers)
         flops = 2 * rows * sum(w.size for w, _ in layers)
+        for lanes in widths:
 
-        def forward(x: np.ndarray = x, layers: Layers = layers, members: int = members) -> object:
-            return row_forward(x, layers, 0, members, "relu")
+            def forward(
+                x: np.ndarray = x,
+                layers: Layers = layers,
+                members: int = members,
+                lanes: int = lanes,
+            ) -> object:
+                return row_forward(x, layers, 0, members, "relu", lanes=lanes)
 
-        hot = median_us(forward, args.calls, lambda: None)
-        cold = median_us(forward, args.calls, evict.sum)
-        print(
-            f"| {members} x {rows} | {hot:.0f} | {cold:.0f} | {cold / hot:.2f} | "
-            f"{weight_bytes / cold / 1e3:.1f} | {flops / hot / 1e3:.1f} |"
-        )
+            hot = median_us(forward, args.calls, lambda: None)
+            cold = median_us(forward, args.calls, evict.sum)
+            print(
+                f"| {members} x {rows} | {lanes} | {hot:.0f} | {cold:.0f} | {cold / hot:.2f} | "
+                f"{weight_bytes / cold / 1e3:.1f} | {flops / hot / 1e3:.1f} |"
+            )
 
 
 if __name__ == "__main__":

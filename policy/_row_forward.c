@@ -6,7 +6,9 @@
  * caches meanwhile; here the whole stack is one loop over the members, with AVX2 and FMA, that
  * takes a member's rows in blocks of 4, 2 or 1 and loads each weight once per block (a
  * session's 4 partners through 35 impact networks: 4 rows a member), fetching the next
- * member's weights into the caches while it computes a member's last block (`layer_avx2`).
+ * member's weights into the caches while it computes a member's last block (`run`). Where the
+ * CPU has AVX-512F the same loops run on 16-float vectors (twice the FMAs per instruction: a
+ * batch's forward is bound by them), with the same bits as on 8 (_row_forward_layer.h).
  * The GIL is released while it runs.
  *
  * Order of operations (fixed, so the results do not depend on the batch or on the other rows):
@@ -21,7 +23,8 @@
  * bounds the difference.
  *
  * Machines without AVX2 and FMA (or not x86-64): `AVAILABLE` is False and `forward` raises;
- * `policy.row_forward` then uses numpy.
+ * `policy.row_forward` then uses numpy. `WIDEST` is 16 where the CPU has AVX-512F, else 8 (0
+ * without AVX2); `forward(..., lanes)` takes 8 or 16 (0, the default: `WIDEST`).
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -39,111 +42,90 @@
 #include <immintrin.h>
 #define HAVE_X86 1
 
-/* the last n_o mod 8 (< 8) outputs: four partial sums (header comment), each output a lane
- * of a masked vector (the same operations per output as a scalar loop, one FMA latency per
- * 4 inputs for all of them) */
-__attribute__((target("avx2,fma"))) static void tail_avx2(const float *x, const float *W,
-                                                         const float *b, float *y, int n_i,
-                                                         int n_o, int ob) {
-    if (ob >= n_o) return;
+/* the last n_o mod 8 (< 8) outputs of R rows (R = 1 or 2, a constant after inlining): four
+ * partial sums per row (header comment), each output a lane of a masked vector (the same
+ * operations per output as a scalar loop). Each weight vector is loaded once for the R rows,
+ * and two rows give 8 independent FMA chains, enough to keep both FMA pipes busy: one row
+ * alone waits on the FMA latency (the 5 actions of a Q-network's last layer). */
+__attribute__((target("avx2,fma"), always_inline)) static inline void
+tail_rows_avx2(const float *x, int x_step, const float *W, const float *b, float *y, int y_step,
+               int n_i, int n_o, int ob, const int R) {
     int lanes = n_o - ob;
     __m256i mask = _mm256_cmpgt_epi32(_mm256_set1_epi32(lanes), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
-    __m256 s0 = _mm256_maskload_ps(b + ob, mask), s1 = _mm256_setzero_ps(), s2 = s1, s3 = s1;
-    const float *r = W + ob;
+    __m256 s[2][4];
+#pragma GCC unroll 2
+    for (int r = 0; r < R; r++) {
+        s[r][0] = _mm256_maskload_ps(b + ob, mask);
+        s[r][1] = s[r][2] = s[r][3] = _mm256_setzero_ps();
+    }
+    const float *w = W + ob;
     int i = 0;
-    for (; i + 4 <= n_i; i += 4, r += 4 * (size_t)n_o) {
-        s0 = _mm256_fmadd_ps(_mm256_set1_ps(x[i]), _mm256_maskload_ps(r, mask), s0);
-        s1 = _mm256_fmadd_ps(_mm256_set1_ps(x[i + 1]), _mm256_maskload_ps(r + n_o, mask), s1);
-        s2 = _mm256_fmadd_ps(_mm256_set1_ps(x[i + 2]), _mm256_maskload_ps(r + 2 * (size_t)n_o, mask), s2);
-        s3 = _mm256_fmadd_ps(_mm256_set1_ps(x[i + 3]), _mm256_maskload_ps(r + 3 * (size_t)n_o, mask), s3);
-    }
-    for (; i < n_i; i++, r += n_o)
-        s0 = _mm256_fmadd_ps(_mm256_set1_ps(x[i]), _mm256_maskload_ps(r, mask), s0);
-    _mm256_maskstore_ps(y + ob, mask, _mm256_add_ps(_mm256_add_ps(s0, s1), _mm256_add_ps(s2, s3)));
-}
-
-/* R rows (R = 1, 2 or 4, a constant after inlining) of one layer, y_r = W^T x_r + b: output
- * groups of 8V with R * V = 8 accumulators (enough independent FMAs to fill both FMA pipes),
- * each weight vector loaded once for all R rows; then groups of 8 outputs; then the tail, row
- * by row. Every output follows the order of the header comment, whatever R and the group. */
-__attribute__((target("avx2,fma"), always_inline)) static inline void
-layer_rows_avx2(const float *x, int x_step, const float *W, const float *b, float *y, int y_step,
-                int n_i, int n_o, const int R, const char *next, const int fetch) {
-    const int V = R == 4 ? 3 : R == 2 ? 4 : 8;
-    /* `fetch`: the next member's weights of this layer (`next`, n_i x n_o floats), a few lines
-     * per input step of the output groups (all of them by the groups' end), the rest after */
-    const size_t next_lines = (size_t)n_i * n_o * sizeof(float) / 64 + 1;
-    const char *next_end = fetch ? next + 64 * next_lines : next;
-    const int steps = n_o / (8 * V) * n_i; /* input steps of the output groups */
-    const int lines = fetch && steps ? (int)((next_lines + steps - 1) / steps) : 0;
-    int ob = 0;
-    for (; ob + 8 * V <= n_o; ob += 8 * V) {
-        __m256 acc[4][8];
+    for (; i + 4 <= n_i; i += 4, w += 4 * (size_t)n_o) {
+        __m256 wv[4];
 #pragma GCC unroll 4
+        for (int k = 0; k < 4; k++) wv[k] = _mm256_maskload_ps(w + k * (size_t)n_o, mask);
+#pragma GCC unroll 2
         for (int r = 0; r < R; r++)
-#pragma GCC unroll 8
-            for (int v = 0; v < V; v++) acc[r][v] = _mm256_loadu_ps(b + ob + 8 * v);
-        const float *w = W + ob;
-        for (int i = 0; i < n_i; i++, w += n_o) {
-            if (fetch)
-                for (int l = 0; l < lines && next < next_end; l++, next += 64)
-                    _mm_prefetch(next, _MM_HINT_T0);
-            __m256 wv[8];
-#pragma GCC unroll 8
-            for (int v = 0; v < V; v++) wv[v] = _mm256_loadu_ps(w + 8 * v);
 #pragma GCC unroll 4
-            for (int r = 0; r < R; r++) {
-                __m256 h = _mm256_broadcast_ss(x + (size_t)r * x_step + i);
-#pragma GCC unroll 8
-                for (int v = 0; v < V; v++) acc[r][v] = _mm256_fmadd_ps(h, wv[v], acc[r][v]);
-            }
-        }
-#pragma GCC unroll 4
+            for (int k = 0; k < 4; k++)
+                s[r][k] = _mm256_fmadd_ps(_mm256_set1_ps(x[(size_t)r * x_step + i + k]), wv[k], s[r][k]);
+    }
+    for (; i < n_i; i++, w += n_o) {
+        __m256 wv = _mm256_maskload_ps(w, mask);
+#pragma GCC unroll 2
         for (int r = 0; r < R; r++)
-#pragma GCC unroll 8
-            for (int v = 0; v < V; v++) _mm256_storeu_ps(y + (size_t)r * y_step + ob + 8 * v, acc[r][v]);
+            s[r][0] = _mm256_fmadd_ps(_mm256_set1_ps(x[(size_t)r * x_step + i]), wv, s[r][0]);
     }
-    for (; ob + 8 <= n_o; ob += 8) {
-        __m256 acc[4];
-#pragma GCC unroll 4
-        for (int r = 0; r < R; r++) acc[r] = _mm256_loadu_ps(b + ob);
-        const float *w = W + ob;
-        for (int i = 0; i < n_i; i++, w += n_o) {
-            __m256 wv = _mm256_loadu_ps(w);
-#pragma GCC unroll 4
-            for (int r = 0; r < R; r++)
-                acc[r] = _mm256_fmadd_ps(_mm256_broadcast_ss(x + (size_t)r * x_step + i), wv, acc[r]);
-        }
-#pragma GCC unroll 4
-        for (int r = 0; r < R; r++) _mm256_storeu_ps(y + (size_t)r * y_step + ob, acc[r]);
-    }
-    if (fetch)
-        for (; next < next_end; next += 64) _mm_prefetch(next, _MM_HINT_T0);
+#pragma GCC unroll 2
     for (int r = 0; r < R; r++)
-        tail_avx2(x + (size_t)r * x_step, W, b, y + (size_t)r * y_step, n_i, n_o, ob);
+        _mm256_maskstore_ps(y + (size_t)r * y_step + ob, mask,
+                            _mm256_add_ps(_mm256_add_ps(s[r][0], s[r][1]), _mm256_add_ps(s[r][2], s[r][3])));
 }
 
-/* one layer on R = 1, 2 or 4 rows (`layer_rows_avx2` made for each R, with and without
- * fetching `next`: the same weights of the next member, or NULL).
- *
- * Why fetch ahead: a session's belief passes read a stack of 35 networks' weights per call,
- * which other work evicts from the caches between requests. Without it each member's weights
- * arrive only as its own loads miss and the arithmetic waits on memory; with it the next
- * member's weights stream in while this one computes. Prefetches change no result. */
-__attribute__((target("avx2,fma"))) static void layer_avx2(const float *x, int x_step,
-                                                          const float *W, const float *b,
-                                                          float *y, int y_step, int n_i,
-                                                          int n_o, int R, const char *next) {
-    if (next == NULL) {
-        if (R == 4) layer_rows_avx2(x, x_step, W, b, y, y_step, n_i, n_o, 4, NULL, 0);
-        else if (R == 2) layer_rows_avx2(x, x_step, W, b, y, y_step, n_i, n_o, 2, NULL, 0);
-        else layer_rows_avx2(x, x_step, W, b, y, y_step, n_i, n_o, 1, NULL, 0);
-    } else {
-        if (R == 4) layer_rows_avx2(x, x_step, W, b, y, y_step, n_i, n_o, 4, next, 1);
-        else if (R == 2) layer_rows_avx2(x, x_step, W, b, y, y_step, n_i, n_o, 2, next, 1);
-        else layer_rows_avx2(x, x_step, W, b, y, y_step, n_i, n_o, 1, next, 1);
-    }
+/* the tail of R rows (any R), two rows at a time */
+__attribute__((target("avx2,fma"), always_inline)) static inline void
+tail_avx2(const float *x, int x_step, const float *W, const float *b, float *y, int y_step,
+          int n_i, int n_o, int ob, int R) {
+    if (ob >= n_o) return;
+    int r = 0;
+    for (; r + 2 <= R; r += 2)
+        tail_rows_avx2(x + (size_t)r * x_step, x_step, W, b, y + (size_t)r * y_step, y_step, n_i, n_o, ob, 2);
+    if (r < R)
+        tail_rows_avx2(x + (size_t)r * x_step, x_step, W, b, y + (size_t)r * y_step, y_step, n_i, n_o, ob, 1);
 }
+
+/* the layer for 8 lanes (AVX2) and for 16 (AVX-512F): one text, _row_forward_layer.h.
+ * V_OF(R): AVX2 has 16 registers (R = 4: 12 accumulators + 3 weights), AVX-512 32 */
+#define SFX avx2
+#define TARGET "avx2,fma"
+#define VEC __m256
+#define LANES 8
+#define VLOAD(p) _mm256_loadu_ps(p)
+#define VSTORE(p, v) _mm256_storeu_ps(p, v)
+#define VFMA(a, b, c) _mm256_fmadd_ps(a, b, c)
+#define VBCAST(p) _mm256_broadcast_ss(p)
+#define V_OF(R) ((R) == 4 ? 3 : (R) == 2 ? 4 : 8)
+#include "_row_forward_layer.h"
+#undef SFX
+#undef TARGET
+#undef VEC
+#undef LANES
+#undef VLOAD
+#undef VSTORE
+#undef VFMA
+#undef VBCAST
+#undef V_OF
+
+#define SFX avx512
+#define TARGET "avx512f,avx2,fma"
+#define VEC __m512
+#define LANES 16
+#define VLOAD(p) _mm512_loadu_ps(p)
+#define VSTORE(p, v) _mm512_storeu_ps(p, v)
+#define VFMA(a, b, c) _mm512_fmadd_ps(a, b, c)
+#define VBCAST(p) _mm512_set1_ps(*(p))
+#define V_OF(R) ((R) == 4 ? 4 : 8)
+#include "_row_forward_layer.h"
 
 /* max(0, v), NaN kept (MAXPS returns its second operand when one is NaN) */
 __attribute__((target("avx2"))) static void relu_avx2(float *h, int n) {
@@ -153,16 +135,20 @@ __attribute__((target("avx2"))) static void relu_avx2(float *h, int n) {
     for (; i < n; i++) h[i] = 0.0f > h[i] ? 0.0f : h[i];
 }
 
-static int detect_avx2(void) {
+/* 8 where the CPU has AVX2 and FMA, 16 where it has AVX-512F too (GCC's check includes the
+ * operating system's support for the wider registers), else 0 */
+static int detect_width(void) {
     __builtin_cpu_init();
-    return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+    if (!__builtin_cpu_supports("avx2") || !__builtin_cpu_supports("fma")) return 0;
+    return __builtin_cpu_supports("avx512f") ? 16 : 8;
 }
 #else
 #define HAVE_X86 0
-static int detect_avx2(void) { return 0; }
+static int detect_width(void) { return 0; }
 #endif
 
 static int available = 0; /* AVX2 and FMA on this machine */
+static int widest = 0;    /* the widest vectors this machine has: 8 or 16 floats (0: none) */
 
 static void tanh_inplace(float *h, int n) {
     for (int i = 0; i < n; i++) h[i] = tanhf(h[i]);
@@ -183,10 +169,16 @@ static void activate(float *y, int n, int relu) {
 }
 
 /* every member m < M on its rows p < P: out[m, p] = mlp_m(x[m or 0, p]), in blocks of 4, 2
- * or 1 rows (`layer_avx2`). `buf` holds 2 x ROW_BLOCK hidden vectors of the widest layer. */
+ * or 1 rows (`layer_avx2`, or `layer_avx512` when `lanes` is 16). `buf` holds 2 x ROW_BLOCK
+ * hidden vectors of the widest layer.
+ *
+ * Why fetch ahead: a session's belief passes read a stack of 35 networks' weights per call,
+ * which other work evicts from the caches between requests. Without it each member's weights
+ * arrive only as its own loads miss and the arithmetic waits on memory; with it the next
+ * member's weights stream in while this one computes. Prefetches change no result. */
 #define ROW_BLOCK 4
 static void run(const Stack *s, const float *x, int x_members, int M, int P, int relu,
-                float *out, float *buf, int width) {
+                float *out, float *buf, int width, int lanes) {
 #if HAVE_X86
     int last = s->n_layers - 1, n_x = s->n_in[0], n_a = s->n_out[last];
     for (int m = 0; m < M; m++) {
@@ -205,7 +197,10 @@ static void run(const Stack *s, const float *x, int x_members, int M, int P, int
                 const float *next =
                     R > 1 && p + R == P && m + 1 < M ? w + (size_t)n_i * n_o : NULL;
                 if (next != NULL) _mm_prefetch((const char *)(b + n_o), _MM_HINT_T0); /* bias */
-                layer_avx2(h, h_step, w, b, y, y_step, n_i, n_o, R, (const char *)next);
+                if (lanes == 16)
+                    layer_avx512(h, h_step, w, b, y, y_step, n_i, n_o, R, (const char *)next);
+                else
+                    layer_avx2(h, h_step, w, b, y, y_step, n_i, n_o, R, (const char *)next);
                 if (k < last)
                     for (int r = 0; r < R; r++) activate(y + (size_t)r * y_step, n_o, relu);
                 h = y;
@@ -215,7 +210,8 @@ static void run(const Stack *s, const float *x, int x_members, int M, int P, int
         }
     }
 #else
-    (void)s, (void)x, (void)x_members, (void)M, (void)P, (void)relu, (void)out, (void)buf, (void)width;
+    (void)s, (void)x, (void)x_members, (void)M, (void)P, (void)relu, (void)out, (void)buf, (void)width,
+        (void)lanes;
 #endif
 }
 
@@ -239,10 +235,17 @@ static PyObject *forward(PyObject *self, PyObject *args) {
     PyObject *x_obj, *layers;
     Py_ssize_t start, members;
     const char *activation;
-    if (!PyArg_ParseTuple(args, "OOnns", &x_obj, &layers, &start, &members, &activation))
+    int lanes = 0;
+    if (!PyArg_ParseTuple(args, "OOnns|i", &x_obj, &layers, &start, &members, &activation, &lanes))
         return NULL;
     if (!available) {
         PyErr_SetString(PyExc_RuntimeError, "no compiled forward on this machine (needs AVX2 and FMA)");
+        return NULL;
+    }
+    if (lanes == 0) lanes = widest;
+    if ((lanes != 8 && lanes != 16) || lanes > widest) {
+        PyErr_Format(PyExc_ValueError, "lanes: expected 0 (the widest), %s on this machine, got %d",
+                     widest == 16 ? "8 or 16" : "8", lanes);
         return NULL;
     }
     int relu = strcmp(activation, "relu") == 0;
@@ -320,7 +323,7 @@ static PyObject *forward(PyObject *self, PyObject *args) {
     float *out_data = (float *)PyArray_DATA((PyArrayObject *)out);
     int x_members = (int)xs[0], P = (int)xs[1];
     Py_BEGIN_ALLOW_THREADS
-    run(&s, x_data, x_members, (int)members, P, relu, out_data, buf, (int)width);
+    run(&s, x_data, x_members, (int)members, P, relu, out_data, buf, (int)width, lanes);
     Py_END_ALLOW_THREADS
     free(buf);
     Py_DECREF(keep);
@@ -368,7 +371,7 @@ static PyObject *mean_views(PyObject *self, PyObject *args) {
 static PyMethodDef methods[] = {
     {"mean_views", mean_views, METH_VARARGS, "mean_views(q_RA, views) -> (R / views, A) float64"},
     {"forward", forward, METH_VARARGS,
-     "forward(x_XPF, layers, start, members, activation) -> (members, P, A) float32"},
+     "forward(x_XPF, layers, start, members, activation, lanes=0) -> (members, P, A) float32"},
     {NULL, NULL, 0, NULL},
 };
 
@@ -376,10 +379,12 @@ static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_row_forward", NULL,
 
 PyMODINIT_FUNC PyInit__row_forward(void) {
     import_array();
-    available = detect_avx2();
+    widest = detect_width();
+    available = widest > 0;
     PyObject *m = PyModule_Create(&module);
     if (m == NULL) return NULL;
-    if (PyModule_AddObjectRef(m, "AVAILABLE", available ? Py_True : Py_False) < 0) {
+    if (PyModule_AddObjectRef(m, "AVAILABLE", available ? Py_True : Py_False) < 0 ||
+        PyModule_AddIntConstant(m, "WIDEST", widest) < 0) {
         Py_DECREF(m);
         return NULL;
     }

@@ -11,8 +11,10 @@ the last one is linear (as `policy.qnet.numpy_stacked_forward`).
 
 `numpy_row_forward` is the reference: numpy's stacked matmul, one BLAS call per layer.
 `policy/_row_forward.c` (built by setup.py) computes the same with one loop over the members
-that loads each weight once per block of up to 4 rows, with AVX2 and FMA; `row_forward` takes
-it where it is built and the CPU has AVX2 and FMA (`COMPILED`), else the reference. The two
+that loads each weight once per block of up to 4 rows, with AVX2 and FMA, on 16-float AVX-512
+vectors where the CPU has them (`vector_widths`; both widths give the same bits, and `lanes`
+picks one for a comparison); `row_forward` takes it where it is built and the CPU has AVX2
+and FMA (`COMPILED`), else the reference. The two
 differ by float32 rounding (the order of each sum, documented in the C file):
 tests/policy/test_row_forward.py holds the compiled forward to the reference within 1e-4
 relative and absolute.
@@ -33,7 +35,14 @@ from policy._kernels import load_kernel
 
 Layers = Sequence[tuple[np.ndarray, np.ndarray]]
 
-__all__ = ["COMPILED", "mean_views", "numpy_mean_views", "numpy_row_forward", "row_forward"]
+__all__ = [
+    "COMPILED",
+    "mean_views",
+    "numpy_mean_views",
+    "numpy_row_forward",
+    "row_forward",
+    "vector_widths",
+]
 
 
 # policy/_row_forward.c, built by setup.py where a C compiler exists
@@ -72,15 +81,30 @@ def _activate(h: np.ndarray, activation: str) -> None:
         np.tanh(h, out=h)
 
 
+def vector_widths() -> tuple[int, ...]:
+    """The compiled forward's vector widths on this CPU, in floats: (8,) with AVX2, (8, 16)
+    with AVX-512F too, () where it is not compiled."""
+    if not COMPILED:
+        return ()
+    return (8, 16) if _extension.WIDEST == 16 else (8,)
+
+
 def row_forward(
-    x_XPF: np.ndarray, layers: Layers, start: int, members: int, activation: str
+    x_XPF: np.ndarray,
+    layers: Layers,
+    start: int,
+    members: int,
+    activation: str,
+    *,
+    lanes: int = 0,
 ) -> np.ndarray:
     """Members `start` .. `start + members - 1` of the stacked `layers` on their rows (module
-    docstring): (members, P, A) float32, compiled when `COMPILED`."""
+    docstring): (members, P, A) float32, compiled when `COMPILED`. `lanes`: the compiled
+    forward's vector width, one of `vector_widths()` (0: the widest)."""
     if not COMPILED:
         return numpy_row_forward(x_XPF, layers, start, members, activation)
     x = np.ascontiguousarray(x_XPF, dtype=np.float32)
-    result: np.ndarray = _extension.forward(x, layers, start, members, activation)
+    result: np.ndarray = _extension.forward(x, layers, start, members, activation, lanes)
     return result
 
 

@@ -1,5 +1,6 @@
 """`policy.row_forward`: the compiled stack forward against the numpy reference and a float64
-forward (within 1e-4), each row computed alone, non-finite values kept, bad arguments refused;
+forward (within 1e-4), each row computed alone, the same bits at every vector width the CPU
+has, non-finite values kept, bad arguments refused;
 the numpy reference's one-member 2-D path against its stacked path."""
 
 from __future__ import annotations
@@ -89,6 +90,34 @@ def test_member_offsets_pick_the_right_networks(sizes: tuple[int, ...], rows: in
     for m in range(7):
         alone = row_forward(x[m : m + 1], layers, m, 1, "relu")
         np.testing.assert_array_equal(alone[0], whole[m])  # one member's loop, the same bits
+
+
+@pytest.mark.skipif(len(rf.vector_widths()) < 2, reason="this CPU has one vector width")
+@pytest.mark.parametrize("sizes", SIZES)
+@pytest.mark.parametrize("activation", ["relu", "tanh"])
+@pytest.mark.parametrize("rows", [1, 2, 3, 5, 9, 33])
+def test_every_vector_width_gives_the_same_bits(
+    sizes: tuple[int, ...], activation: str, rows: int
+) -> None:
+    """AVX-512's 16-float groups run each output's sum in the same order as AVX2's 8-float
+    groups (policy/_row_forward_layer.h): an answer does not depend on the machine's vectors."""
+    rng = np.random.default_rng(rows + len(sizes))
+    layers = stack(rng, sizes, 5)
+    x = rng.standard_normal((5, rows, sizes[0])).astype(np.float32)
+    narrow = row_forward(x, layers, 0, 5, activation, lanes=8)
+    for lanes in rf.vector_widths():
+        np.testing.assert_array_equal(row_forward(x, layers, 0, 5, activation, lanes=lanes), narrow)
+    np.testing.assert_array_equal(row_forward(x, layers, 0, 5, activation), narrow)  # the widest
+
+
+@compiled
+def test_a_vector_width_the_cpu_lacks_is_refused() -> None:
+    rng = np.random.default_rng(4)
+    layers = stack(rng, (4, 8, 3), 1)
+    x = rng.standard_normal((1, 1, 4)).astype(np.float32)
+    for lanes in (4, 12, 32) if 16 in rf.vector_widths() else (4, 16):
+        with pytest.raises(ValueError, match="lanes: expected"):
+            row_forward(x, layers, 0, 1, "relu", lanes=lanes)
 
 
 def test_compiled_forward_is_built_here() -> None:
