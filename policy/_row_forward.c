@@ -4,8 +4,8 @@
  * Why C: a few rows through many networks are many matrix-vector products per layer. numpy's
  * stacked matmul makes one BLAS call per network and layer and the weights stream from the
  * caches meanwhile; here the whole stack is one loop over the members, with AVX2 and FMA, that
- * takes a member's rows in blocks of 4, 2 or 1 and loads each weight once per block (a
- * session's 4 partners through 35 impact networks: 4 rows a member), fetching the next
+ * takes a member's rows in blocks of 4, 2 or 1 (8 too on AVX-512) and loads each weight once
+ * per block (a session's 4 partners through 35 impact networks: 4 rows a member), fetching the next
  * member's weights into the caches while it computes a member's last block (`run`). Where the
  * CPU has AVX-512F the same loops run on 16-float vectors (twice the FMAs per instruction: a
  * batch's forward is bound by them), with the same bits as on 8 (_row_forward_layer.h).
@@ -104,6 +104,7 @@ tail_avx2(const float *x, int x_step, const float *W, const float *b, float *y, 
 #define VSTORE(p, v) _mm256_storeu_ps(p, v)
 #define VFMA(a, b, c) _mm256_fmadd_ps(a, b, c)
 #define VBCAST(p) _mm256_broadcast_ss(p)
+#define MAX_R 4
 #define V_OF(R) ((R) == 4 ? 3 : (R) == 2 ? 4 : 8)
 #include "_row_forward_layer.h"
 #undef SFX
@@ -115,6 +116,7 @@ tail_avx2(const float *x, int x_step, const float *W, const float *b, float *y, 
 #undef VFMA
 #undef VBCAST
 #undef V_OF
+#undef MAX_R
 
 #define SFX avx512
 #define TARGET "avx512f,avx2,fma"
@@ -124,7 +126,8 @@ tail_avx2(const float *x, int x_step, const float *W, const float *b, float *y, 
 #define VSTORE(p, v) _mm512_storeu_ps(p, v)
 #define VFMA(a, b, c) _mm512_fmadd_ps(a, b, c)
 #define VBCAST(p) _mm512_set1_ps(*(p))
-#define V_OF(R) ((R) == 4 ? 4 : 8)
+#define MAX_R 8
+#define V_OF(R) ((R) == 8 ? 2 : (R) == 4 ? 4 : 8)
 #include "_row_forward_layer.h"
 
 /* max(0, v), NaN kept (MAXPS returns its second operand when one is NaN) */
@@ -169,21 +172,22 @@ static void activate(float *y, int n, int relu) {
 }
 
 /* every member m < M on its rows p < P: out[m, p] = mlp_m(x[m or 0, p]), in blocks of 4, 2
- * or 1 rows (`layer_avx2`, or `layer_avx512` when `lanes` is 16). `buf` holds 2 x ROW_BLOCK
- * hidden vectors of the widest layer.
+ * or 1 rows (`layer_avx2`), or of 8, 4, 2 or 1 when `lanes` is 16 (`layer_avx512`: 32
+ * registers hold 8 rows' accumulators, and a batch loads each weight half as often). `buf`
+ * holds 2 x ROW_BLOCK hidden vectors of the widest layer.
  *
  * Why fetch ahead: a session's belief passes read a stack of 35 networks' weights per call,
  * which other work evicts from the caches between requests. Without it each member's weights
  * arrive only as its own loads miss and the arithmetic waits on memory; with it the next
  * member's weights stream in while this one computes. Prefetches change no result. */
-#define ROW_BLOCK 4
+#define ROW_BLOCK 8
 static void run(const Stack *s, const float *x, int x_members, int M, int P, int relu,
                 float *out, float *buf, int width, int lanes) {
 #if HAVE_X86
     int last = s->n_layers - 1, n_x = s->n_in[0], n_a = s->n_out[last];
     for (int m = 0; m < M; m++) {
         for (int p = 0; p < P;) {
-            int R = P - p >= 4 ? 4 : P - p >= 2 ? 2 : 1;
+            int R = P - p >= 8 && lanes == 16 ? 8 : P - p >= 4 ? 4 : P - p >= 2 ? 2 : 1;
             const float *h = x + ((size_t)(x_members > 1 ? m : 0) * P + p) * n_x;
             int h_step = n_x;
             for (int k = 0; k <= last; k++) {

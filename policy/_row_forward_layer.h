@@ -7,6 +7,7 @@
  *   VLOAD(p), VSTORE(p, v)     unaligned load and store
  *   VFMA(a, b, c)              a * b + c, fused
  *   VBCAST(p)                  *p in every lane
+ *   MAX_R                      the largest block of rows (4; 8 where 32 registers hold it)
  *   V_OF(R)                    vectors per output group for a block of R rows: R * V_OF(R)
  *                              accumulators, enough independent FMAs to fill both FMA pipes,
  *                              few enough to stay in registers with the group's weights
@@ -20,7 +21,7 @@
 #define ROWF_CAT_(a, b) a##_##b
 #define ROWF_CAT(a, b) ROWF_CAT_(a, b)
 
-/* outputs ob.. of R rows (R = 1, 2 or 4, a constant after inlining) in groups of LANES * V,
+/* outputs ob.. of R rows (R = 1, 2, 4 or 8, a constant after inlining) in groups of LANES * V,
  * each weight vector loaded once for all R rows, then in groups of LANES; returns the first
  * output not done. `fetch`: the next member's weights of this layer (from `*next` to
  * `next_end`) are prefetched a few lines per input step of the wide groups */
@@ -33,8 +34,8 @@ ROWF_CAT(groups, SFX)(const float *x, int x_step, const float *W, const float *b
     const int lines = fetch && steps ? (int)(((next_end - *next) / 64 + steps - 1) / steps) : 0;
     const char *ahead = *next;
     for (; ob + LANES * V <= n_o; ob += LANES * V) {
-        VEC acc[4][8];
-#pragma GCC unroll 4
+        VEC acc[MAX_R][8];
+#pragma GCC unroll 8
         for (int r = 0; r < R; r++)
 #pragma GCC unroll 8
             for (int v = 0; v < V; v++) acc[r][v] = VLOAD(b + ob + LANES * v);
@@ -46,31 +47,31 @@ ROWF_CAT(groups, SFX)(const float *x, int x_step, const float *W, const float *b
             VEC wv[8];
 #pragma GCC unroll 8
             for (int v = 0; v < V; v++) wv[v] = VLOAD(w + LANES * v);
-#pragma GCC unroll 4
+#pragma GCC unroll 8
             for (int r = 0; r < R; r++) {
                 VEC h = VBCAST(x + (size_t)r * x_step + i);
 #pragma GCC unroll 8
                 for (int v = 0; v < V; v++) acc[r][v] = VFMA(h, wv[v], acc[r][v]);
             }
         }
-#pragma GCC unroll 4
+#pragma GCC unroll 8
         for (int r = 0; r < R; r++)
 #pragma GCC unroll 8
             for (int v = 0; v < V; v++)
                 VSTORE(y + (size_t)r * y_step + ob + LANES * v, acc[r][v]);
     }
     for (; ob + LANES <= n_o; ob += LANES) {
-        VEC acc[4];
-#pragma GCC unroll 4
+        VEC acc[MAX_R];
+#pragma GCC unroll 8
         for (int r = 0; r < R; r++) acc[r] = VLOAD(b + ob);
         const float *w = W + ob;
         for (int i = 0; i < n_i; i++, w += n_o) {
             VEC wv = VLOAD(w);
-#pragma GCC unroll 4
+#pragma GCC unroll 8
             for (int r = 0; r < R; r++)
                 acc[r] = VFMA(VBCAST(x + (size_t)r * x_step + i), wv, acc[r]);
         }
-#pragma GCC unroll 4
+#pragma GCC unroll 8
         for (int r = 0; r < R; r++) VSTORE(y + (size_t)r * y_step + ob, acc[r]);
     }
     *next = ahead;
@@ -89,18 +90,30 @@ ROWF_CAT(layer_rows, SFX)(const float *x, int x_step, const float *W, const floa
     int ob = ROWF_CAT(groups, SFX)(x, x_step, W, b, y, y_step, n_i, n_o, 0, R, &next, next_end,
                                    fetch);
 #if LANES > 8
-    ob = groups_avx2(x, x_step, W, b, y, y_step, n_i, n_o, ob, R, &next, next_end, fetch);
+    /* AVX2's groups hold at most 4 rows (its MAX_R) */
+    int done = ob;
+    for (int r = 0; r < R; r += 4)
+        done = groups_avx2(x + (size_t)r * x_step, x_step, W, b, y + (size_t)r * y_step, y_step,
+                           n_i, n_o, ob, R < 4 ? R : 4, &next, next_end, fetch);
+    ob = done;
 #endif
     if (fetch)
         for (; next < next_end; next += 64) _mm_prefetch(next, _MM_HINT_T0);
     tail_avx2(x, x_step, W, b, y, y_step, n_i, n_o, ob, R);
 }
 
-/* one layer on R = 1, 2 or 4 rows: `layer_rows` made for each R, with and without fetching
- * `next` (the same weights of the next member, or NULL; why: `run`) */
+/* one layer on R = 1, 2, 4 (or 8: MAX_R) rows: `layer_rows` made for each R, with and without
+ * fetching `next` (the same weights of the next member, or NULL; why: `run`) */
 __attribute__((target(TARGET))) static void
 ROWF_CAT(layer, SFX)(const float *x, int x_step, const float *W, const float *b, float *y,
                      int y_step, int n_i, int n_o, int R, const char *next) {
+#if MAX_R == 8
+    if (R == 8) {
+        if (next == NULL) ROWF_CAT(layer_rows, SFX)(x, x_step, W, b, y, y_step, n_i, n_o, 8, NULL, 0);
+        else ROWF_CAT(layer_rows, SFX)(x, x_step, W, b, y, y_step, n_i, n_o, 8, next, 1);
+        return;
+    }
+#endif
     if (next == NULL) {
         if (R == 4) ROWF_CAT(layer_rows, SFX)(x, x_step, W, b, y, y_step, n_i, n_o, 4, NULL, 0);
         else if (R == 2) ROWF_CAT(layer_rows, SFX)(x, x_step, W, b, y, y_step, n_i, n_o, 2, NULL, 0);
