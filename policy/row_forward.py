@@ -11,11 +11,11 @@ the last one is linear (as `policy.qnet.numpy_stacked_forward`).
 
 `numpy_row_forward` is the reference: numpy's stacked matmul, one BLAS call per layer.
 `policy/_row_forward.c` (built by setup.py) computes the same with one loop over the members
-that loads each weight once per block of up to 4 rows, with AVX2 and FMA, on 16-float AVX-512
-vectors where the CPU has them (`vector_widths`; both widths give the same bits, and `lanes`
-picks one for a comparison); `row_forward` takes it where it is built and the CPU has AVX2
-and FMA (`COMPILED`), else the reference. The two
-differ by float32 rounding (the order of each sum, documented in the C file):
+that loads each weight once per block of up to 4 rows, with AVX2 and FMA, or on 16-float
+AVX-512 vectors in blocks of up to 8 rows where the CPU has them (`vector_widths`; both widths
+give the same bits, and `lanes` picks one for a comparison); `row_forward` takes it where it
+is built and the CPU has AVX2 and FMA (`COMPILED`), else the reference. The two differ by
+float32 rounding (the order of each sum, documented in the C file):
 tests/policy/test_row_forward.py holds the compiled forward to the reference within 1e-4
 relative and absolute.
 
