@@ -5,15 +5,17 @@
  * stacked matmul makes one BLAS call per network and layer and the weights stream from the
  * caches meanwhile; here the whole stack is one loop over the members, with AVX2 and FMA, that
  * takes a member's rows in blocks of 4, 2 or 1 (8 too on AVX-512) and loads each weight once
- * per block (a session's 4 partners through 35 impact networks: 4 rows a member), fetching the next
- * member's weights into the caches while it computes a member's last block (`run`). Where the
- * CPU has AVX-512F the same loops run on 16-float vectors (twice the FMAs per instruction: a
- * batch's forward is bound by them), with the same bits as on 8 (_row_forward_layer.h).
+ * per block (a session's 4 partners through 35 impact networks: 4 rows a member), fetching
+ * the next member's weights into the caches while it computes a member's last block (`run`).
+ * Where the CPU has AVX-512F the same loops run on 16-float vectors (twice the FMAs per
+ * instruction: a batch's forward is bound by them), with the same bits as on 8
+ * (_row_forward_layer.h).
  * The GIL is released while it runs.
  *
  * Order of operations (fixed, so the results do not depend on the batch or on the other rows):
- * - output o of a layer in a full group of 8 outputs: acc = b[o], then for i = 0 .. I-1
- *   acc = fma(x[i], W[i, o], acc), whatever the block of rows and the group of outputs;
+ * - output o of a layer in a full group of 8 (or 16) outputs: acc = b[o], then for
+ *   i = 0 .. I-1 acc = fma(x[i], W[i, o], acc), whatever the block of rows, the group of
+ *   outputs and the vector width;
  * - the last O mod 8 outputs (the 5 actions of the final layer): four partial sums over
  *   i = 0, 4, 8 .. / 1, 5, 9 .. / 2, .. / 3, .., the first starting at b[o], the I mod 4 last
  *   inputs added to the first one in order, then (s0 + s1) + (s2 + s3);
