@@ -1,5 +1,5 @@
-"""benchmarks/row_forward.py: a short real run prints one table row per case, each with its hot
-and cold medians (the figures themselves are not asserted)."""
+"""benchmarks/row_forward.py: a short real run prints one table row per case and vector width the
+CPU has, each with its hot and cold medians (the figures themselves are not asserted)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from policy.row_forward import COMPILED
+from policy.row_forward import COMPILED, vector_widths
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -25,8 +25,9 @@ def test_a_short_run_prints_every_case() -> None:
         timeout=120,
     )
     rows = [line for line in done.stdout.splitlines() if line.startswith("| ") and "x" in line]
-    cases = [row.split("|")[1].strip() for row in rows[1:]]  # after the header
-    assert cases == ["35 x 1", "35 x 4", "1 x 1024", "4 x 256"]
-    for row in rows[1:]:
-        cells = [cell.strip() for cell in row.strip("|").split("|")]
-        assert len(cells) == 6 and all(float(c) > 0 for c in cells[1:])
+    cells = [[cell.strip() for cell in row.strip("|").split("|")] for row in rows[1:]]
+    widths = vector_widths()
+    cases = ["35 x 1", "35 x 4", "1 x 1024", "4 x 256"]
+    assert [(row[0], int(row[1])) for row in cells] == [(c, w) for c in cases for w in widths]
+    for row in cells:
+        assert len(row) == 7 and all(float(c) > 0 for c in row[2:])
