@@ -100,8 +100,13 @@ def row_forward(
 ) -> np.ndarray:
     """Members `start` .. `start + members - 1` of the stacked `layers` on their rows (module
     docstring): (members, P, A) float32, compiled when `COMPILED`. `lanes`: the compiled
-    forward's vector width, one of `vector_widths()` (0: the widest)."""
+    forward's vector width, one of `vector_widths()` (0: the widest; where nothing is compiled,
+    only 0: numpy has no width to choose)."""
     if not COMPILED:
+        if lanes != 0:
+            raise ValueError(
+                f"lanes: expected 0 (no compiled forward on this machine), got {lanes}"
+            )
         return numpy_row_forward(x_XPF, layers, start, members, activation)
     x = np.ascontiguousarray(x_XPF, dtype=np.float32)
     result: np.ndarray = _extension.forward(x, layers, start, members, activation, lanes)

@@ -120,6 +120,22 @@ def test_a_vector_width_the_cpu_lacks_is_refused() -> None:
             row_forward(x, layers, 0, 1, "relu", lanes=lanes)
 
 
+def test_a_vector_width_is_refused_where_nothing_is_compiled(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The numpy reference has no width: asking for one is an error, not silently ignored."""
+    monkeypatch.setattr(rf, "COMPILED", False)
+    assert rf.vector_widths() == ()
+    rng = np.random.default_rng(5)
+    layers = stack(rng, (4, 8, 3), 1)
+    x = rng.standard_normal((1, 2, 4)).astype(np.float32)
+    with pytest.raises(ValueError, match="lanes: expected 0"):
+        row_forward(x, layers, 0, 1, "relu", lanes=8)
+    np.testing.assert_array_equal(
+        row_forward(x, layers, 0, 1, "relu"), numpy_row_forward(x, layers, 0, 1, "relu")
+    )
+
+
 def test_compiled_forward_is_built_here() -> None:
     """setup.py builds it wherever a C compiler is found, and this kind of machine has AVX2."""
     assert rf.COMPILED, "policy._row_forward missing (pip install -e . again) or no AVX2/FMA"
