@@ -1,7 +1,8 @@
 /* policy._belief_row: a session's belief step in C: the update of
  * `policy.belief.PreparedUpdate` (its all-finite case) and `policy.belief_views.belief_views`
  * (its whole-belief, all-positive case), for E rows of G goals, and the goal likelihoods' log
- * softmax table (services.engine.goal_inference).
+ * softmax table (services.engine.goal_inference), and the expected impact Q of goal
+ * distributions (`mix_goals`, services.engine.engine._impact_q).
  *
  * Why C: with G = 35 goals and a few partners the update and the views are ~25 small numpy
  * calls and Python loops over 35 floats; here they are C loops over the rows.
@@ -261,7 +262,91 @@ static PyObject *log_softmax_table(PyObject *self, PyObject *args) {
     return out;
 }
 
+/* mix_goals(q_RA, units_PG, probs, batch) -> (B, P, A) float64
+ *
+ * The expected impact Q of P goal distributions over G goals each (paper §3.2), as
+ * services.engine.engine._impact_q computes it with numpy's einsum: out[b, p, a] =
+ * sum over g, in order, of probs[p][g] * q[units[p, g] * B + b, a], in float64. `q_RA` is the
+ * impact members' float32 rows (unit u's B rows at u * B), `units_PG` intp, `probs` P
+ * sequences of G numbers. One C loop instead of a gather, a cast and an einsum. */
+static PyObject *mix_goals(PyObject *self, PyObject *args) {
+    PyObject *q_obj, *units_obj, *probs_obj;
+    Py_ssize_t B;
+    if (!PyArg_ParseTuple(args, "OOOn", &q_obj, &units_obj, &probs_obj, &B)) return NULL;
+    if (!PyArray_Check(q_obj) || PyArray_TYPE((PyArrayObject *)q_obj) != NPY_FLOAT32 ||
+        !PyArray_IS_C_CONTIGUOUS((PyArrayObject *)q_obj) || PyArray_NDIM((PyArrayObject *)q_obj) != 2) {
+        PyErr_SetString(PyExc_ValueError, "q_RA: expected a C-contiguous float32 array (R, A)");
+        return NULL;
+    }
+    if (!PyArray_Check(units_obj) || PyArray_TYPE((PyArrayObject *)units_obj) != NPY_INTP ||
+        !PyArray_IS_C_CONTIGUOUS((PyArrayObject *)units_obj) ||
+        PyArray_NDIM((PyArrayObject *)units_obj) != 2) {
+        PyErr_SetString(PyExc_ValueError, "units_PG: expected a C-contiguous intp array (P, G)");
+        return NULL;
+    }
+    PyArrayObject *q = (PyArrayObject *)q_obj, *units = (PyArrayObject *)units_obj;
+    Py_ssize_t R = PyArray_DIM(q, 0), A = PyArray_DIM(q, 1);
+    Py_ssize_t P = PyArray_DIM(units, 0), G = PyArray_DIM(units, 1);
+    if (B < 1) {
+        PyErr_SetString(PyExc_ValueError, "batch: expected >= 1");
+        return NULL;
+    }
+    PyObject *rows = PySequence_Fast(probs_obj, "probs: expected a sequence of P sequences");
+    if (rows == NULL) return NULL;
+    if (PySequence_Fast_GET_SIZE(rows) != P) {
+        Py_DECREF(rows);
+        PyErr_SetString(PyExc_ValueError, "probs: expected one sequence per row of units_PG");
+        return NULL;
+    }
+    const npy_intp *unit = PyArray_DATA(units);
+    for (Py_ssize_t i = 0; i < P * G; i++) {
+        if (unit[i] < 0 || (unit[i] + 1) * B > R) {
+            Py_DECREF(rows);
+            PyErr_SetString(PyExc_ValueError, "units_PG: a unit outside q_RA's rows");
+            return NULL;
+        }
+    }
+    npy_intp dims[3] = {B, P, A};
+    PyObject *out = PyArray_ZEROS(3, dims, NPY_DOUBLE, 0);
+    if (out == NULL) {
+        Py_DECREF(rows);
+        return NULL;
+    }
+    const float *qd = PyArray_DATA(q);
+    double *o = PyArray_DATA((PyArrayObject *)out);
+    for (Py_ssize_t p = 0; p < P; p++) {
+        PyObject *row = PySequence_Fast(PySequence_Fast_GET_ITEM(rows, p),
+                                        "probs: expected a sequence of P sequences");
+        if (row == NULL || PySequence_Fast_GET_SIZE(row) != G) {
+            if (row != NULL)
+                PyErr_SetString(PyExc_ValueError, "probs: expected G numbers per partner");
+            Py_XDECREF(row);
+            Py_DECREF(rows);
+            Py_DECREF(out);
+            return NULL;
+        }
+        for (Py_ssize_t g = 0; g < G; g++) {
+            double w = PyFloat_AsDouble(PySequence_Fast_GET_ITEM(row, g));
+            if (w == -1.0 && PyErr_Occurred()) {
+                Py_DECREF(row);
+                Py_DECREF(rows);
+                Py_DECREF(out);
+                return NULL;
+            }
+            const float *src = qd + unit[p * G + g] * B * A;
+            for (Py_ssize_t b = 0; b < B; b++)
+                for (Py_ssize_t a = 0; a < A; a++)
+                    o[(b * P + p) * A + a] += w * (double)src[b * A + a];
+        }
+        Py_DECREF(row);
+    }
+    Py_DECREF(rows);
+    return out;
+}
+
 static PyMethodDef methods[] = {
+    {"mix_goals", mix_goals, METH_VARARGS,
+     "mix_goals(q_RA, units_PG, probs, batch) -> (B, P, A) float64 expected impact Q"},
     {"log_softmax_table", log_softmax_table, METH_VARARGS,
      "log_softmax_table(q_GPA, alpha) -> (G, P, A) float64 log softmax(q / alpha_g)"},
     {"update_rows", update_rows, METH_VARARGS,

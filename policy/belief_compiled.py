@@ -1,6 +1,7 @@
 """The compiled belief step (policy/_belief_row.c) behind `policy.belief`'s update and
-`policy.belief_views.belief_views`, and the goal likelihoods' table of
-`services.engine.goal_inference`: C loops over the rows instead of ~25 small numpy calls. The
+`policy.belief_views.belief_views`, the goal likelihoods' table of
+`services.engine.goal_inference` and the expected impact Q of goal distributions
+(`services.engine.engine._impact_q`): C loops over the rows instead of ~25 small numpy calls. The
 numpy code is the reference; the compiled results agree with it within 1e-12
 (tests/policy/test_belief_compiled.py). Each function answers None where the compiled code
 does not apply (or is not built), and the caller then runs its numpy path:
@@ -10,6 +11,7 @@ does not apply (or is not built), and the caller then runs its numpy path:
 | `compiled_update`      | every likelihood and every updated entry is finite  | None  |
 | `compiled_views`       | the blend keeps every goal and every probability > 0| None  |
 | `compiled_log_softmax` | always (finite Q-values: the caller checks)         | None  |
+| `compiled_mix_goals`   | always                                              | None  |
 """
 
 from __future__ import annotations
@@ -86,4 +88,16 @@ def compiled_log_softmax(q_GPA: np.ndarray, alpha: np.ndarray | float) -> np.nda
     if isinstance(alpha, np.ndarray):
         alpha = np.ascontiguousarray(alpha, dtype=np.float64).reshape(-1)
     result: np.ndarray = _EXTENSION.log_softmax_table(q_GPA, alpha)
+    return result
+
+
+def compiled_mix_goals(
+    q_RA: np.ndarray, units_PG: np.ndarray, probs: Sequence[Sequence[float]], batch: int
+) -> np.ndarray | None:
+    """(B, P, A) float64: each of P goal distributions' expected Q (§3.2), out[b, p] = sum over
+    g of probs[p][g] * q_RA[units_PG[p, g] * batch + b] (`_impact_q`'s einsum), or None
+    without the extension. `q_RA` float32 (R, A) C-contiguous, `units_PG` intp (P, G)."""
+    if _EXTENSION is None:
+        return None
+    result: np.ndarray = _EXTENSION.mix_goals(q_RA, units_PG, probs, batch)
     return result

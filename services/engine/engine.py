@@ -58,6 +58,7 @@ from envs.registry import known_envs
 from model_store.errors import InvalidArgument, ModelStoreError
 from model_store.naming import joint_model_name
 from model_store.store import ModelStore
+from policy.belief_compiled import compiled_mix_goals
 from policy.blend import BlendMethod, blend_checked
 from policy.regret_bound import DEFAULT_EPSILON_PER_ALPHA, keep_goal_rows
 from policy.row_forward import mean_views
@@ -77,7 +78,7 @@ from services.engine.messages import (
     ModelUsed,
 )
 from services.engine.model_cache import ModelCache
-from services.engine.networks import StackedGroup, forward_group
+from services.engine.networks import MemberQ, StackedGroup, forward_group
 from services.engine.validation import CheckedRequest, check_request
 
 log = logging.getLogger(__name__)
@@ -477,13 +478,13 @@ def _inputs(
     return inputs
 
 
-def _impact_q(
-    checked: CheckedRequest, q_members: Sequence[np.ndarray], layout: Layout
-) -> np.ndarray:
+def _impact_q(checked: CheckedRequest, q_members: MemberQ, layout: Layout) -> np.ndarray:
     """One impact Q-vector per partner, (B, P, A) float64; a goal distribution is mixed by its
     probabilities (§3.2: the expected impact Q, `policy.blend.mix_goal_beliefs`' einsum without
     its checks: a non-finite Q goes on to the caller's overflow check). Distributions over
-    equally many goals (a session's whole beliefs) share one einsum."""
+    equally many goals (a session's whole beliefs) share one mix (`compiled_mix_goals`, else
+    numpy's einsum), on the impact members' rows as the forward left them
+    (`MemberQ.rows_from`): a numpy call costs more than its arithmetic at a few rows."""
     batch, n_actions = checked.obs_BD.shape[0], checked.runtime.domain.n_actions
     partners = checked.partners
     if not partners:
@@ -494,12 +495,16 @@ def _impact_q(
             j, block = layout.slots[(position, partner.goals[0])]
             per_partner[position] = q_members[j][block * batch : (block + 1) * batch]
     if layout.mixes:
-        q_all = np.concatenate(q_members[1:])  # the impact members' rows, one after the other
+        q_all = q_members.rows_from(1)  # the impact members' rows, one after the other
         for positions, units_PG in layout.mixes:
-            rows_PGB = units_PG[:, :, None] * batch + np.arange(batch)
-            q_BPGA = q_all[rows_PGB].transpose(2, 0, 1, 3).astype(np.float64)
-            probs_PG = np.array([partners[k].probs for k in positions], np.float64)
-            q_BPA = np.einsum("pg,bpga->bpa", probs_PG, q_BPGA)
+            probs = [partners[k].probs or () for k in positions]  # all distributions here
+            q_BPA = compiled_mix_goals(q_all, units_PG, probs, batch)
+            if q_BPA is None:  # the numpy reference
+                rows_PGB = units_PG[:, :, None] * batch + np.arange(batch)
+                q_PGBA = q_all[rows_PGB].astype(np.float64)
+                q_BPA = np.einsum("pg,pgba->bpa", np.array(probs, np.float64), q_PGBA)
+            if len(positions) == len(partners):  # every partner mixed (a session's beliefs)
+                return np.ascontiguousarray(q_BPA)
             for i, position in enumerate(positions):
                 per_partner[position] = q_BPA[:, i]
     # np.stack(per_partner, axis=1)'s values from one np.array (np.stack's Python steps cost

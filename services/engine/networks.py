@@ -225,10 +225,29 @@ def _runs(part: Partition, inputs: Sequence[np.ndarray]) -> list[tuple[int, int,
     return runs
 
 
-def forward_group(group: StackedGroup, inputs: Sequence[np.ndarray]) -> list[np.ndarray]:
+class MemberQ(list[np.ndarray]):
+    """`forward_group`'s answer: member j's Q-values (rows_j, A) float32 at [j] (a view into
+    its call's output), and the outputs of the calls that served consecutive members
+    (`calls`: first member, end, (members, R, A) array), so that `rows_from` hands out many
+    members' rows without gathering their views again."""
+
+    def __init__(self, count: int) -> None:
+        super().__init__([np.empty(0)] * count)
+        self.calls: list[tuple[int, int, np.ndarray]] = []
+
+    def rows_from(self, first: int) -> np.ndarray:
+        """The rows of members `first`.. one after the other, (sum of rows_j, A): the output
+        of the one call that served exactly those members, else a copy joining them."""
+        for start, end, q_GRA in self.calls:
+            if start == first and end == len(self):
+                return q_GRA.reshape(-1, q_GRA.shape[-1])
+        return np.concatenate(self[first:])
+
+
+def forward_group(group: StackedGroup, inputs: Sequence[np.ndarray]) -> MemberQ:
     """Q-values (rows_j, A) float32 of every member j on its input (rows_j, obs_dim of its spec):
     per partition, in runs of members evaluated together (`_runs`)."""
-    outputs: list[np.ndarray] = [np.empty(0)] * len(group.nets)
+    outputs = MemberQ(len(group.nets))
     for part in group.partitions:
         for g, end, shared in _runs(part, inputs):
             same = part.members[g:end]
@@ -240,4 +259,6 @@ def forward_group(group: StackedGroup, inputs: Sequence[np.ndarray]) -> list[np.
             q_GRA = _forward_members(part, x_XRD, g, end - g)
             for i, j in enumerate(same):
                 outputs[j] = q_GRA[i]
+            if same[-1] - same[0] == len(same) - 1:  # consecutive members (`rows_from`)
+                outputs.calls.append((same[0], same[-1] + 1, q_GRA))
     return outputs

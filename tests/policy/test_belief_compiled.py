@@ -157,3 +157,55 @@ def test_the_log_softmax_table_matches_the_engines_numpy(
         np.testing.assert_array_equal(np.isfinite(got), np.isfinite(want))
         finite = np.isfinite(want)
         np.testing.assert_allclose(got[finite], want[finite], rtol=TOL, atol=TOL)
+
+
+@pytest.mark.parametrize(
+    ("partners", "goals", "batch"), [(4, 35, 1), (1, 35, 1), (3, 4, 3), (2, 7, 5), (1, 1, 2)]
+)
+def test_the_goal_mix_matches_numpys_einsum(partners: int, goals: int, batch: int) -> None:
+    """`compiled_mix_goals` against the einsum `_impact_q` falls back to: out[b, p] = sum over g
+    of probs[p][g] * q[units[p, g] * B + b], on units in any order (a goal's network may
+    serve partners in another order than the catalogue's)."""
+    rng = np.random.default_rng(partners * goals * batch)
+    for _ in range(20):
+        n_units = partners * goals + int(rng.integers(0, 3))
+        q_RA = (rng.standard_normal((n_units * batch, 5)) * rng.choice([0.01, 1, 1e4])).astype(
+            np.float32
+        )
+        units_PG = rng.permutation(n_units)[: partners * goals].reshape(partners, goals)
+        probs_PG = rng.dirichlet(np.ones(goals), partners)
+        rows_PGB = units_PG[:, :, None] * batch + np.arange(batch)
+        want = np.einsum("pg,pgba->bpa", probs_PG, q_RA[rows_PGB].astype(np.float64))
+        got = bc.compiled_mix_goals(q_RA, units_PG.astype(np.intp), probs_PG.tolist(), batch)
+        assert got is not None and got.shape == (batch, partners, 5)
+        np.testing.assert_allclose(got, want, rtol=TOL, atol=TOL * np.abs(want).max())
+
+
+def test_the_goal_mix_carries_non_finite_q_values() -> None:
+    """An overflowed (inf) Q-value stays non-finite in the mix: the engine's overflow check
+    after it must see it."""
+    q_RA = np.ones((4, 5), np.float32)
+    q_RA[2, 1] = np.inf
+    got = bc.compiled_mix_goals(q_RA, np.array([[0, 2], [1, 3]], np.intp), [(0.5, 0.5)] * 2, 1)
+    assert got is not None
+    np.testing.assert_array_equal(
+        np.isfinite(got[0]), [[True, False, True, True, True], [True] * 5]
+    )
+
+
+def test_bad_goal_mix_arguments_are_refused() -> None:
+    from policy import _belief_row
+
+    q_RA, units = np.zeros((6, 5), np.float32), np.array([[0, 1, 2]], np.intp)
+    with pytest.raises(ValueError, match="q_RA"):
+        _belief_row.mix_goals(q_RA.astype(np.float64), units, [(1, 0, 0)], 1)
+    with pytest.raises(ValueError, match="units_PG: expected"):
+        _belief_row.mix_goals(q_RA, units.astype(np.int32), [(1, 0, 0)], 1)
+    with pytest.raises(ValueError, match="outside"):
+        _belief_row.mix_goals(q_RA, units, [(1, 0, 0)], 3)  # unit 2 needs rows 6..8
+    with pytest.raises(ValueError, match="G numbers"):
+        _belief_row.mix_goals(q_RA, units, [(1, 0)], 1)
+    with pytest.raises(ValueError, match="one sequence per row"):
+        _belief_row.mix_goals(q_RA, units, [(1, 0, 0), (1, 0, 0)], 1)
+    with pytest.raises(TypeError):
+        _belief_row.mix_goals(q_RA, units, [(1, "x", 0)], 1)

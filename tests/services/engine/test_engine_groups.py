@@ -64,25 +64,39 @@ def test_general_path_layouts_are_remembered(tiny_zoo) -> None:
     assert [m.partner_index for m in first[0].models] == [None, 1, 1, 2, 2]
 
 
+@pytest.mark.parametrize("compiled", [True, False])
+@pytest.mark.parametrize("announced", [True, False])
 @pytest.mark.parametrize("batch", [1, 3])
-def test_goal_distributions_mix_as_mix_goal_beliefs_does(tiny_zoo, batch: int) -> None:
-    """`_impact_q` mixes equal-size distributions in one einsum over precomputed rows: each
-    partner's expected Q is `mix_goal_beliefs` of its own goals' Q-values (an announced
-    partner and a distribution of another size beside them)."""
+def test_goal_distributions_mix_as_mix_goal_beliefs_does(
+    tiny_zoo, batch: int, announced: bool, compiled: bool, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`_impact_q` mixes equal-size distributions in one pass over the impact members' rows
+    (compiled, else numpy's einsum): each partner's expected Q is `mix_goal_beliefs` of its own
+    goals' Q-values (with an announced partner and a distribution of another size beside them,
+    or every partner a distribution over the same goals, as a session's beliefs)."""
+    from policy import belief_compiled
     from policy.blend import mix_goal_beliefs
     from services.engine import ActRequest, InferenceEngine, PartnerSpec
     from services.engine.engine import _impact_q, _inputs, _layout
     from services.engine.networks import forward_group
     from services.engine.validation import check_request
 
+    if not compiled:
+        monkeypatch.setattr(belief_compiled, "_EXTENSION", None)
     engine = InferenceEngine(tiny_zoo.store)
     rng = np.random.default_rng(batch)
     goals = ["b3", "c1"]
+
+    def belief() -> dict[str, float]:
+        return dict(zip(goals, rng.dirichlet([1, 1]).tolist(), strict=True))
+
     partners = (
-        PartnerSpec(1, goal_probs=dict(zip(goals, rng.dirichlet([1, 1]).tolist(), strict=True))),
-        PartnerSpec(2, goal="c1"),
-        PartnerSpec(3, goal_probs=dict(zip(goals, rng.dirichlet([1, 1]).tolist(), strict=True))),
-        PartnerSpec(4, goal_probs={"b3": 1.0}),
+        PartnerSpec(1, goal_probs=belief()),
+        PartnerSpec(2, goal="c1") if announced else PartnerSpec(2, goal_probs=belief()),
+        PartnerSpec(3, goal_probs=belief()),
+        PartnerSpec(4, goal_probs={"b3": 1.0})
+        if announced
+        else PartnerSpec(4, goal_probs=belief()),
     )
     request = ActRequest("particle", "a2", rng.random((batch, 20)), partners)
     checked = check_request(request, 4096)
@@ -90,7 +104,7 @@ def test_goal_distributions_mix_as_mix_goal_beliefs_does(tiny_zoo, batch: int) -
     layout = _layout(checked, members, group)
     q_members = forward_group(group, _inputs(checked, members, group, layout))
     got = _impact_q(checked, q_members, layout)
-    assert got.shape == (batch, 4, 5)
+    assert got.shape == (batch, 4, 5) and got.flags.c_contiguous
     for position, partner in enumerate(checked.partners):
         blocks = [layout.slots[(position, goal)] for goal in partner.goals]
         q_BGA = np.stack([q_members[j][k * batch : (k + 1) * batch] for j, k in blocks], axis=1)
@@ -100,6 +114,31 @@ def test_goal_distributions_mix_as_mix_goal_beliefs_does(tiny_zoo, batch: int) -
         probs = np.broadcast_to(np.asarray(partner.probs), (batch, 1, len(blocks)))
         want = mix_goal_beliefs(q_BGA[:, None].astype(np.float64), probs)[:, 0]
         np.testing.assert_allclose(got[:, position], want, rtol=1e-12, atol=1e-12)
+
+
+def test_member_rows_come_from_the_call_that_served_them(tiny_zoo) -> None:
+    """`MemberQ.rows_from(j)`: the rows of members j.. one after the other; the output of the
+    forward's call itself (no copy) when one call served exactly those members, else joined."""
+    from services.engine.networks import forward_group
+
+    store = tiny_zoo.store
+    names = [
+        task_model_name("particle", "a2"),
+        *(f"particle/impact/{g}" for g in ("b3", "c1", "e0")),
+    ]
+    nets = [load_net(store, store.resolve(f"{name}@production")) for name in names]
+    group = build_group(nets)
+    rng = np.random.default_rng(0)
+    task_rows, shared = (rng.standard_normal((4, 8)).astype(np.float32) for _ in range(2))
+    together = forward_group(group, [task_rows, shared, shared, shared])
+    joined = together.rows_from(1)
+    np.testing.assert_array_equal(joined, np.concatenate(together[1:]))
+    assert np.shares_memory(joined, together[1]) and np.shares_memory(joined, together[3])
+    # members 1 and 2 on one input, member 3 on another: two calls, the rows joined by a copy
+    apart = forward_group(group, [task_rows, shared, shared, shared[:2].copy()])
+    np.testing.assert_array_equal(apart.rows_from(1), np.concatenate(apart[1:]))
+    assert not np.shares_memory(apart.rows_from(1), apart[1])
+    assert apart.rows_from(3).shape == (2, 5)
 
 
 @pytest.mark.parametrize("rows", [1, 4, 7, 65])  # compiled (<= 8), stacked numpy, one by one
