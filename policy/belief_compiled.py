@@ -11,7 +11,7 @@ does not apply (or is not built), and the caller then runs its numpy path:
 | `compiled_update`      | every likelihood and every updated entry is finite  | None  |
 | `compiled_views`       | the blend keeps every goal and every probability > 0| None  |
 | `compiled_log_softmax` | always (finite Q-values: the caller checks)         | None  |
-| `compiled_mix_goals`   | always                                              | None  |
+| `compiled_mix_goals`   | the Q-values are C-contiguous float32 (R, A)        | None  |
 """
 
 from __future__ import annotations
@@ -96,8 +96,8 @@ def compiled_mix_goals(
 ) -> np.ndarray | None:
     """(B, P, A) float64: each of P goal distributions' expected Q (§3.2), out[b, p] = sum over
     g of probs[p][g] * q_RA[units_PG[p, g] * batch + b] (`_impact_q`'s einsum), or None
-    without the extension. `q_RA` float32 (R, A) C-contiguous, `units_PG` intp (P, G)."""
-    if _EXTENSION is None:
+    (module docstring). `units_PG` intp (P, G), C-contiguous."""
+    if _EXTENSION is None or q_RA.dtype != np.float32 or not q_RA.flags.c_contiguous:
         return None
     result: np.ndarray = _EXTENSION.mix_goals(q_RA, units_PG, probs, batch)
     return result

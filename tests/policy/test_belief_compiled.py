@@ -209,3 +209,12 @@ def test_bad_goal_mix_arguments_are_refused() -> None:
         _belief_row.mix_goals(q_RA, units, [(1, 0, 0), (1, 0, 0)], 1)
     with pytest.raises(TypeError):
         _belief_row.mix_goals(q_RA, units, [(1, "x", 0)], 1)
+
+
+def test_the_goal_mix_steps_aside_for_other_q_layouts() -> None:
+    """Float64 or strided Q-values are the numpy path's (None), never an error."""
+    q_RA = np.ones((4, 5), np.float32)
+    units, probs = np.array([[0, 1]], np.intp), [(0.5, 0.5)]
+    assert bc.compiled_mix_goals(q_RA.astype(np.float64), units, probs, 1) is None
+    assert bc.compiled_mix_goals(np.ones((5, 4), np.float32).T, units, probs, 1) is None
+    assert bc.compiled_mix_goals(q_RA, units, probs, 1) is not None
