@@ -7,6 +7,7 @@
 | `load_net`      | store -> `LoadedNet` (the store verifies the sha256 on every load)        |
 | `StackedGroup`  | the networks one request needs, stacked per architecture                  |
 | `forward_group` | member inputs (rows_j, D) -> member Q-values (rows_j, A)                  |
+| `MemberQ`       | its answer: a list of them, and many members' rows at once (`rows_from`)  |
 
 A group is split into *partitions* of members with the same spec, whose weights are stacked
 once, (G, in, out) per layer. `forward_group` evaluates the members of a partition that have
@@ -245,8 +246,8 @@ class MemberQ(list[np.ndarray]):
 
 
 def forward_group(group: StackedGroup, inputs: Sequence[np.ndarray]) -> MemberQ:
-    """Q-values (rows_j, A) float32 of every member j on its input (rows_j, obs_dim of its spec):
-    per partition, in runs of members evaluated together (`_runs`)."""
+    """Q-values (rows_j, A) float32 of every member j on its input (rows_j, obs_dim of its spec),
+    as a `MemberQ`: per partition, in runs of members evaluated together (`_runs`)."""
     outputs = MemberQ(len(group.nets))
     for part in group.partitions:
         for g, end, shared in _runs(part, inputs):
