@@ -117,11 +117,11 @@ def blend_goal_probs(
     Default: the whole belief, every goal of probability > 0 (all G with a floor). The blend is
     then exact, and the goal set, hence the set of impact networks, is the same at every step:
     the engine reuses one stacked group and one row layout. `mass` < 1 or `max_goals` < G keep
-    the most probable goals until they cover `mass` (at most `max_goals`): fewer networks per
-    forward pass, but the set changes as the belief moves, and every new set costs the engine a
-    new stacked group (a copy of the networks' weights) and row layout, which costs far more
-    than the forward of the networks it saves (docs/performance.md). The order of `goals` (not by probability)
-    keeps a request's shape, and the engine's cached plans, fixed while the set is."""
+    the most probable goals until they cover `mass` (at most `max_goals`); the set changes as the
+    belief moves, and the engine serves such changing sets from the stacked group of every
+    goal's network (`services.engine.engine`, "Goal distributions"). The order of `goals` (not
+    by probability) keeps a request's shape, and the engine's cached plans, fixed while the set
+    is."""
     log_b = _belief_vector(log_belief_G)
     if len(goals) != log_b.size:
         raise ValueError(f"goals: expected {log_b.size} goals, got {len(goals)}")

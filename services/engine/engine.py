@@ -32,6 +32,20 @@ What a request's shape fixes (its networks, `_plan_members`; where each partner'
 and the models used, `_layout`) is computed once and remembered: the plans by request shape,
 the layouts on the stacked group they index (`StackedGroup.memo`).
 
+Goal distributions. A request whose partners are all goal distributions (a session's beliefs,
+or /v1/act's `goal_probs`) evaluates every impact network it needs on every partner's rows:
+one input and one forward call, whatever goals each partner keeps. Its networks come from its
+own stacked group when that is stacked; otherwise from the group of the task network and EVERY
+goal's impact network (stacked once per alias), except that a small own group (at most a
+quarter of the goals) is stacked when its request shape comes a second time. A top-goal
+session (`blend_max_goals`) asks for a new set of goals at almost every step, and stacking a
+group costs more than evaluating every goal (docs/performance.md); a fixed small distribution
+gets its own group from its second request on. Either way the answer is the same, bit for bit:
+the compiled forward's rows are independent, so a network's Q-values do not depend on the
+group or the other rows, and a partner's mix adds its goals in its own order. Hence the rule
+holds for the compiled forward only, without pinned versions, and where every goal's network
+can be resolved (a missing one is asked for again only after the store changed).
+
 Choices the paper leaves open: the temperature is the request's, else the task (jl: joint)
 model's training α (`lineage.config["alpha"]`), else 0.02. Whether AAIL standardises the
 Q-vectors before eq. 8 is the environment's `Domain.blend_normalisation` (`policy.blend`). For
@@ -50,6 +64,7 @@ from __future__ import annotations
 import logging
 import threading
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
 from typing import NamedTuple
 
 import numpy as np
@@ -63,8 +78,9 @@ from policy.blend import BlendMethod, blend_checked
 from policy.regret_bound import DEFAULT_EPSILON_PER_ALPHA, keep_goal_rows
 from policy.row_forward import mean_views
 from policy.sampling import sample_rows
+from services.engine import networks
 from services.engine.environments import env_runtime
-from services.engine.errors import EngineError, InvalidRequest
+from services.engine.errors import EngineError, InvalidRequest, ModelNotFound, ModelUnavailable
 from services.engine.goal_inference import goal_log_likelihoods, recover_partner_actions
 from services.engine.messages import (
     DEFAULT_TEMPERATURE,
@@ -79,7 +95,7 @@ from services.engine.messages import (
 )
 from services.engine.model_cache import ModelCache
 from services.engine.networks import MemberQ, StackedGroup, forward_group
-from services.engine.validation import CheckedRequest, check_request
+from services.engine.validation import CheckedPartner, CheckedRequest, check_request
 
 log = logging.getLogger(__name__)
 
@@ -117,6 +133,12 @@ class InferenceEngine:
         self._rng = np.random.default_rng()  # for unseeded requests
         # request shape -> the networks it needs (`_plan_members`; pure, so never stale)
         self._member_plans: dict[tuple[object, ...], MemberPlan] = {}
+        # a distributions-only plan (by the id of its needs) -> "seen", or "stacked" once its
+        # own group was stacked (`_distributions_group`)
+        self._shapes_seen: dict[int, str] = {}
+        # (env, method, ego goal, alias) -> every goal's plan, and the store generation
+        # (`stats.refreshes`) at which one of its networks was missing (None: none was)
+        self._catalogue_plans: dict[tuple[str, ...], CataloguePlan] = {}
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
@@ -227,13 +249,70 @@ class InferenceEngine:
             plan = _plan_members(request, checked)
             if len(self._member_plans) >= MEMBER_PLANS_MAX:
                 self._member_plans.clear()
+                self._shapes_seen.clear()  # keyed by the plans' ids
             self._member_plans[key] = plan
         members, needs = plan
         if check_pins and request.versions:
             _check_pins_used(request.versions, needs)
+        if _distributions_only(request, checked):
+            served = self._distributions_group(request, checked, members, needs)
+            if served is not None:
+                return served
         _, group = self.cache.resolve_group(
             needs, request.alias, request.versions, members, checked.runtime.domain
         )
+        return members, group
+
+    def _distributions_group(
+        self,
+        request: ActRequest,
+        checked: CheckedRequest,
+        members: tuple[Member, ...],
+        needs: tuple[tuple[str, str, str], ...],
+    ) -> tuple[tuple[Member, ...], StackedGroup] | None:
+        """Where a request whose partners are all goal distributions is served from (module
+        docstring, "Goal distributions"): its own group when that is stacked; else every
+        goal's group, unless its own is small and asked for before without being stacked
+        (then None: stack it). None also where every goal's group cannot serve."""
+        group = self.cache.cached_group(needs, request.alias, members)
+        if group is not None:
+            return members, group
+        seen = self._shapes_seen.get(id(needs))  # None, "seen" or "stacked"
+        small = len(members) - 1 <= len(checked.runtime.domain.goals) // 4
+        if seen == "seen" and small:  # asked for again: its own forward is worth a stack
+            self._shapes_seen[id(needs)] = "stacked"
+            return None
+        self._shapes_seen.setdefault(id(needs), "seen")
+        return self._catalogue_group(request, checked, len(members))
+
+    def _catalogue_group(
+        self, request: ActRequest, checked: CheckedRequest, own_members: int
+    ) -> tuple[tuple[Member, ...], StackedGroup] | None:
+        """The stacked group of the task network and EVERY goal's impact network, or None:
+        the request's own networks are those already, or one of every goal's is missing (then
+        not tried again until the store changes) or cannot be loaded."""
+        domain = checked.runtime.domain
+        key = (domain.name, request.method, request.ego_goal, request.alias)
+        plan = self._catalogue_plans.get(key)
+        if plan is None or (plan[2] is not None and plan[2] != self.stats.refreshes):
+            goals = tuple(domain.goals)
+            every = CheckedPartner(0, goals, tuple(1.0 for _ in goals))
+            members, needs = _plan_members(request, replace(checked, partners=(every,)))
+            plan = (members, needs, None)
+            if len(self._catalogue_plans) >= MEMBER_PLANS_MAX:
+                self._catalogue_plans.clear()
+            self._catalogue_plans[key] = plan
+        members, needs, failed_at = plan
+        if failed_at is not None or own_members == len(members):  # missing, or the same group
+            return None
+        try:
+            _, group = self.cache.resolve_group(needs, request.alias, {}, members, domain)
+        except ModelNotFound:  # the request's own networks may all be there
+            self._catalogue_plans[key] = (members, needs, self.stats.refreshes)
+            return None
+        except ModelUnavailable:  # the store or a file failed: the request's own path tells
+            return None
+        self.stats.catalogue_group_acts += 1
         return members, group
 
     # --- goal inference (issue 9; `goal_inference`) -----------------------------------------
@@ -325,6 +404,8 @@ class InferenceEngine:
 
 
 MemberPlan = tuple[tuple[Member, ...], tuple[tuple[str, str, str], ...]]
+# every goal's plan, and the store generation at which one of its networks was missing
+CataloguePlan = tuple[tuple[Member, ...], tuple[tuple[str, str, str], ...], int | None]
 Slots = dict[tuple[int, str], tuple[int, int]]
 
 
@@ -337,6 +418,20 @@ def _check_pins_used(pinned: Mapping[str, int], needs: Sequence[tuple[str, str, 
                 f"this request uses no model {name!r} (it uses {', '.join(used)}): a pin must "
                 "name one of them",
             )
+
+
+def _distributions_only(request: ActRequest, checked: CheckedRequest) -> bool:
+    """Whether every goal's group may serve the request (module docstring, "Goal
+    distributions"): a blend of impact networks, every partner a goal distribution, no pinned
+    version, and the compiled forward (whose rows are independent: the same Q-values, bit for
+    bit, from any group holding the networks)."""
+    return (
+        networks.ROW_FORWARD  # read at call time: tests switch it
+        and not request.versions
+        and request.method in ("nail", "aail", "aail_bounded")
+        and bool(checked.partners)
+        and all(partner.probs is not None for partner in checked.partners)
+    )
 
 
 def _plan_members(request: ActRequest, checked: CheckedRequest) -> MemberPlan:
@@ -393,14 +488,24 @@ def _layout(checked: CheckedRequest, members: Sequence[Member], group: StackedGr
     member_of = {goal: j for j, (role, goal) in enumerate(members) if role == "impact"}
     served: list[list[int]] = [[] for _ in members]
     slots: Slots = {}
-    for position, partner in enumerate(checked.partners if len(members) > 1 else ()):
+    partners = checked.partners if len(members) > 1 else ()
+    # only goal distributions: every impact member on every partner's rows, so that all of
+    # them share one input and one forward call, whichever goals each partner keeps (the
+    # compiled forward's rows are independent: the Q-values are the same bits either way)
+    every = bool(partners) and all(partner.probs is not None for partner in partners)
+    if every:
+        served[1:] = [list(range(len(partners))) for _ in members[1:]]
+    for position, partner in enumerate(partners):
         for goal in partner.goals:
             j = member_of[goal]
-            slots[(position, goal)] = (j, len(served[j]))
-            served[j].append(position)
-    first_unit = np.cumsum([0] + [len(partners) for partners in served[1:]])  # per member j-1
+            if every:
+                slots[(position, goal)] = (j, position)
+            else:
+                slots[(position, goal)] = (j, len(served[j]))
+                served[j].append(position)
+    first_unit = np.cumsum([0] + [len(rows) for rows in served[1:]])  # per member j-1
     by_count: dict[int, list[int]] = {}
-    for position, partner in enumerate(checked.partners if len(members) > 1 else ()):
+    for position, partner in enumerate(partners):
         if partner.probs is not None:
             by_count.setdefault(len(partner.goals), []).append(position)
     mixes = tuple(

@@ -177,6 +177,7 @@ class EngineStats:
     likelihood_passes: int = 0  # goal-likelihood passes over every task net, the actions known
     likelihood_tables: int = 0  # the same passes for every action, ahead (a session's next step)
     likelihood_tables_used: int = 0  # session steps whose evidence such a table scored
+    catalogue_group_acts: int = 0  # acts whose goal distributions every goal's group served
 
     def snapshot(self) -> EngineStats:
         return EngineStats(**vars(self))

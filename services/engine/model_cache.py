@@ -160,6 +160,26 @@ class ModelCache:
         self._fixed[key] = _FixedSet(needs, members, table, versions, stack_key)
         return versions, group
 
+    def cached_group(
+        self, needs: Needs, alias: str, members: Sequence[Member]
+    ) -> StackedGroup | None:
+        """`resolve_group(needs, alias, {}, members, ...)`'s group when that is a look-up (a
+        current fixed set whose group is still stacked; counted as one), else None: nothing
+        is resolved, loaded or stacked."""
+        entry = self._fixed.get((id(needs), alias))
+        if (
+            entry is None
+            or entry.needs is not needs
+            or entry.members is not members
+            or entry.table is not self._resolved
+        ):
+            return None
+        group = self._stacks.get(entry.stack_key)
+        if group is not None:
+            self.stats.resolve_hits += len(needs)
+            self.stats.stack_hits += 1
+        return group
+
     def _from_store(self, name: str, ref: str, field: str, why: str) -> ModelVersion:
         try:
             return self.store.resolve(ref)

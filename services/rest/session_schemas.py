@@ -68,12 +68,14 @@ class BeliefIn(RequestBody):
         description="the blend mixes the impact networks of the most probable goals covering "
         "this mass of the belief, in (0, 1]; 1 (default): every goal, the exact expected impact "
         "Q, with the same networks at every step. Below 1 the set of goals changes as the "
-        "belief moves, and each new set costs the server a new stacked group of networks",
+        "belief moves: with every partner inferred the server evaluates every goal's network "
+        "and mixes the kept ones (about the cost of 1); beside an announced partner each new "
+        "set costs the server a new stacked group of networks",
     )
     blend_max_goals: int | None = Field(
         default=None,
         description="at most this many goals in the blend (null, default: no bound); a bound "
-        "below the number of goals has blend_mass's cost: a new stacked group per new set",
+        "below the number of goals costs what blend_mass below 1 costs",
     )
 
 

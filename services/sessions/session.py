@@ -13,7 +13,8 @@ previous observation), by `policy.belief.update_log_belief` (forgetting toward t
 It then acts on o_t with each inferred partner's goal distribution =
 `policy.belief.blend_goal_probs` of its new belief (default: every goal, in catalogue order, so
 the act's networks are the same at every step; `blend_mass` < 1 or `blend_max_goals` keep only
-the top goals, at the price of a new stacked group whenever that set changes); announced
+the top goals, served from every goal's stacked group while the set keeps changing: the
+engine's "Goal distributions"); announced
 partners as given. A partner not in `observed` keeps its belief. With a seed, step t samples
 with seed + t (the `Episode` rule).
 
