@@ -26,9 +26,9 @@ waits for in part (wrk's turnaround hides ~30 µs of it). The act and the step a
 
 Why the top-8 case: a blend of the belief's top goals only (99 % of the mass, at most 8; the
 sessions' first default) mixes a set of impact networks that changes from step to step as the
-belief moves, and the engine stacks the networks of each new set afresh. Blending the whole
-belief (the default now, and the exact belief-weighted blend) keeps one set, so its stacked
-group is reused.
+belief moves. The engine serves such sets from the stacked group of every goal's network (its
+"Goal distributions"), so the case measures what truncating the belief costs beside blending
+the whole belief (the default, and the exact belief-weighted blend).
 
 The server is the real one (`coexist serve --no-bootstrap`, uvicorn + uvloop + httptools, one
 worker, no gRPC), pinned to CPU 0, on a temporary SQLite store holding ALL 35 particle task and

@@ -19,8 +19,8 @@ Run: `OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/session_breakdown.py --
 | act, a fixed 8-goal blend     | `engine.act` with the same 8-goal `goal_probs` every call    |
 | session step, top-8 blend     | `Session.step`, `blend_mass` 0.99 and `blend_max_goals` 8    |
 | act, top-8 sets of a session  | `engine.act` cycling through the 8-goal sets that session    |
-|                               | blended on the episode (they change as the belief moves:     |
-|                               | every new set is a new stacked group)                        |
+|                               | blended on the episode (they change as the belief moves;     |
+|                               | each set seen again stacks its own group)                    |
 | REST act, in-process          | `POST /v1/act` (the "act, 1 announced" body) through the     |
 |                               | ASGI app of the REST routers, no server and no socket        |
 | REST step, in-process         | `POST /v1/sessions/{id}/steps` (server defaults, with the    |

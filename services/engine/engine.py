@@ -33,11 +33,11 @@ and the models used, `_layout`) is computed once and remembered: the plans by re
 the layouts on the stacked group they index (`StackedGroup.memo`).
 
 Goal distributions. A request whose partners are all goal distributions (a session's beliefs,
-or /v1/act's `goal_probs`) evaluates every impact network it needs on every partner's rows:
-one input and one forward call, whatever goals each partner keeps. Its networks come from its
-own stacked group when that is stacked; otherwise from the group of the task network and EVERY
-goal's impact network (stacked once per alias), except that a small own group (at most a
-quarter of the goals) is stacked when its request shape comes a second time. A top-goal
+or /v1/act's `goal_probs`) takes its networks from its own stacked group when that is stacked;
+otherwise from the group of the task network and EVERY goal's impact network (stacked once per
+alias), except that a small own group (at most a quarter of the goals) is stacked when its
+request shape comes a second time. Over every goal's group, each impact network runs on every
+partner's rows: one input and one forward call, whatever goals each partner keeps. A top-goal
 session (`blend_max_goals`) asks for a new set of goals at almost every step, and stacking a
 group costs more than evaluating every goal (docs/performance.md); a fixed small distribution
 gets its own group from its second request on. Either way the answer is the same, bit for bit:
@@ -425,12 +425,14 @@ def _distributions_only(request: ActRequest, checked: CheckedRequest) -> bool:
     distributions"): a blend of impact networks, every partner a goal distribution, no pinned
     version, and the compiled forward (whose rows are independent: the same Q-values, bit for
     bit, from any group holding the networks)."""
+    partners = checked.partners
     return (
-        networks.ROW_FORWARD  # read at call time: tests switch it
-        and not request.versions
+        bool(partners)
+        and partners[0].probs is not None  # an announced first partner: no generator made
+        and all(partner.probs is not None for partner in partners)
         and request.method in ("nail", "aail", "aail_bounded")
-        and bool(checked.partners)
-        and all(partner.probs is not None for partner in checked.partners)
+        and not request.versions
+        and networks.ROW_FORWARD  # read at call time: tests switch it
     )
 
 
@@ -489,10 +491,14 @@ def _layout(checked: CheckedRequest, members: Sequence[Member], group: StackedGr
     served: list[list[int]] = [[] for _ in members]
     slots: Slots = {}
     partners = checked.partners if len(members) > 1 else ()
-    # only goal distributions: every impact member on every partner's rows, so that all of
-    # them share one input and one forward call, whichever goals each partner keeps (the
-    # compiled forward's rows are independent: the Q-values are the same bits either way)
-    every = bool(partners) and all(partner.probs is not None for partner in partners)
+    # only goal distributions, over every goal's group: every impact member on every partner's
+    # rows, so that all of them share one input and one forward call, whichever goals each
+    # partner keeps (the compiled forward's rows are independent: the same bits either way)
+    every = (
+        bool(partners)
+        and len(members) - 1 == len(checked.runtime.domain.goals)
+        and all(partner.probs is not None for partner in partners)
+    )
     if every:
         served[1:] = [list(range(len(partners))) for _ in members[1:]]
     for position, partner in enumerate(partners):
