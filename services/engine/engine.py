@@ -44,7 +44,8 @@ gets its own group from its second request on. Either way the answer is the same
 the compiled forward's rows are independent, so a network's Q-values do not depend on the
 group or the other rows, and a partner's mix adds its goals in its own order. Hence the rule
 holds for the compiled forward only, without pinned versions, and where every goal's network
-can be resolved (a missing one is asked for again only after the store changed).
+can be resolved and loaded (after a failure, every goal's group is asked for again only once
+the store changed).
 
 Choices the paper leaves open: the temperature is the request's, else the task (jl: joint)
 model's training α (`lineage.config["alpha"]`), else 0.02. Whether AAIL standardises the
@@ -289,8 +290,8 @@ class InferenceEngine:
         self, request: ActRequest, checked: CheckedRequest, own_members: int
     ) -> tuple[tuple[Member, ...], StackedGroup] | None:
         """The stacked group of the task network and EVERY goal's impact network, or None:
-        the request's own networks are those already, or one of every goal's is missing (then
-        not tried again until the store changes) or cannot be loaded."""
+        the request's own networks are those already, or one of every goal's is missing or
+        cannot be loaded (then not tried again until the store changes)."""
         domain = checked.runtime.domain
         key = (domain.name, request.method, request.ego_goal, request.alias)
         plan = self._catalogue_plans.get(key)
@@ -307,10 +308,10 @@ class InferenceEngine:
             return None
         try:
             _, group = self.cache.resolve_group(needs, request.alias, {}, members, domain)
-        except ModelNotFound:  # the request's own networks may all be there
+        except (ModelNotFound, ModelUnavailable):  # the request's own networks may serve:
+            # not tried again before the store changes (a failing load per request would cost
+            # more than the groups it saves; the request's own path reports its own errors)
             self._catalogue_plans[key] = (members, needs, self.stats.refreshes)
-            return None
-        except ModelUnavailable:  # the store or a file failed: the request's own path tells
             return None
         self.stats.catalogue_group_acts += 1
         return members, group
