@@ -5,17 +5,21 @@ distributions")."""
 
 from __future__ import annotations
 
+import shutil
 from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
 import pytest
+import safetensors.numpy
 from session_zoo import random_observation, session_zoo_template
 from zoo_fixtures import PAIR_SPEC
 
 from envs.particle.goals import GOAL_IDS
-from model_store import task_model_name
+from model_store import impact_model_name, task_model_name
+from model_store.entities import Lineage
 from model_store.sql import SqlModelStore
+from model_store.testing import qnet_spec, qnet_tensors
 from services.engine import ActRequest, InferenceEngine, PartnerSpec, networks
 from services.sessions import Observed, Session, SessionPartner, SessionSettings
 
@@ -150,3 +154,33 @@ def test_a_top_goal_session_acts_as_the_act_with_its_beliefs(store) -> None:
         )[0]
         assert answer.result == expected
         assert sum(m.role == "impact" for m in answer.result.models) == 6
+
+
+def test_every_goals_group_follows_a_moved_alias(tmp_path, tmp_path_factory) -> None:
+    """Hot reload: after `production` of one impact network moves, every goal's group serves
+    its new version, and the answer is the request's own group's (pinned task network)."""
+    path = tmp_path / "models.db"
+    shutil.copy(session_zoo_template(tmp_path_factory), path)
+    with SqlModelStore(f"sqlite:///{path}") as zoo:
+        engine = InferenceEngine(zoo)
+        rng = np.random.default_rng(6)
+        obs = random_observation(rng)[None]
+        partners = (PartnerSpec(1, goal_probs=_spread(GOAL_IDS[:12], rng)),)
+        before = engine.act(_request(obs, partners))[0]
+        spec = qnet_spec(obs_dim=8, n_actions=5, hidden=(16,))
+        moved = impact_model_name("particle", GOAL_IDS[3])
+        zoo.register_version(
+            moved,
+            spec=spec,
+            weights=safetensors.numpy.save(qnet_tensors(spec, seed=31)),
+            lineage=Lineage(config={"alpha": 0.05}, seed=31, registered_by="pytest"),
+            aliases=("production",),
+        )
+        assert engine.refresh()
+        after = engine.act(_request(obs, partners))[0]
+        own = engine.act(_request(obs, partners, pin=1))[0]
+    assert engine.stats.catalogue_group_acts == 2
+    assert {m.name: m.version for m in after.models}[moved] == 2
+    assert {m.name: m.version for m in before.models}[moved] == 1
+    assert (after.probs, after.partner_weights) == (own.probs, own.partner_weights)
+    assert after.probs != before.probs
