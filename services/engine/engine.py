@@ -32,12 +32,13 @@ What a request's shape fixes (its networks, `_plan_members`; where each partner'
 and the models used, `_layout`) is computed once and remembered: the plans by request shape,
 the layouts on the stacked group they index (`StackedGroup.memo`).
 
-Goal distributions. A request whose partners are all goal distributions (a session's beliefs,
-or /v1/act's `goal_probs`) takes its networks from its own stacked group when that is stacked;
-otherwise from the group of the task network and EVERY goal's impact network (stacked once per
-alias), except that a small own group (at most a quarter of the goals) is stacked when its
-request shape comes a second time. Over every goal's group, each impact network runs on every
-partner's rows: one input and one forward call, whatever goals each partner keeps. A top-goal
+Goal distributions. A request with a partner given as a goal distribution (a session's
+beliefs, or /v1/act's `goal_probs`) takes its networks from its own stacked group when that is
+stacked; otherwise from the group of the task network and EVERY goal's impact network (stacked
+once per alias), except that a small own group (at most a quarter of the goals) is stacked when
+its request shape comes a second time. Over every goal's group, each impact network runs on the
+rows of every partner given as a distribution (an announced partner's network on its row too):
+one input and one forward call, whatever goals each partner keeps. A top-goal
 session (`blend_max_goals`) asks for a new set of goals at almost every step, and stacking a
 group costs more than evaluating every goal (docs/performance.md); a fixed small distribution
 gets its own group from its second request on. Either way the answer is the same, bit for bit:
@@ -62,6 +63,7 @@ Hot reload: `refresh()` (or the daemon thread of `start_refresh_thread`, every
 
 from __future__ import annotations
 
+import bisect
 import logging
 import threading
 from collections.abc import Mapping, Sequence
@@ -255,7 +257,7 @@ class InferenceEngine:
         members, needs = plan
         if check_pins and request.versions:
             _check_pins_used(request.versions, needs)
-        if _distributions_only(request, checked):
+        if _with_distributions(request, checked):
             served = self._distributions_group(request, checked, members, needs)
             if served is not None:
                 return served
@@ -271,7 +273,7 @@ class InferenceEngine:
         members: tuple[Member, ...],
         needs: tuple[tuple[str, str, str], ...],
     ) -> tuple[tuple[Member, ...], StackedGroup] | None:
-        """Where a request whose partners are all goal distributions is served from (module
+        """Where a request with a partner given as a goal distribution is served from (module
         docstring, "Goal distributions"): its own group when that is stacked; else every
         goal's group, unless its own is small and asked for before without being stacked
         (then None: stack it). None also where every goal's group cannot serve."""
@@ -421,17 +423,18 @@ def _check_pins_used(pinned: Mapping[str, int], needs: Sequence[tuple[str, str, 
             )
 
 
-def _distributions_only(request: ActRequest, checked: CheckedRequest) -> bool:
+def _with_distributions(request: ActRequest, checked: CheckedRequest) -> bool:
     """Whether every goal's group may serve the request (module docstring, "Goal
-    distributions"): a blend of impact networks, every partner a goal distribution, no pinned
-    version, and the compiled forward (whose rows are independent: the same Q-values, bit for
-    bit, from any group holding the networks)."""
-    partners = checked.partners
+    distributions"): a blend of impact networks, a partner given as a goal distribution, no
+    pinned version, and the compiled forward (whose rows are independent: the same Q-values,
+    bit for bit, from any group holding the networks)."""
+    for partner in checked.partners:  # a loop, not any(): most requests announce every goal
+        if partner.probs is not None:
+            break
+    else:
+        return False
     return (
-        bool(partners)
-        and partners[0].probs is not None  # an announced first partner: no generator made
-        and all(partner.probs is not None for partner in partners)
-        and request.method in ("nail", "aail", "aail_bounded")
+        request.method in ("nail", "aail", "aail_bounded")
         and not request.versions
         and networks.ROW_FORWARD  # read at call time: tests switch it
     )
@@ -492,22 +495,24 @@ def _layout(checked: CheckedRequest, members: Sequence[Member], group: StackedGr
     served: list[list[int]] = [[] for _ in members]
     slots: Slots = {}
     partners = checked.partners if len(members) > 1 else ()
-    # only goal distributions, over every goal's group: every impact member on every partner's
-    # rows, so that all of them share one input and one forward call, whichever goals each
-    # partner keeps (the compiled forward's rows are independent: the same bits either way)
-    every = (
-        bool(partners)
-        and len(members) - 1 == len(checked.runtime.domain.goals)
-        and all(partner.probs is not None for partner in partners)
-    )
-    if every:
-        served[1:] = [list(range(len(partners))) for _ in members[1:]]
-    for position, partner in enumerate(partners):
-        for goal in partner.goals:
-            j = member_of[goal]
-            if every:
-                slots[(position, goal)] = (j, position)
-            else:
+    # over every goal's group: every impact member on the rows of every partner given as a
+    # distribution, so that they share one input and one forward call whichever goals each
+    # partner keeps (an announced partner's goal also on that partner's row); the compiled
+    # forward's rows are independent, so the Q-values are the same bits as from any group
+    distributions = [k for k, partner in enumerate(partners) if partner.probs is not None]
+    if distributions and len(members) - 1 == len(checked.runtime.domain.goals):
+        served[1:] = [list(distributions) for _ in members[1:]]
+        for position, partner in enumerate(partners):
+            if partner.probs is None:
+                bisect.insort(served[member_of[partner.goals[0]]], position)
+        for position, partner in enumerate(partners):
+            for goal in partner.goals:
+                j = member_of[goal]
+                slots[(position, goal)] = (j, served[j].index(position))
+    else:  # each member on the rows of the partners that need it, in order
+        for position, partner in enumerate(partners):
+            for goal in partner.goals:
+                j = member_of[goal]
                 slots[(position, goal)] = (j, len(served[j]))
                 served[j].append(position)
     first_unit = np.cumsum([0] + [len(rows) for rows in served[1:]])  # per member j-1

@@ -68,9 +68,8 @@ class BeliefIn(RequestBody):
         description="the blend mixes the impact networks of the most probable goals covering "
         "this mass of the belief, in (0, 1]; 1 (default): every goal, the exact expected impact "
         "Q, with the same networks at every step. Below 1 the set of goals changes as the "
-        "belief moves: with every partner inferred the server evaluates every goal's network "
-        "and mixes the kept ones (about the cost of 1); beside an announced partner each new "
-        "set costs the server a new stacked group of networks",
+        "belief moves: the server then evaluates every goal's network and mixes the kept "
+        "ones (about the cost of 1)",
     )
     blend_max_goals: int | None = Field(
         default=None,

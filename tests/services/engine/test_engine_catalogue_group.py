@@ -1,4 +1,4 @@
-"""services.engine: a request whose partners are all goal distributions is served from every
+"""services.engine: a request with a partner given as a goal distribution is served from every
 goal's stacked group unless its own group is stacked (or small and asked for again): the
 answers are the same, bit for bit, whichever group served them (module docstring, "Goal
 distributions")."""
@@ -86,14 +86,36 @@ def test_a_large_distribution_stays_on_every_goals_group(store) -> None:
         assert a.models[1:] == b.models[1:]  # the impact networks, in the partners' order
 
 
-def test_announced_partners_and_the_numpy_forward_keep_their_own_group(store, monkeypatch) -> None:
+def test_announced_goals_alone_and_the_numpy_forward_keep_their_own_group(
+    store, monkeypatch
+) -> None:
     engine = InferenceEngine(store)
     obs = random_observation(np.random.default_rng(2), n_agents=3)[None]
-    mixed = (PartnerSpec(1, goal_probs={"b3": 0.5, "c1": 0.5}), PartnerSpec(2, goal="e0"))
-    engine.act(_request(obs, mixed))
+    engine.act(_request(obs, (PartnerSpec(1, goal="b3"), PartnerSpec(2, goal="e0"))))
     monkeypatch.setattr(networks, "ROW_FORWARD", False)
     engine.act(_request(obs, (PartnerSpec(1, goal_probs={"b3": 0.5, "c1": 0.5}),)))
     assert engine.stats.catalogue_group_acts == 0
+
+
+@pytest.mark.parametrize("announced_first", [True, False])
+def test_an_announced_partner_beside_a_distribution(store, announced_first: bool) -> None:
+    """Every goal's group serves the announced partner's goal on its own row too: the answer
+    is the request's own group's (pinned), models in the partners' order."""
+    engine = InferenceEngine(store)
+    rng = np.random.default_rng(7)
+    obs = np.stack([random_observation(rng, n_agents=4) for _ in range(2)])
+    spread = PartnerSpec(2, goal_probs=_spread(GOAL_IDS[5:17], rng))
+    announced = (PartnerSpec(1, goal="e0"), PartnerSpec(3, goal="b3"))
+    partners = (*announced, spread) if announced_first else (spread, *announced)
+    first = engine.act(_request(obs, partners))
+    assert engine.stats.catalogue_group_acts == 1
+    own = engine.act(_request(obs, partners, pin=1))
+    assert engine.stats.catalogue_group_acts == 1
+    for a, b in zip(first, own, strict=True):
+        assert (a.probs, a.action, a.partner_weights) == (b.probs, b.action, b.partner_weights)
+        assert a.models[1:] == b.models[1:]
+    goals = [m.goal for m in first[0].models[1:]]
+    assert goals == [g for p in partners for g in (p.goal_probs or [p.goal])]
 
 
 def test_a_missing_network_of_the_catalogue_is_not_looked_up_again_until_the_store_changes(
