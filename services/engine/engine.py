@@ -36,17 +36,17 @@ Goal distributions. A request with a partner given as a goal distribution (a ses
 beliefs, or /v1/act's `goal_probs`) takes its networks from its own stacked group when that is
 stacked; otherwise from the group of the task network and EVERY goal's impact network (stacked
 once per alias), except that a small own group (at most a quarter of the goals) is stacked when
-its request shape comes a second time. Over every goal's group, each impact network runs on the
-rows of every partner given as a distribution (an announced partner's network on its row too):
-one input and one forward call, whatever goals each partner keeps. A top-goal
-session (`blend_max_goals`) asks for a new set of goals at almost every step, and stacking a
-group costs more than evaluating every goal (docs/performance.md); a fixed small distribution
-gets its own group from its second request on. Either way the answer is the same, bit for bit:
-the compiled forward's rows are independent, so a network's Q-values do not depend on the
-group or the other rows, and a partner's mix adds its goals in its own order. Hence the rule
-holds for the compiled forward only, without pinned versions, and where every goal's network
-can be resolved and loaded (after a failure, every goal's group is asked for again only once
-the store changed).
+its request shape comes a second time. Over a group holding every goal's network, each impact
+network runs on the rows of every partner given as a distribution (an announced partner's
+network on its row too): one input and one forward call, whatever goals each partner keeps. A
+top-goal session (`blend_max_goals`) asks for a new set of goals at almost every step, and
+stacking a group costs more than evaluating every goal (docs/performance.md); a fixed small
+distribution gets its own group from its second request on. Either way the answer is the same,
+bit for bit: the compiled forward's rows are independent, so a network's Q-values do not depend
+on the group or the other rows, and a partner's mix adds its goals in its own order. Hence the
+rule holds for the compiled forward only, without pinned versions, and where every goal's
+network can be resolved and loaded (after a failure, every goal's group is asked for again only
+once the store changed).
 
 Choices the paper leaves open: the temperature is the request's, else the task (jl: joint)
 model's training α (`lineage.config["alpha"]`), else 0.02. Whether AAIL standardises the
@@ -495,10 +495,10 @@ def _layout(checked: CheckedRequest, members: Sequence[Member], group: StackedGr
     served: list[list[int]] = [[] for _ in members]
     slots: Slots = {}
     partners = checked.partners if len(members) > 1 else ()
-    # over every goal's group: every impact member on the rows of every partner given as a
-    # distribution, so that they share one input and one forward call whichever goals each
-    # partner keeps (an announced partner's goal also on that partner's row); the compiled
-    # forward's rows are independent, so the Q-values are the same bits as from any group
+    # over a group holding every goal's network: every impact member on the rows of every
+    # partner given as a distribution, so that they share one input and one forward call
+    # whichever goals each partner keeps (an announced partner's goal also on that partner's
+    # row); the compiled forward's rows are independent: the same bits as from any group
     distributions = [k for k, partner in enumerate(partners) if partner.probs is not None]
     if distributions and len(members) - 1 == len(checked.runtime.domain.goals):
         served[1:] = [list(distributions) for _ in members[1:]]

@@ -135,14 +135,8 @@ class ModelCache:
         if pinned:
             versions = self.resolve_all(needs, alias, pinned)
             return versions, self.group(versions, members, domain)
-        key = (id(needs), alias)
-        entry = self._fixed.get(key)
-        if (
-            entry is not None
-            and entry.needs is needs
-            and entry.members is members
-            and entry.table is self._resolved
-        ):
+        entry = self._current_fixed(needs, alias, members)
+        if entry is not None:
             self.stats.resolve_hits += len(needs)
             group = self._stacks.get(entry.stack_key)
             if group is None:  # evicted by other groups: stack it again
@@ -157,7 +151,7 @@ class ModelCache:
         group = self.group(versions, members, domain, key=stack_key)
         if len(self._fixed) >= MAX_FIXED_SETS:
             self._fixed.clear()
-        self._fixed[key] = _FixedSet(needs, members, table, versions, stack_key)
+        self._fixed[(id(needs), alias)] = _FixedSet(needs, members, table, versions, stack_key)
         return versions, group
 
     def cached_group(
@@ -166,6 +160,18 @@ class ModelCache:
         """`resolve_group(needs, alias, {}, members, ...)`'s group when that is a look-up (a
         current fixed set whose group is still stacked; counted as one), else None: nothing
         is resolved, loaded or stacked."""
+        entry = self._current_fixed(needs, alias, members)
+        group = None if entry is None else self._stacks.get(entry.stack_key)
+        if group is not None:
+            self.stats.resolve_hits += len(needs)
+            self.stats.stack_hits += 1
+        return group
+
+    def _current_fixed(
+        self, needs: Needs, alias: str, members: Sequence[Member]
+    ) -> _FixedSet | None:
+        """The fixed set of this `needs` tuple and `alias`, if it was read from the current
+        resolution table (module docstring, "fixed sets")."""
         entry = self._fixed.get((id(needs), alias))
         if (
             entry is None
@@ -174,11 +180,7 @@ class ModelCache:
             or entry.table is not self._resolved
         ):
             return None
-        group = self._stacks.get(entry.stack_key)
-        if group is not None:
-            self.stats.resolve_hits += len(needs)
-            self.stats.stack_hits += 1
-        return group
+        return entry
 
     def _from_store(self, name: str, ref: str, field: str, why: str) -> ModelVersion:
         try:
