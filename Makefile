@@ -6,7 +6,7 @@ PY ?= python3
 comma := ,
 VENV ?= .venv
 BIN := $(VENV)/bin
-DEPS := pyproject.toml setup.py VERSION sdk/pyproject.toml $(wildcard policy/*.c policy/*.h)
+DEPS := pyproject.toml setup.py VERSION sdk/pyproject.toml $(wildcard policy/*.c policy/*.h services/rest/*.c)
 
 .PHONY: setup setup-serve demo serve test lint clean
 

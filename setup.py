@@ -6,9 +6,12 @@ reference of each runs instead):
   (policy/_belief_row.c; `policy.belief_compiled`);
 - `policy._row_forward`, a stack of small MLPs on a few rows, AVX2 and FMA (or AVX-512F)
   chosen at run time (policy/_row_forward.c and the layer it includes twice,
-  policy/_row_forward_layer.h; `policy.row_forward`).
+  policy/_row_forward_layer.h; `policy.row_forward`);
+- `services.rest._number_rows`, a batch body's rows of numbers read into one array
+  (services/rest/_number_rows.c; `services.rest.number_rows`).
 
-Each is checked against its numpy reference within a stated tolerance (tests/policy/).
+Each kernel is checked against its numpy reference within a stated tolerance (tests/policy/),
+the rows against pydantic's validation (tests/services/rest/test_number_rows.py).
 Everything else is in pyproject.toml.
 """
 
@@ -27,5 +30,14 @@ setup(
             optional=True,
         )
         for name in ("_blend_row", "_belief_row", "_row_forward")
+    ]
+    + [
+        Extension(
+            "services.rest._number_rows",
+            ["services/rest/_number_rows.c"],
+            include_dirs=[numpy.get_include()],
+            extra_compile_args=["-O2"],
+            optional=True,
+        )
     ]
 )

@@ -31,6 +31,7 @@ from services.rest.bounded import (
     at_most,
     bounded_list,
 )
+from services.rest.number_rows import NumberRows
 
 MethodName = Literal["aail_bounded", "aail", "nail", "sl", "jl"]
 METHOD_HELP = (
@@ -91,7 +92,7 @@ class ActBody(ActFields):
 
 
 class ActBatchBody(ActFields):
-    observations: Matrix | None = Field(
+    observations: NumberRows | None = Field(
         default=None, description="the ego's observations, one per row"
     )
     states: Tensor3 | None = Field(

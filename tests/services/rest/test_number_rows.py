@@ -1,0 +1,106 @@
+"""`services.rest.number_rows`: a batch's rows read straight into an array take exactly the
+bodies pydantic's `Matrix` takes, with the same values, and leave every other body to it."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+from pydantic import BaseModel, ValidationError
+
+from services.rest.bounded import Matrix
+from services.rest.number_rows import COMPILED, float_rows
+from services.rest.schemas import ActBatchBody
+
+pytestmark = pytest.mark.skipif(not COMPILED, reason="services.rest._number_rows not built")
+
+
+class _Reference(BaseModel):
+    observations: Matrix
+
+
+class _ListSubclass(list[list[float]]):
+    pass
+
+
+TAKEN: dict[str, list[list[Any]]] = {
+    "floats": [[0.25, -1.5, 3e-310], [1e300, -0.0, 2.0]],
+    "ints and floats": [[1, 2.5], [-3, 4]],
+    "ints beyond 53 bits": [[2**60 + 1, -(2**70)], [0, 1]],
+    "one number": [[7.0]],
+    "NaN and infinities": [[float("nan"), float("inf")], [float("-inf"), 0.0]],
+}
+LEFT: dict[str, Any] = {  # values the compiled pass leaves to pydantic (accepted or not)
+    "empty batch": [],
+    "empty row": [[]],
+    "ragged rows": [[1.0, 2.0], [3.0]],
+    "a bool": [[True, 1.0]],
+    "a numeric string": [["1.5", 2.0]],
+    "a string": [[1.0, "x"]],
+    "a None": [[None, 1.0]],
+    "a row of numbers": [1.0, 2.0],
+    "a tuple row": [(1.0, 2.0)],
+    "a list subclass": _ListSubclass([[1.0]]),
+    "an int beyond a double": [[10**400, 1.0]],
+    "a float subclass": [[np.float64(1.0), 2.0]],
+    "not a list": {"0": [1.0]},
+}
+
+
+@pytest.mark.parametrize("rows", TAKEN.values(), ids=list(TAKEN))
+def test_taken_rows_equal_pydantic_values(rows: list[list[Any]]) -> None:
+    array = float_rows(rows)
+    assert isinstance(array, np.ndarray) and array.dtype == np.float64
+    assert array.flags.c_contiguous and array.shape == (len(rows), len(rows[0]))
+    expected = np.asarray(_Reference(observations=rows).observations, dtype=np.float64)
+    np.testing.assert_array_equal(array, expected)  # NaN == NaN here, signs of zero compared
+    assert np.array_equal(np.signbit(array), np.signbit(expected))
+
+
+@pytest.mark.parametrize("value", LEFT.values(), ids=list(LEFT))
+def test_everything_else_is_left_to_pydantic(value: Any) -> None:
+    assert float_rows(value) is None
+
+
+@pytest.mark.parametrize("value", LEFT.values(), ids=list(LEFT))
+def test_the_body_model_accepts_and_refuses_as_pydantic_does(value: Any) -> None:
+    body = {"env": "particle", "ego_goal": "a2", "observations": value}
+    try:
+        expected = _Reference(observations=value).observations
+    except ValidationError as reference:
+        with pytest.raises(ValidationError) as refused:
+            ActBatchBody.model_validate(body)
+        assert [e["loc"] for e in refused.value.errors()] == [e["loc"] for e in reference.errors()]
+        return
+    assert ActBatchBody.model_validate(body).observations == expected
+
+
+def test_a_large_batch_is_one_array() -> None:
+    rows = np.random.default_rng(3).uniform(-1, 1, (512, 20)).tolist()
+    observations = ActBatchBody.model_validate(
+        {"env": "particle", "ego_goal": "a2", "observations": rows}
+    ).observations
+    assert isinstance(observations, np.ndarray)
+    np.testing.assert_array_equal(observations, np.asarray(rows))
+
+
+@pytest.mark.parametrize("fmt", ["rows", "columns"])
+def test_both_ways_answer_a_batch_alike(act_client, fmt: str) -> None:
+    """The same rows as numbers (the compiled pass) and with one written as a string (pydantic's
+    way, which reads "0.5" as 0.5): the same answer, field for field."""
+    rows = np.random.default_rng(4).uniform(-0.9, 0.9, (6, 8)).tolist()
+    rows[0][0] = 0.5
+    body = {
+        "env": "particle",
+        "ego_goal": "a2",
+        "partners": [{"index": 1, "goal": "c"}],
+        "method": "aail",
+        "seed": 3,
+        "format": fmt,
+    }
+    fast = act_client.post("/v1/act:batch", json={**body, "observations": rows})
+    rows[0][0] = "0.5"
+    slow = act_client.post("/v1/act:batch", json={**body, "observations": rows})
+    assert fast.status_code == slow.status_code == 200, fast.text
+    assert fast.json() == slow.json()
