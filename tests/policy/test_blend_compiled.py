@@ -10,6 +10,8 @@ shapes refused. aail_bounded's bound (eq. R1, the kernel's last step) against
 from __future__ import annotations
 
 import importlib
+import platform
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -277,3 +279,33 @@ def test_kernel_shapes_are_checked() -> None:
         rows("aail", q_task, q_impact, alpha, mask, True, np.zeros(3))
     with pytest.raises(ValueError, match="aail blend only"):
         rows("nail", q_task, q_impact, alpha, mask, True, np.zeros(2))
+
+
+def test_the_vector_math_is_found_here() -> None:
+    """On x86-64 glibc with AVX2 the kernel takes libmvec's exp, log and log2 (module
+    docstring of policy/_blend_row.c); elsewhere libm's (VECTOR_MATH 0)."""
+    kernel = importlib.import_module("policy._blend_row") if blend_module.COMPILED else None
+    if kernel is None:
+        pytest.skip("policy._blend_row not built")
+    cpuinfo = Path("/proc/cpuinfo")
+    flags = cpuinfo.read_text().split() if cpuinfo.exists() else []
+    glibc = platform.libc_ver()[0] == "glibc" and platform.machine() == "x86_64"
+    expected = {8} if "avx512f" in flags else {4} if "avx2" in flags else {0}
+    assert kernel.VECTOR_MATH in (expected if glibc else {0})
+
+
+@compiled
+@settings(max_examples=100, deadline=None)
+@given(case=cases(max_rows=19), method=st.sampled_from(["sl", "nail", "aail"]))
+def test_a_batch_equals_its_rows_one_at_a_time(case, method: str) -> None:
+    """Every value of a batch goes through the same exp / log / log2 call whatever its place in
+    the batch (the vector calls' last lanes padded, not sent to libm): bit for bit."""
+    q_task, q_impact, mask, alpha = case
+    alpha_B = np.broadcast_to(np.asarray(alpha, dtype=np.float64), q_task.shape[:1])
+    whole = blend(method, q_task, q_impact, alpha_B, mask)
+    for b in range(len(q_task)):
+        row = blend(
+            method, q_task[b : b + 1], q_impact[b : b + 1], alpha_B[b : b + 1], mask[b : b + 1]
+        )
+        for field in (*FIELDS, "q_BA"):
+            assert np.array_equal(getattr(row, field)[0], getattr(whole, field)[b], equal_nan=True)
