@@ -9,7 +9,8 @@
  * the next member's weights into the caches while it computes a member's last block (`run`).
  * Where the CPU has AVX-512F the same loops run on 16-float vectors (twice the FMAs per
  * instruction: a batch's forward is bound by them), with the same bits as on 8
- * (_row_forward_layer.h).
+ * (_row_forward_layer.h); there a layer of fewer than 8 outputs (a Q-network's actions) holds
+ * two of each output's partial sums to a vector (`tail_small_avx512`).
  * The GIL is released while it runs.
  *
  * Order of operations (fixed, so the results do not depend on the batch or on the other rows):
@@ -94,6 +95,65 @@ tail_avx2(const float *x, int x_step, const float *W, const float *b, float *y, 
         tail_rows_avx2(x + (size_t)r * x_step, x_step, W, b, y + (size_t)r * y_step, y_step, n_i, n_o, ob, 2);
     if (r < R)
         tail_rows_avx2(x + (size_t)r * x_step, x_step, W, b, y + (size_t)r * y_step, y_step, n_i, n_o, ob, 1);
+}
+
+/* a layer of fewer than 8 outputs t (the t actions of a Q-network's last layer) on R <= 8 rows,
+ * AVX-512F: the same four partial sums per output as `tail_avx2`, in the same order, held two
+ * to a vector. Lane k t + o of `acc[r][0]` is output o's partial sum k for k = 0, 1, of
+ * `acc[r][1]` for k = 2, 3; input step j adds x[4j + k] W[4j + k, o] to it, and since W is
+ * (inputs, t) row-major the 2t weights a vector needs at step j are contiguous (one load for
+ * all R rows). The inputs go to their lanes by a permutation of 16 inputs loaded at once. Why:
+ * `tail_avx2` loads a weight vector of t useful lanes per input and rows pair, and broadcasts
+ * every input, which made this layer of 5 outputs about as slow as one of 128 on a batch.
+ * Same bits: each lane runs the partial sum's FMA chain in input order, the I mod 4 last
+ * inputs go to partial sum 0 in order, then (s0 + s1) + (s2 + s3). */
+__attribute__((target("avx512f,avx2,fma"), always_inline)) static inline void
+tail_small_avx512(const float *x, int x_step, const float *W, const float *b, float *y,
+                  int y_step, int n_i, int t, const int R) {
+    const __mmask16 two = (__mmask16)((1u << (2 * t)) - 1), one = (__mmask16)((1u << t) - 1);
+    __m512i lane = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+    __m512i second = _mm512_mask_set1_epi32(_mm512_setzero_si512(),
+                                            _mm512_cmpge_epi32_mask(lane, _mm512_set1_epi32(t)), 1);
+    __m512i pick[4][2]; /* step jj of 4: lanes of partial sums k = 0, 1 and k = 2, 3 */
+    for (int jj = 0; jj < 4; jj++) {
+        pick[jj][0] = _mm512_add_epi32(_mm512_set1_epi32(4 * jj), second);
+        pick[jj][1] = _mm512_add_epi32(_mm512_set1_epi32(4 * jj + 2), second);
+    }
+    __m512 acc[8][2];
+#pragma GCC unroll 8
+    for (int r = 0; r < R; r++) {
+        acc[r][0] = _mm512_maskz_loadu_ps(one, b);
+        acc[r][1] = _mm512_setzero_ps();
+    }
+    const int J = n_i / 4; /* full steps of 4 inputs */
+    for (int j0 = 0; j0 < J; j0 += 4) {
+        int steps = J - j0 < 4 ? J - j0 : 4;
+        __mmask16 in = steps == 4 ? (__mmask16)0xFFFF : (__mmask16)((1u << (4 * steps)) - 1);
+        for (int jj = 0; jj < steps; jj++) {
+            const float *w = W + (size_t)(4 * (j0 + jj)) * t;
+            __m512 w01 = _mm512_maskz_loadu_ps(two, w), w23 = _mm512_maskz_loadu_ps(two, w + 2 * t);
+#pragma GCC unroll 8
+            for (int r = 0; r < R; r++) {
+                __m512 xs = _mm512_maskz_loadu_ps(in, x + (size_t)r * x_step + 4 * j0);
+                acc[r][0] = _mm512_fmadd_ps(_mm512_permutexvar_ps(pick[jj][0], xs), w01, acc[r][0]);
+                acc[r][1] = _mm512_fmadd_ps(_mm512_permutexvar_ps(pick[jj][1], xs), w23, acc[r][1]);
+            }
+        }
+    }
+    for (int i = 4 * J; i < n_i; i++) { /* the last I mod 4 inputs, into partial sum 0 */
+        __m512 w = _mm512_maskz_loadu_ps(one, W + (size_t)i * t);
+#pragma GCC unroll 8
+        for (int r = 0; r < R; r++)
+            acc[r][0] = _mm512_mask3_fmadd_ps(_mm512_set1_ps(x[(size_t)r * x_step + i]), w,
+                                              acc[r][0], one);
+    }
+    __m512i down = _mm512_add_epi32(lane, _mm512_set1_epi32(t)); /* lane o + t to lane o */
+#pragma GCC unroll 8
+    for (int r = 0; r < R; r++) {
+        __m512 s01 = _mm512_add_ps(acc[r][0], _mm512_permutexvar_ps(down, acc[r][0]));
+        __m512 s23 = _mm512_add_ps(acc[r][1], _mm512_permutexvar_ps(down, acc[r][1]));
+        _mm512_mask_storeu_ps(y + (size_t)r * y_step, one, _mm512_add_ps(s01, s23));
+    }
 }
 
 /* the layer for 8 lanes (AVX2) and for 16 (AVX-512F): one text, _row_forward_layer.h.

@@ -99,6 +99,12 @@ ROWF_CAT(layer_rows, SFX)(const float *x, int x_step, const float *W, const floa
 #endif
     if (fetch)
         for (; next < next_end; next += 64) _mm_prefetch(next, _MM_HINT_T0);
+#if LANES > 8
+    if (n_o < 8) { /* the whole layer is its tail: two partial sums to a vector */
+        tail_small_avx512(x, x_step, W, b, y, y_step, n_i, n_o, R);
+        return;
+    }
+#endif
     tail_avx2(x, x_step, W, b, y, y_step, n_i, n_o, ob, R);
 }
 

@@ -47,6 +47,7 @@ SIZES = [
     (5, 64, 16),
     (200, 8, 24, 6, 3),
     (4, 2),
+    (5, 130, 7),  # a small last layer after an input count not a multiple of 4
 ]
 
 
