@@ -46,7 +46,9 @@ static double sum(const double *x, Py_ssize_t n) {
  * libm's then). Every value goes through the vector call, the last few padded with 1.0, so a
  * value's result depends on the value alone, never on its row or the batch (a batch's rows
  * equal the same rows blended one at a time); they may differ from libm's in the last bit
- * (glibc documents libmvec's errors within 4 ulp), far inside the module's tolerance. */
+ * (glibc documents libmvec's errors within 4 ulp), far inside the module's tolerance.
+ * `VECTOR_MATH` is the width found (8, 4 or 0); `vector_math(lanes)` picks another that
+ * was found (or 0), so the tests hold every width to the reference on one machine. */
 enum { EXP, LOG, LOG2, N_FUNCS };
 static double (*const scalar_funcs[N_FUNCS])(double) = {exp, log, log2};
 static const char *const vector_names[2][N_FUNCS] = {
@@ -54,13 +56,14 @@ static const char *const vector_names[2][N_FUNCS] = {
     {"_ZGVeN8v_exp", "_ZGVeN8v_log", "_ZGVeN8v_log2"}, /* AVX-512F: 8 doubles */
 };
 static int vector_lanes = 0; /* doubles per vector call in use: 8, 4, or 0 (libm's scalar) */
+static int lanes_found = 0;  /* the widest found at import (`VECTOR_MATH`) */
 
 #if defined(__x86_64__) && defined(__GLIBC__)
 #include <dlfcn.h>
 #include <immintrin.h>
 typedef __m512d (*Vec8)(__m512d);
 typedef __m256d (*Vec4)(__m256d);
-static void *vector_funcs[N_FUNCS];
+static void *vector_funcs[2][N_FUNCS]; /* [AVX2, AVX-512F][function], all three or none */
 
 __attribute__((target("avx512f"))) static void apply8(Vec8 f, double *x, Py_ssize_t n) {
     Py_ssize_t i = 0;
@@ -82,33 +85,39 @@ __attribute__((target("avx2"))) static void apply4(Vec4 f, double *x, Py_ssize_t
     memcpy(x + i, pad, (size_t)(n - i) * sizeof(double));
 }
 
-/* the widest variants this CPU runs and libmvec holds, all three or none (`vector_lanes`) */
+/* every width this CPU runs whose three functions libmvec holds; the widest is used */
 static void find_vector_math(void) {
     __builtin_cpu_init();
     void *lib = dlopen("libmvec.so.1", RTLD_NOW | RTLD_LOCAL);
     if (lib == NULL) return;
-    for (int wide = 1; wide >= 0; wide--) {
+    for (int wide = 0; wide <= 1; wide++) {
         if (!(wide ? __builtin_cpu_supports("avx512f") : __builtin_cpu_supports("avx2"))) continue;
         int found = 0;
         for (int f = 0; f < N_FUNCS; f++)
-            found += (vector_funcs[f] = dlsym(lib, vector_names[wide][f])) != NULL;
-        if (found == N_FUNCS) {
-            vector_lanes = wide ? 8 : 4;
-            return; /* the library stays open: its functions are in use */
-        }
+            found += (vector_funcs[wide][f] = dlsym(lib, vector_names[wide][f])) != NULL;
+        if (found == N_FUNCS) lanes_found = wide ? 8 : 4;
+        else memset(vector_funcs[wide], 0, sizeof vector_funcs[wide]);
     }
-    dlclose(lib);
+    vector_lanes = lanes_found;
+    if (lanes_found == 0) dlclose(lib); /* else it stays open: its functions are in use */
+}
+
+static int lanes_usable(int lanes) {
+    return lanes == 0 || (lanes == 8 && vector_funcs[1][0] != NULL) ||
+           (lanes == 4 && vector_funcs[0][0] != NULL);
 }
 
 /* x[i] = func(x[i]) */
 static void apply(int func, double *x, Py_ssize_t n) {
-    if (vector_lanes == 8) apply8((Vec8)vector_funcs[func], x, n);
-    else if (vector_lanes == 4) apply4((Vec4)vector_funcs[func], x, n);
+    if (vector_lanes == 8) apply8((Vec8)vector_funcs[1][func], x, n);
+    else if (vector_lanes == 4) apply4((Vec4)vector_funcs[0][func], x, n);
     else
         for (Py_ssize_t i = 0; i < n; i++) x[i] = scalar_funcs[func](x[i]);
 }
 #else
 static void find_vector_math(void) { (void)vector_names; }
+
+static int lanes_usable(int lanes) { return lanes == 0; }
 
 static void apply(int func, double *x, Py_ssize_t n) {
     for (Py_ssize_t i = 0; i < n; i++) x[i] = scalar_funcs[func](x[i]);
@@ -576,7 +585,27 @@ done:
     return result;
 }
 
+/* vector_math([lanes]) -> the lanes in use before the call; with `lanes` (0, or 4 or 8 where
+ * found) every later blend uses them: for tests and benchmarks, which compare the widths */
+static PyObject *vector_math(PyObject *self, PyObject *args) {
+    (void)self;
+    int lanes = -1;
+    if (!PyArg_ParseTuple(args, "|i", &lanes)) return NULL;
+    int before = vector_lanes;
+    if (lanes != -1) {
+        if (!lanes_usable(lanes)) {
+            PyErr_Format(PyExc_ValueError, "lanes: expected 0%s%s, got %d",
+                         lanes_usable(4) ? ", 4" : "", lanes_usable(8) ? ", 8" : "", lanes);
+            return NULL;
+        }
+        vector_lanes = lanes;
+    }
+    return PyLong_FromLong(before);
+}
+
 static PyMethodDef methods[] = {
+    {"vector_math", vector_math, METH_VARARGS,
+     "vector_math([lanes]) -> the lanes of exp/log/log2 in use before; sets them (0: libm's)"},
     {"sample_rows", sample_rows, METH_VARARGS,
      "sample_rows(probs_BA, u_B) -> (actions_B, greedy_B)"},
     {"blend_rows", blend_rows, METH_VARARGS,
@@ -591,6 +620,6 @@ PyMODINIT_FUNC PyInit__blend_row(void) {
     import_array();
     find_vector_math();
     PyObject *m = PyModule_Create(&module);
-    if (m != NULL && PyModule_AddIntConstant(m, "VECTOR_MATH", vector_lanes) < 0) Py_CLEAR(m);
+    if (m != NULL && PyModule_AddIntConstant(m, "VECTOR_MATH", lanes_found) < 0) Py_CLEAR(m);
     return m;
 }

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import importlib
 import platform
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -29,6 +31,32 @@ bound_rows = importlib.import_module("policy.regret_bound").bound_rows
 FIELDS = ("probs_BA", "task_entropy_B", "task_weight_B", "partner_weights_BP")
 TOL = 1e-9
 compiled = pytest.mark.skipif(not blend_module.COMPILED, reason="policy._blend_row not built")
+kernel = importlib.import_module("policy._blend_row") if blend_module.COMPILED else None
+
+
+def _widths() -> list[int]:
+    """The widths of exp / log / log2 the kernel can use here (0: libm's scalar calls)."""
+    if kernel is None:
+        return [0]
+    usable = [0]
+    for lanes in (4, 8):
+        try:
+            before = kernel.vector_math(lanes)
+        except ValueError:
+            continue
+        kernel.vector_math(before)
+        usable.append(lanes)
+    return usable
+
+
+@contextmanager
+def _vector_width(lanes: int) -> Iterator[None]:
+    before = kernel.vector_math(lanes) if kernel is not None else 0
+    try:
+        yield
+    finally:
+        if kernel is not None:
+            kernel.vector_math(before)
 
 
 def test_the_compiled_blend_is_built_here() -> None:
@@ -99,11 +127,14 @@ def cases(draw, shapes=("random", "copies", "flat"), max_rows: int = 8):
     method=st.sampled_from(["sl", "nail", "aail"]),
     normalise=st.booleans(),
 )
-def test_compiled_equals_the_reference(case, method: str, normalise: bool) -> None:
+@pytest.mark.parametrize("lanes", _widths())
+def test_compiled_equals_the_reference(case, method: str, normalise: bool, lanes: int) -> None:
+    """At every width of exp / log / log2 found here (`lanes`; 0: libm's)."""
     q_task, q_impact, mask, alpha = case
     with np.errstate(all="ignore"):
         want = blend_vectorised(method, q_task, q_impact, alpha, mask, normalise=normalise)
-    got = blend(method, q_task, q_impact, alpha, mask, normalise=normalise)
+    with _vector_width(lanes):
+        got = blend(method, q_task, q_impact, alpha, mask, normalise=normalise)
     scale = max(np.abs(q_task).max(initial=0.0), np.abs(q_impact).max(initial=0.0))
     # rows whose impact policies are all within rounding of the task policy (a huge α flattens
     # them): their JS distances, hence ŵ and the blend, are rounding in both implementations
@@ -283,10 +314,12 @@ def test_kernel_shapes_are_checked() -> None:
 
 def test_the_vector_math_is_found_here() -> None:
     """On x86-64 glibc with AVX2 the kernel takes libmvec's exp, log and log2 (module
-    docstring of policy/_blend_row.c); elsewhere libm's (VECTOR_MATH 0)."""
-    kernel = importlib.import_module("policy._blend_row") if blend_module.COMPILED else None
+    docstring of policy/_blend_row.c), the widest the CPU runs; elsewhere libm's (0)."""
     if kernel is None:
         pytest.skip("policy._blend_row not built")
+    assert kernel.vector_math() == kernel.VECTOR_MATH
+    with pytest.raises(ValueError, match="lanes: expected 0"):
+        kernel.vector_math(16)
     cpuinfo = Path("/proc/cpuinfo")
     flags = cpuinfo.read_text().split() if cpuinfo.exists() else []
     glibc = platform.libc_ver()[0] == "glibc" and platform.machine() == "x86_64"
@@ -297,15 +330,20 @@ def test_the_vector_math_is_found_here() -> None:
 @compiled
 @settings(max_examples=100, deadline=None)
 @given(case=cases(max_rows=19), method=st.sampled_from(["sl", "nail", "aail"]))
-def test_a_batch_equals_its_rows_one_at_a_time(case, method: str) -> None:
+@pytest.mark.parametrize("lanes", _widths())
+def test_a_batch_equals_its_rows_one_at_a_time(case, method: str, lanes: int) -> None:
     """Every value of a batch goes through the same exp / log / log2 call whatever its place in
     the batch (the vector calls' last lanes padded, not sent to libm): bit for bit."""
     q_task, q_impact, mask, alpha = case
     alpha_B = np.broadcast_to(np.asarray(alpha, dtype=np.float64), q_task.shape[:1])
-    whole = blend(method, q_task, q_impact, alpha_B, mask)
-    for b in range(len(q_task)):
-        row = blend(
-            method, q_task[b : b + 1], q_impact[b : b + 1], alpha_B[b : b + 1], mask[b : b + 1]
-        )
+    with _vector_width(lanes):
+        whole = blend(method, q_task, q_impact, alpha_B, mask)
+        rows = [
+            blend(
+                method, q_task[b : b + 1], q_impact[b : b + 1], alpha_B[b : b + 1], mask[b : b + 1]
+            )
+            for b in range(len(q_task))
+        ]
+    for b, row in enumerate(rows):
         for field in (*FIELDS, "q_BA"):
             assert np.array_equal(getattr(row, field)[0], getattr(whole, field)[b], equal_nan=True)
