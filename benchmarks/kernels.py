@@ -8,6 +8,7 @@ Run: `OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/kernels.py [--calls 150
 | blend   | `policy/_blend_row.c`   | `policy.blend`'s vectorised path (`COMPILED` off)     |
 | forward | `policy/_row_forward.c` | `policy.row_forward.numpy_row_forward` (stacked matmul)|
 | belief  | `policy/_belief_row.c`  | `policy.belief`, `belief_views`, `goal_inference`'s numpy lines |
+| libm    | `policy/_blend_row.c`   | the compiled blend with libm's scalar exp / log / log2 instead of libmvec's vector calls (`vector_math(0)`) |
 
 Cases: a single act with 1 and with 4 announced partners (AAIL), a 256-row batch with 4, and a
 session step with 1 and with 4 inferred partners (its `prepare_next` included: a closed-loop
@@ -44,7 +45,9 @@ blend_kernel = importlib.import_module("policy.blend")
 forward_kernel = importlib.import_module("policy.row_forward")
 belief_kernel = importlib.import_module("policy.belief_compiled")
 
-VARIANTS = ("all compiled", "blend", "forward", "belief")
+blend_extension = importlib.import_module("policy._blend_row") if blend_kernel.COMPILED else None
+
+VARIANTS = ("all compiled", "blend", "libm", "forward", "belief")
 Call = Callable[[int], object]
 
 
@@ -54,6 +57,8 @@ def use(variant: str, belief_extension: object) -> None:
     setattr(forward_kernel, "COMPILED", variant != "forward")  # noqa: B010
     networks.ROW_FORWARD = variant != "forward"
     setattr(belief_kernel, "_EXTENSION", None if variant == "belief" else belief_extension)  # noqa: B010
+    if blend_extension is not None:
+        blend_extension.vector_math(0 if variant == "libm" else blend_extension.VECTOR_MATH)
 
 
 def cases(url: str) -> dict[str, tuple[Call, int]]:
@@ -126,8 +131,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--calls", type=int, default=1500, help="timed calls per case (batch: /10)")
     args = parser.parse_args()
-    print("| case | all compiled | blend in numpy | forward in numpy | belief in numpy |")
-    print("|---|---|---|---|---|")
+    print(
+        "| case | all compiled | blend in numpy | blend on libm's exp/log | forward in numpy "
+        "| belief in numpy |"
+    )
+    print("|---|---|---|---|---|---|")
     for name, row in measure(args.calls).items():
         base = row["all compiled"]
         cells = [f"{row[v]:.0f} µs ({(row[v] - base) / base * 100:+.0f} %)" for v in VARIANTS[1:]]
