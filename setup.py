@@ -18,13 +18,18 @@ Everything else is in pyproject.toml.
 import numpy
 from setuptools import Extension, setup
 
+# -O3 where GCC's vectoriser finds plain loops to widen (the blend's and the belief's short
+# elementwise loops over doubles; the same bits, since without -ffast-math every sum keeps its
+# order); the forward is intrinsics throughout and measured the same at either level
+OPTIMISE = {"_blend_row": "-O3", "_belief_row": "-O3", "_row_forward": "-O2"}
+
 setup(
     ext_modules=[
         Extension(
             f"policy.{name}",
             [f"policy/{name}.c"],
             include_dirs=[numpy.get_include()],
-            extra_compile_args=["-O2"],
+            extra_compile_args=[OPTIMISE[name]],
             libraries=["m"],
             depends=[f"policy/{name}_layer.h"] if name == "_row_forward" else [],
             optional=True,

@@ -40,8 +40,8 @@ static double sum(const double *x, Py_ssize_t n) {
 /* ---- exp, log and log2 over a buffer: libmvec's vector variants where glibc has them ------
  * Each step gathers the values of every row into one buffer and applies one function to it
  * (`apply`). glibc's libmvec holds vector variants of exp, log and log2 (8 doubles a call with
- * AVX-512F, 4 with AVX2) several times faster a value than libm's scalar calls, which took
- * about a third of a 256-row blend (docs/performance.md, "A batch's blend on vectors"). They
+ * AVX-512F, 4 with AVX2), several times faster a value than libm's scalar calls, which took
+ * a large share of a batch's blend (docs/performance.md, "A faster REST batch"). They
  * are found at import (`dlopen`, so the module links and runs where there is no libmvec:
  * libm's then). Every value goes through the vector call, the last few padded with 1.0, so a
  * value's result depends on the value alone, never on its row or the batch (a batch's rows

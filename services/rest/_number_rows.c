@@ -2,8 +2,8 @@
  *
  * Why C: a 256-row batch body parses (orjson) into 256 lists of Python floats; pydantic's
  * `list[list[float]]` then copies every number into new lists, and `np.asarray` walks them once
- * more, discovering their type element by element. Together that was about as much time as
- * orjson's parse of the whole body (docs/performance.md, "A batch's rows straight to an array").
+ * more, discovering their type element by element: together a large share of a batch
+ * request's time (docs/performance.md, "A faster REST batch").
  * This loop reads each number once and writes the array.
  *
  * `float_rows(value)` returns a C-contiguous (B, D) float64 array when `value` is a non-empty

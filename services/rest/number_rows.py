@@ -2,10 +2,9 @@
 plain rows of numbers (the compiled `services.rest._number_rows`), validated as a `Matrix` by
 pydantic otherwise.
 
-Why: a 256-row batch is 256 lists of Python floats; validating them as `list[list[float]]`
-copies every number into new lists and `np.asarray` then walks them again, together about as
-long as orjson's parse of the whole body (docs/performance.md, "A batch's rows straight to an
-array"). The compiled pass takes only what pydantic would accept unchanged (exact floats and
+Why: a large batch is as many lists of Python floats; validating them as `list[list[float]]`
+copies every number into new lists and `np.asarray` then walks them again, a large share of a
+batch request's time (docs/performance.md, "A faster REST batch"). The compiled pass takes only what pydantic would accept unchanged (exact floats and
 ints, rows of equal length); anything else (a string, a bool, a ragged or empty batch, a
 number beyond a double) goes the way it always went, so the same bodies are accepted, with the
 same values and the same errors naming the entry. The schema (`openapi.json`) is `Matrix`'s.
