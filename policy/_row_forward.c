@@ -20,7 +20,9 @@
  * - the last O mod 8 outputs (the 5 actions of the final layer): four partial sums over
  *   i = 0, 4, 8 .. / 1, 5, 9 .. / 2, .. / 3, .., the first starting at b[o], the I mod 4 last
  *   inputs added to the first one in order, then (s0 + s1) + (s2 + s3);
- * - relu is max(0, v) keeping NaN (as numpy's maximum does); tanh is libm's tanhf.
+ * - relu is max(0, v) keeping NaN (as numpy's maximum does: MAXPS returns its second operand
+ *   when one is NaN), applied to a hidden layer's outputs as they are stored; tanh is libm's
+ *   tanhf, over the stored outputs.
  * numpy's BLAS sums in another order, so the results differ from the numpy reference
  * (`policy.row_forward.numpy_row_forward`) by float32 rounding; tests/policy/test_row_forward.py
  * bounds the difference.
@@ -52,7 +54,7 @@
  * alone waits on the FMA latency (the 5 actions of a Q-network's last layer). */
 __attribute__((target("avx2,fma"), always_inline)) static inline void
 tail_rows_avx2(const float *x, int x_step, const float *W, const float *b, float *y, int y_step,
-               int n_i, int n_o, int ob, const int R) {
+               int n_i, int n_o, int ob, const int R, int relu) {
     int lanes = n_o - ob;
     __m256i mask = _mm256_cmpgt_epi32(_mm256_set1_epi32(lanes), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
     __m256 s[2][4];
@@ -80,21 +82,23 @@ tail_rows_avx2(const float *x, int x_step, const float *W, const float *b, float
             s[r][0] = _mm256_fmadd_ps(_mm256_set1_ps(x[(size_t)r * x_step + i]), wv, s[r][0]);
     }
 #pragma GCC unroll 2
-    for (int r = 0; r < R; r++)
-        _mm256_maskstore_ps(y + (size_t)r * y_step + ob, mask,
-                            _mm256_add_ps(_mm256_add_ps(s[r][0], s[r][1]), _mm256_add_ps(s[r][2], s[r][3])));
+    for (int r = 0; r < R; r++) {
+        __m256 out = _mm256_add_ps(_mm256_add_ps(s[r][0], s[r][1]), _mm256_add_ps(s[r][2], s[r][3]));
+        if (relu) out = _mm256_max_ps(_mm256_setzero_ps(), out);
+        _mm256_maskstore_ps(y + (size_t)r * y_step + ob, mask, out);
+    }
 }
 
 /* the tail of R rows (any R), two rows at a time */
 __attribute__((target("avx2,fma"), always_inline)) static inline void
 tail_avx2(const float *x, int x_step, const float *W, const float *b, float *y, int y_step,
-          int n_i, int n_o, int ob, int R) {
+          int n_i, int n_o, int ob, int R, int relu) {
     if (ob >= n_o) return;
     int r = 0;
     for (; r + 2 <= R; r += 2)
-        tail_rows_avx2(x + (size_t)r * x_step, x_step, W, b, y + (size_t)r * y_step, y_step, n_i, n_o, ob, 2);
+        tail_rows_avx2(x + (size_t)r * x_step, x_step, W, b, y + (size_t)r * y_step, y_step, n_i, n_o, ob, 2, relu);
     if (r < R)
-        tail_rows_avx2(x + (size_t)r * x_step, x_step, W, b, y + (size_t)r * y_step, y_step, n_i, n_o, ob, 1);
+        tail_rows_avx2(x + (size_t)r * x_step, x_step, W, b, y + (size_t)r * y_step, y_step, n_i, n_o, ob, 1, relu);
 }
 
 /* a layer of fewer than 8 outputs t (the t actions of a Q-network's last layer) on R <= 8 rows,
@@ -109,7 +113,7 @@ tail_avx2(const float *x, int x_step, const float *W, const float *b, float *y, 
  * inputs go to partial sum 0 in order, then (s0 + s1) + (s2 + s3). */
 __attribute__((target("avx512f,avx2,fma"), always_inline)) static inline void
 tail_small_avx512(const float *x, int x_step, const float *W, const float *b, float *y,
-                  int y_step, int n_i, int t, const int R) {
+                  int y_step, int n_i, int t, const int R, int relu) {
     const __mmask16 two = (__mmask16)((1u << (2 * t)) - 1), one = (__mmask16)((1u << t) - 1);
     __m512i lane = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
     __m512i second = _mm512_mask_set1_epi32(_mm512_setzero_si512(),
@@ -152,7 +156,9 @@ tail_small_avx512(const float *x, int x_step, const float *W, const float *b, fl
     for (int r = 0; r < R; r++) {
         __m512 s01 = _mm512_add_ps(acc[r][0], _mm512_permutexvar_ps(down, acc[r][0]));
         __m512 s23 = _mm512_add_ps(acc[r][1], _mm512_permutexvar_ps(down, acc[r][1]));
-        _mm512_mask_storeu_ps(y + (size_t)r * y_step, one, _mm512_add_ps(s01, s23));
+        __m512 out = _mm512_add_ps(s01, s23);
+        if (relu) out = _mm512_max_ps(_mm512_setzero_ps(), out);
+        _mm512_mask_storeu_ps(y + (size_t)r * y_step, one, out);
     }
 }
 
@@ -166,6 +172,7 @@ tail_small_avx512(const float *x, int x_step, const float *W, const float *b, fl
 #define VSTORE(p, v) _mm256_storeu_ps(p, v)
 #define VFMA(a, b, c) _mm256_fmadd_ps(a, b, c)
 #define VBCAST(p) _mm256_broadcast_ss(p)
+#define VRELU(v) _mm256_max_ps(_mm256_setzero_ps(), v)
 #define MAX_R 4
 #define V_OF(R) ((R) == 4 ? 3 : (R) == 2 ? 4 : 8)
 #include "_row_forward_layer.h"
@@ -177,6 +184,7 @@ tail_small_avx512(const float *x, int x_step, const float *W, const float *b, fl
 #undef VSTORE
 #undef VFMA
 #undef VBCAST
+#undef VRELU
 #undef V_OF
 #undef MAX_R
 
@@ -188,17 +196,11 @@ tail_small_avx512(const float *x, int x_step, const float *W, const float *b, fl
 #define VSTORE(p, v) _mm512_storeu_ps(p, v)
 #define VFMA(a, b, c) _mm512_fmadd_ps(a, b, c)
 #define VBCAST(p) _mm512_set1_ps(*(p))
+#define VRELU(v) _mm512_max_ps(_mm512_setzero_ps(), v)
 #define MAX_R 8
 #define V_OF(R) ((R) == 8 ? 2 : (R) == 4 ? 4 : 8)
 #include "_row_forward_layer.h"
 
-/* max(0, v), NaN kept (MAXPS returns its second operand when one is NaN) */
-__attribute__((target("avx2"))) static void relu_avx2(float *h, int n) {
-    int i = 0;
-    __m256 zero = _mm256_setzero_ps();
-    for (; i + 8 <= n; i += 8) _mm256_storeu_ps(h + i, _mm256_max_ps(zero, _mm256_loadu_ps(h + i)));
-    for (; i < n; i++) h[i] = 0.0f > h[i] ? 0.0f : h[i];
-}
 
 /* 8 where the CPU has AVX2 and FMA, 16 where it has AVX-512F too (GCC's check includes the
  * operating system's support for the wider registers), else 0 */
@@ -223,15 +225,6 @@ typedef struct {
     int n_layers, n_in[MAX_LAYERS], n_out[MAX_LAYERS];
     const float *w[MAX_LAYERS], *b[MAX_LAYERS]; /* at member `start` */
 } Stack;
-
-static void activate(float *y, int n, int relu) {
-#if HAVE_X86
-    if (relu) relu_avx2(y, n);
-    else tanh_inplace(y, n);
-#else
-    (void)y, (void)n, (void)relu;
-#endif
-}
 
 /* every member m < M on its rows p < P: out[m, p] = mlp_m(x[m or 0, p]), in blocks of 4, 2
  * or 1 rows (`layer_avx2`), or of 8, 4, 2 or 1 when `lanes` is 16 (`layer_avx512`: 32
@@ -263,12 +256,16 @@ static void run(const Stack *s, const float *x, int x_members, int M, int P, int
                 const float *next =
                     R > 1 && p + R == P && m + 1 < M ? w + (size_t)n_i * n_o : NULL;
                 if (next != NULL) _mm_prefetch((const char *)(b + n_o), _MM_HINT_T0); /* bias */
+                /* a hidden layer's relu is applied as its outputs are stored; tanh after */
+                int relu_out = k < last && relu;
                 if (lanes == 16)
-                    layer_avx512(h, h_step, w, b, y, y_step, n_i, n_o, R, (const char *)next);
+                    layer_avx512(h, h_step, w, b, y, y_step, n_i, n_o, R, (const char *)next,
+                                 relu_out);
                 else
-                    layer_avx2(h, h_step, w, b, y, y_step, n_i, n_o, R, (const char *)next);
-                if (k < last)
-                    for (int r = 0; r < R; r++) activate(y + (size_t)r * y_step, n_o, relu);
+                    layer_avx2(h, h_step, w, b, y, y_step, n_i, n_o, R, (const char *)next,
+                               relu_out);
+                if (k < last && !relu)
+                    for (int r = 0; r < R; r++) tanh_inplace(y + (size_t)r * y_step, n_o);
                 h = y;
                 h_step = y_step;
             }
