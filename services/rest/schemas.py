@@ -25,13 +25,12 @@ from services.rest.bounded import (
     GoalProbs,
     Matrix,
     RequestBody,
-    Tensor3,
     Vector,
     VersionPins,
     at_most,
     bounded_list,
 )
-from services.rest.number_rows import NumberRows
+from services.rest.number_rows import NumberRows, NumberStates
 
 MethodName = Literal["aail_bounded", "aail", "nail", "sl", "jl"]
 METHOD_HELP = (
@@ -95,7 +94,7 @@ class ActBatchBody(ActFields):
     observations: NumberRows | None = Field(
         default=None, description="the ego's observations, one per row"
     )
-    states: Tensor3 | None = Field(
+    states: NumberStates | None = Field(
         default=None, description="instead of `observations`: global states"
     )
     format: Literal["rows", "columns"] = Field(

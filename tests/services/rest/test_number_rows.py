@@ -1,5 +1,6 @@
-"""`services.rest.number_rows`: a batch's rows read straight into an array take exactly the
-bodies pydantic's `Matrix` takes, with the same values, and leave every other body to it."""
+"""`services.rest.number_rows`: a batch's rows (and states) read straight into an array take
+exactly the bodies pydantic's `Matrix` (and `Tensor3`) takes, with the same values, and leave
+every other body to it."""
 
 from __future__ import annotations
 
@@ -9,8 +10,8 @@ import numpy as np
 import pytest
 from pydantic import BaseModel, ValidationError
 
-from services.rest.bounded import Matrix
-from services.rest.number_rows import COMPILED, float_rows
+from services.rest.bounded import Matrix, Tensor3
+from services.rest.number_rows import COMPILED, float_array
 from services.rest.schemas import ActBatchBody
 
 pytestmark = pytest.mark.skipif(not COMPILED, reason="services.rest._number_rows not built")
@@ -18,6 +19,10 @@ pytestmark = pytest.mark.skipif(not COMPILED, reason="services.rest._number_rows
 
 class _Reference(BaseModel):
     observations: Matrix
+
+
+class _StatesReference(BaseModel):
+    states: Tensor3
 
 
 class _ListSubclass(list[list[float]]):
@@ -50,7 +55,7 @@ LEFT: dict[str, Any] = {  # values the compiled pass leaves to pydantic (accepte
 
 @pytest.mark.parametrize("rows", TAKEN.values(), ids=list(TAKEN))
 def test_taken_rows_equal_pydantic_values(rows: list[list[Any]]) -> None:
-    array = float_rows(rows)
+    array = float_array(rows, 2)
     assert isinstance(array, np.ndarray) and array.dtype == np.float64
     assert array.flags.c_contiguous and array.shape == (len(rows), len(rows[0]))
     expected = np.asarray(_Reference(observations=rows).observations, dtype=np.float64)
@@ -60,7 +65,7 @@ def test_taken_rows_equal_pydantic_values(rows: list[list[Any]]) -> None:
 
 @pytest.mark.parametrize("value", LEFT.values(), ids=list(LEFT))
 def test_everything_else_is_left_to_pydantic(value: Any) -> None:
-    assert float_rows(value) is None
+    assert float_array(value, 2) is None
 
 
 @pytest.mark.parametrize("value", LEFT.values(), ids=list(LEFT))
@@ -102,5 +107,75 @@ def test_both_ways_answer_a_batch_alike(act_client, fmt: str) -> None:
     fast = act_client.post("/v1/act:batch", json={**body, "observations": rows})
     rows[0][0] = "0.5"
     slow = act_client.post("/v1/act:batch", json={**body, "observations": rows})
+    assert fast.status_code == slow.status_code == 200, fast.text
+    assert fast.json() == slow.json()
+
+
+STATES_TAKEN: dict[str, list[list[list[Any]]]] = {
+    "two states of two agents": [
+        [[0.1, 0.2, 0, 1], [0.5, 0.5, 0.0, -1]],
+        [[1, 2, 3, 4], [5, 6, 7, 8]],
+    ],
+    "one state of one agent": [[[0.25]]],
+}
+STATES_LEFT: dict[str, Any] = {
+    "states of unequal agents": [[[0.1, 0.2]], [[0.1, 0.2], [0.3, 0.4]]],
+    "an agent row of unequal length": [[[0.1, 0.2], [0.3]]],
+    "a state of no agents": [[]],
+    "a string": [[[0.1, "x"]]],
+    "a bool": [[[0.1, False]]],
+    "rows, not states": [[0.1, 0.2]],
+}
+
+
+@pytest.mark.parametrize("states", STATES_TAKEN.values(), ids=list(STATES_TAKEN))
+def test_taken_states_equal_pydantic_values(states: list[list[list[Any]]]) -> None:
+    array = float_array(states, 3)
+    expected = np.asarray(_StatesReference(states=states).states, dtype=np.float64)
+    assert isinstance(array, np.ndarray) and array.flags.c_contiguous
+    np.testing.assert_array_equal(array, expected)
+    assert array.shape == expected.shape
+
+
+@pytest.mark.parametrize("value", STATES_LEFT.values(), ids=list(STATES_LEFT))
+def test_other_states_are_left_to_pydantic(value: Any) -> None:
+    assert float_array(value, 3) is None
+    body = {"env": "particle", "ego_goal": "a2", "states": value, "ego_index": 0}
+    try:
+        expected = _StatesReference(states=value).states
+    except ValidationError as reference:
+        with pytest.raises(ValidationError) as refused:
+            ActBatchBody.model_validate(body)
+        assert [e["loc"] for e in refused.value.errors()] == [e["loc"] for e in reference.errors()]
+        return
+    assert ActBatchBody.model_validate(body).states == expected
+
+
+def test_a_dimension_count_out_of_range_is_refused() -> None:
+    with pytest.raises(ValueError, match=r"ndim: expected 1\.\.4"):
+        float_array([[1.0]], 5)
+
+
+def test_batch_states_answer_alike_both_ways(act_client) -> None:
+    """Global states as numbers and with one written as a string: the same answer."""
+    rng = np.random.default_rng(5)
+    states = rng.uniform(-0.9, 0.9, (4, 2, 4)).tolist()
+    for state in states:  # velocities within the speed cap
+        for agent in state:
+            agent[2] *= 0.3
+            agent[3] *= 0.3
+    states[0][0][0] = 0.5
+    body = {
+        "env": "particle",
+        "ego_goal": "a2",
+        "ego_index": 0,
+        "partners": [{"index": 1, "goal": "c"}],
+        "method": "aail",
+        "seed": 3,
+        "format": "columns",
+    }
+    fast = act_client.post("/v1/act:batch", json={**body, "states": states})
+    states[0][0][0] = "0.5"
+    slow = act_client.post("/v1/act:batch", json={**body, "states": states})
     assert fast.status_code == slow.status_code == 200, fast.text
     assert fast.json() == slow.json()
