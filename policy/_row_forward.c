@@ -107,8 +107,9 @@ tail_avx2(const float *x, int x_step, const float *W, const float *b, float *y, 
  * `acc[r][1]` for k = 2, 3; input step j adds x[4j + k] W[4j + k, o] to it, and since W is
  * (inputs, t) row-major the 2t weights a vector needs at step j are contiguous (one load for
  * all R rows). The inputs go to their lanes by a permutation of 16 inputs loaded at once. Why:
- * `tail_avx2` loads a weight vector of t useful lanes per input and rows pair, and broadcasts
- * every input, which made this layer of 5 outputs about as slow as one of 128 on a batch.
+ * `tail_avx2` loads a weight vector of t useful lanes per input and pair of rows, and
+ * broadcasts every input, which gave this layer, a small share of a network's arithmetic, a
+ * large share of a batch's forward (docs/performance.md, "A faster REST batch").
  * Same bits: each lane runs the partial sum's FMA chain in input order, the I mod 4 last
  * inputs go to partial sum 0 in order, then (s0 + s1) + (s2 + s3). */
 __attribute__((target("avx512f,avx2,fma"), always_inline)) static inline void
