@@ -68,17 +68,23 @@ def test_everything_else_is_left_to_pydantic(value: Any) -> None:
     assert float_array(value, 2) is None
 
 
-@pytest.mark.parametrize("value", LEFT.values(), ids=list(LEFT))
-def test_the_body_model_accepts_and_refuses_as_pydantic_does(value: Any) -> None:
-    body = {"env": "particle", "ego_goal": "a2", "observations": value}
+def _assert_like_pydantic(reference: type[BaseModel], field: str, value: Any, **extra: Any) -> None:
+    """`ActBatchBody` takes `value` for `field` with the reference model's value, or refuses it
+    with the same error locations."""
+    body = {"env": "particle", "ego_goal": "a2", field: value, **extra}
     try:
-        expected = _Reference(observations=value).observations
-    except ValidationError as reference:
+        expected = getattr(reference.model_validate({field: value}), field)
+    except ValidationError as refusal:
         with pytest.raises(ValidationError) as refused:
             ActBatchBody.model_validate(body)
-        assert [e["loc"] for e in refused.value.errors()] == [e["loc"] for e in reference.errors()]
+        assert [e["loc"] for e in refused.value.errors()] == [e["loc"] for e in refusal.errors()]
         return
-    assert ActBatchBody.model_validate(body).observations == expected
+    assert getattr(ActBatchBody.model_validate(body), field) == expected
+
+
+@pytest.mark.parametrize("value", LEFT.values(), ids=list(LEFT))
+def test_the_body_model_accepts_and_refuses_as_pydantic_does(value: Any) -> None:
+    _assert_like_pydantic(_Reference, "observations", value)
 
 
 def test_a_large_batch_is_one_array() -> None:
@@ -140,15 +146,7 @@ def test_taken_states_equal_pydantic_values(states: list[list[list[Any]]]) -> No
 @pytest.mark.parametrize("value", STATES_LEFT.values(), ids=list(STATES_LEFT))
 def test_other_states_are_left_to_pydantic(value: Any) -> None:
     assert float_array(value, 3) is None
-    body = {"env": "particle", "ego_goal": "a2", "states": value, "ego_index": 0}
-    try:
-        expected = _StatesReference(states=value).states
-    except ValidationError as reference:
-        with pytest.raises(ValidationError) as refused:
-            ActBatchBody.model_validate(body)
-        assert [e["loc"] for e in refused.value.errors()] == [e["loc"] for e in reference.errors()]
-        return
-    assert ActBatchBody.model_validate(body).states == expected
+    _assert_like_pydantic(_StatesReference, "states", value, ego_index=0)
 
 
 def test_a_dimension_count_out_of_range_is_refused() -> None:
