@@ -12,7 +12,10 @@ case warms up for 1 s, then runs for `--duration` seconds on persistent connecti
 
 The floors (`floor_servers.py`), started by this run on the same CPU: a bare FastAPI app whose
 only route is the same `GET /healthz` on the same uvicorn settings (uvloop, httptools, one
-worker), and a bare grpcio server (same thread pool) with the standard health servicer. Only
+worker), and a bare grpcio server (same thread pool) with the standard health servicer and an
+act-shaped `Act` ("floor act", c = 1, informational: it parses the act's request and answers a
+fixed message of the shape of coexist's answer, so coexist's act p50 minus its p50 is the time
+coexist's handler and interceptor add inside grpcio's server; printed after the targets). Only
 one server runs at a time: each round starts coexist, measures its cases and stops it, then
 does the same for each floor (odd rounds the floors first), so a round's ratios come from
 servers measured minutes apart at most, each alone on its CPU.
@@ -403,14 +406,30 @@ def coexist_plan(http_port: int, grpc_port: int, duration: float) -> list[Planne
 
 
 def floor_plan(kind: str, port: int, duration: float) -> list[Planned]:
-    """The bare server's no-op (`floor_servers.py`), at the concurrencies of coexist's no-op."""
+    """The bare server's no-op (`floor_servers.py`), at the concurrencies of coexist's no-op;
+    for gRPC also its act-shaped act at c = 1."""
     if kind == "rest":
         url = f"http://127.0.0.1:{port}/healthz"
         return [
             ("REST", "floor no-op", 1, (1, 32), lambda c, t: run_wrk(url, None, c, duration, t))
         ]
-    url, noop = f"http://127.0.0.1:{port}{HEALTH}", grpc_bodies()["noop"]
-    return [("gRPC", "floor no-op", 1, (1, 32), lambda c, t: run_h2load(url, noop, c, duration, t))]
+    h2, bodies = f"http://127.0.0.1:{port}", grpc_bodies()
+    return [
+        (
+            "gRPC",
+            "floor no-op",
+            1,
+            (1, 32),
+            lambda c, t: run_h2load(h2 + HEALTH, bodies["noop"], c, duration, t),
+        ),
+        (
+            "gRPC",
+            "floor act",
+            1,
+            (1,),
+            lambda c, t: run_h2load(h2 + ACT, bodies["act"], c, duration, t),
+        ),
+    ]
 
 
 def measure(plan: list[Planned]) -> list[Case]:
@@ -586,8 +605,24 @@ def main() -> None:
                 indent=2,
             )
         )
+    handler = handler_share(cases)
+    if handler is not None:
+        print(
+            "\ngRPC act p50 = the act-shaped floor's {:.3f} ms + {:.3f} ms of coexist's handler "
+            "and interceptor in grpcio's server".format(*handler)
+        )
     if any(c.failed for c in cases):
         raise SystemExit("some requests failed: the figures above are not valid")
+
+
+def handler_share(cases: list[Case]) -> tuple[float, float] | None:
+    """(the act-shaped floor's p50, coexist's gRPC act p50 minus it) in ms, at c = 1; None
+    without the floor."""
+    get = {(c.transport, c.case, c.concurrency): c for c in cases}
+    floor, ours = get.get(("gRPC", "floor act", 1)), get.get(("gRPC", "act", 1))
+    if floor is None or ours is None:
+        return None
+    return floor.p50_ms, ours.p50_ms - floor.p50_ms
 
 
 if __name__ == "__main__":

@@ -102,6 +102,23 @@ def test_verdicts_against_the_bare_servers() -> None:
     assert not got["gRPC: health p50 / bare grpcio health p50 (c=1)"]
 
 
+def test_the_act_shaped_floor_splits_the_grpc_act() -> None:
+    cases = [_case("gRPC", "act", 1, 2000, 0.5), _case("gRPC", "floor act", 1, 5000, 0.2)]
+    floor, handler = serving.handler_share(cases)
+    assert (floor, round(handler, 6)) == (0.2, 0.3)
+    assert serving.handler_share(cases[:1]) is None  # no floor measured: nothing to split
+
+
+def test_the_act_shaped_answer_has_the_fields_of_a_five_agent_answer() -> None:
+    import floor_servers
+
+    answer = floor_servers.act_shaped_answer()
+    assert len(answer.probs) == 5 and len(answer.diagnostics.partner_weights) == 4
+    assert [m.role for m in answer.models] == ["task"] + ["impact"] * 4
+    assert all(len(m.sha256) == 64 and m.goal for m in answer.models)
+    assert [m.partner_index for m in answer.models[1:]] == [1, 2, 3, 4]
+
+
 def test_rounds_give_median_figures_and_median_ratios() -> None:
     def one_round(act_p50: float, noop_rps: int, act_rps: int) -> list:
         return (
@@ -164,8 +181,9 @@ def test_a_short_real_run_answers_every_request(tmp_path: Path) -> None:
         cwd=ROOT,
     )
     figures = json.loads(out.read_text())
-    # 16 of coexist (batch rows and act default: c = 1) and 4 of the bare servers; 6 + 5 targets
-    assert len(figures["cases"]) == 20 and len(figures["targets"]) == 11
+    # 16 of coexist (batch rows and act default: c = 1) and 5 of the bare servers (the
+    # act-shaped floor at c = 1); 6 + 5 targets
+    assert len(figures["cases"]) == 21 and len(figures["targets"]) == 11
     assert {c["case"] for c in figures["cases"]} == {
         "no-op",
         "act",
@@ -173,5 +191,6 @@ def test_a_short_real_run_answers_every_request(tmp_path: Path) -> None:
         "batch rows",
         "act default",
         "floor no-op",
+        "floor act",
     }
     assert all(c["failed"] == 0 and c["requests"] > 0 for c in figures["cases"])
