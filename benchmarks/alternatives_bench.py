@@ -54,6 +54,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
+from machine import describe  # noqa: E402
 from serving import Case, build_store, rest_bodies, run_wrk  # noqa: E402
 from wrk_server import (  # noqa: E402
     LOAD_CPU,
@@ -270,6 +271,7 @@ def main() -> None:
         tmp = Path(tmp_dir)
         url = f"sqlite:///{tmp / 'models.db'}"
         build_store(url)
+        print(describe())
         print(
             f"servers on CPU {SERVER_CPU} (one at a time), wrk on CPU {LOAD_CPU}, "
             f"{args.duration:g} s per case, {args.rounds} round(s)",
@@ -293,6 +295,7 @@ def main() -> None:
         args.json.write_text(
             json.dumps(
                 {
+                    "machine": describe(),
                     "duration_s": args.duration,
                     "ray_max_ongoing_requests": args.ray_max_ongoing_requests,
                     "medians": figures,

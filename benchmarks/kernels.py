@@ -35,6 +35,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from machine import describe  # noqa: E402
 from session_scene import EGO_GOAL, PARTNER_GOALS, build_store, episode  # noqa: E402
 
 import services.engine.networks as networks  # noqa: E402
@@ -131,6 +132,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--calls", type=int, default=1500, help="timed calls per case (batch: /10)")
     args = parser.parse_args()
+    print(describe())
     print(
         "| case | all compiled | blend in numpy | blend on libm's exp/log | forward in numpy "
         "| belief in numpy |"

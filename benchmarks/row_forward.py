@@ -34,6 +34,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from machine import describe
+
 from policy.row_forward import COMPILED, row_forward, vector_widths
 from trainer.config import TaskConfig
 
@@ -79,6 +81,7 @@ def main() -> None:
     rng = np.random.default_rng(0)
     evict = np.ones(EVICT_BYTES // 8)
     widths = vector_widths()
+    print(describe())
     print(
         "| members x rows | lanes | hot µs | cold µs | cold / hot | cold weights GB/s | hot GFLOP/s |"
     )

@@ -70,6 +70,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from machine import describe  # noqa: E402
 from wrk_server import (  # noqa: E402
     LOAD_CPU,
     SERVER_CPU,
@@ -566,6 +567,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         url = f"sqlite:///{tmp}/models.db"
         build_store(url)
+        print(describe())
         print(
             f"servers on CPU {SERVER_CPU} (one at a time), load generators on CPU {LOAD_CPU}, "
             f"{args.duration:g} s per case, log level {args.log_level}"
@@ -593,6 +595,7 @@ def main() -> None:
         args.json.write_text(
             json.dumps(
                 {
+                    "machine": describe(),
                     "cases": [
                         {**asdict(c), "rps": c.rps, "actions_per_s": c.actions_per_s} for c in cases
                     ],

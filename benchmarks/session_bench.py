@@ -64,6 +64,7 @@ import httpx
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from machine import describe  # noqa: E402  (this folder: on sys.path when run as a script)
 from session_scene import (  # noqa: E402  (this folder: on sys.path when run as a script)
     EGO_GOAL,
     PARTNER_GOALS,
@@ -268,6 +269,7 @@ def main() -> None:
         size = build_store(url)
         from session_breakdown import breakdown  # this folder is on sys.path when run
 
+        print(describe())
         print("in-process breakdown (this process) ...", flush=True)
         in_process = breakdown(url, *episode(2, args.steps), calls=1000)
         port = free_port()
@@ -318,7 +320,7 @@ def main() -> None:
         "stepping at most every few ms), closed loop otherwise; the server scores each "
         f"step's evidence ahead: {'NO (--no-prefetch)' if args.no_prefetch else 'yes'} "
         "(`COEXIST_SESSION_PREFETCH`); "
-        f"{os.cpu_count()} CPUs on this machine, shared with other work."
+        f"{describe()}, shared with other work."
     )
     args.out.mkdir(parents=True, exist_ok=True)
     record = {

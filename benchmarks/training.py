@@ -18,6 +18,7 @@ import time
 from dataclasses import replace
 
 import torch
+from machine import describe
 from rich.console import Console
 from rich.table import Table
 
@@ -106,6 +107,7 @@ def main() -> None:
                 updates_per_second(n_nets, True, args.seconds, cfg) for _ in range(args.repeats)
             )
             row(n_nets, "stacked", stk, seq)
+    console.print(describe())
     console.print(table)
     console.print(
         f"float32 matmul peak ({args.threads} torch thread(s), 1024 x 1024): {peak:.1f} GFLOP/s; "
