@@ -44,6 +44,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+from machine import describe
 from rich.console import Console
 from rich.table import Table
 
@@ -176,7 +177,7 @@ def main() -> None:
     threads = os.environ.get("OPENBLAS_NUM_THREADS", "default")
     title = (
         f"InferenceEngine.act, 1 ego + 4 partners, MLP 8-{args.hidden}-5, "
-        f"OPENBLAS_NUM_THREADS={threads}"
+        f"OPENBLAS_NUM_THREADS={threads}; {describe()}"
     )
     if args.compare is not None:
         old, new = compare(args.compare, args)

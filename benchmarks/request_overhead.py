@@ -170,6 +170,9 @@ def main() -> None:
             for _ in range(args.rounds):
                 for name, timer in timers.items():
                     rounds[name].append(timer(args.requests))
+    from machine import describe
+
+    print(describe())
     print(f"{args.requests} requests x {args.rounds} rounds, median µs per request")
     print("| case | µs / request |\n|---|---|")
     for name, values in rounds.items():
