@@ -152,6 +152,39 @@ def test_promoting_through_the_page_moves_the_alias(open_page: Any, server: dict
     expect(row).to_contain_text("production: v2")
 
 
+def test_a_token_given_while_the_first_load_is_refused_opens_the_view(
+    browser: Any, server: dict[str, str]
+) -> None:
+    """The page's first requests, sent without a token, are still in flight when the token is
+    submitted (held back here until then): their refusal must not answer the view the token
+    opens, nor stay on the notice line."""
+    expect = _expect()
+    page = browser.new_page(viewport=VIEWPORT)
+    held: list[Any] = []
+
+    def hold_tokenless(route: Any) -> None:
+        if "authorization" in route.request.headers:
+            route.continue_()
+        else:
+            held.append(route)
+
+    page.route("**/v1/envs", hold_tokenless)
+    try:
+        page.goto(f"{server['url']}/console/#/registry?model=particle%2Ftask%2Fa2")
+        for _ in range(200):  # until the tokenless request is held (bounded: 10 s)
+            if held:
+                break
+            page.wait_for_timeout(50)
+        assert held, "the page sent no tokenless /v1/envs"
+        _use_token(page, ADMIN)
+        for route in held:
+            route.continue_()  # the refusal (401) arrives after the token was set
+        expect(page.locator("#model-title")).to_have_text("particle/task/a2")
+        expect(page.locator("#notice")).to_be_hidden()
+    finally:
+        page.close()
+
+
 def test_changes_made_elsewhere_appear_without_a_reload(
     open_page: Any, server: dict[str, str]
 ) -> None:

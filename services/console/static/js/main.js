@@ -10,6 +10,7 @@ import {notify} from "./shared.js";
 
 const VIEWS = {registry, jobs, episodes};
 let current = null;
+let routes = 0; // route() calls so far: only the latest may report its failure
 
 function parseHash() {
   const raw = location.hash.replace(/^#\/?/, "");
@@ -18,6 +19,7 @@ function parseHash() {
 }
 
 async function route() {
+  const mine = ++routes;
   const {name, params} = parseHash();
   for (const [view, module] of Object.entries(VIEWS)) {
     const section = $(`#view-${view}`);
@@ -33,7 +35,8 @@ async function route() {
   try {
     await VIEWS[name].show(params);
   } catch (err) {
-    notify(err.explain ? err.explain() : String(err));
+    // a view opened before the token changed (or the hash) may fail late: not worth a notice
+    if (mine === routes) notify(err.explain ? err.explain() : String(err));
   }
 }
 
