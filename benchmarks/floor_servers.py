@@ -13,7 +13,7 @@ Run: `.venv/bin/python benchmarks/floor_servers.py rest PORT` or `... grpc PORT`
 
 The act-shaped method parses the request with the generated `ActRequest` class, as coexist does,
 and answers one fixed `ActResponse` of the shape of coexist's answer to `benchmarks/serving.py`'s
-act (five probabilities, four partner weights, five models with their sha256): the same bytes
+act (five probabilities, four partner weights, five models with their sha256): as many bytes
 in and out as a coexist act, no work between them. Its latency against the health check is what
 the act's messages cost grpcio; coexist's act against it is what coexist's handler costs.
 """
@@ -77,9 +77,11 @@ def act_shaped_answer() -> Any:
     """An `ActResponse` of the shape of coexist's answer to a five-agent act (1 ego, 4 partners
     announced): the values are placeholders, the fields and their sizes are those of the real
     answer."""
+    from envs.particle.scenarios import FIVE_AGENTS
     from services.grpc_api.gen.coexist.v1 import policy_pb2 as pb
 
-    goals = ("a2", "a0", "b2", "c4", "e1")
+    ego, partners = FIVE_AGENTS  # `benchmarks/serving.py`'s act
+    goals = (ego, *partners)
     answer = pb.ActResponse(
         probs=[0.9741, 0.0041, 0.0032, 0.0107, 0.0079],
         action=0,
