@@ -64,6 +64,7 @@ Hot reload: `refresh()` (or the daemon thread of `start_refresh_thread`, every
 from __future__ import annotations
 
 import bisect
+import itertools
 import logging
 import threading
 from collections.abc import Mapping, Sequence
@@ -475,6 +476,9 @@ class Layout(NamedTuple):
     """What a request layout (members, partners' indices and goals) fixes, per stacked group."""
 
     positions: tuple[tuple[int, ...], ...]  # per impact member: the partners it serves, in order
+    # `positions` as runs of consecutive members serving the same partners: (positions,
+    # members); one run for a belief's group, whose members all take the same input rows
+    position_runs: tuple[tuple[tuple[int, ...], int], ...]
     slots: Slots  # (partner position, goal) -> (member, block)
     models: tuple[ModelUsed, ...]  # the models used, the same objects on every call
     # the goal distributions' mixes (`_impact_q`): per goal count, the partners' positions and
@@ -536,9 +540,9 @@ def _layout(checked: CheckedRequest, members: Sequence[Member], group: StackedGr
         )
         for positions in by_count.values()
     )
-    layout = Layout(
-        tuple(map(tuple, served[1:])), slots, _models_used(checked, members, group), mixes
-    )
+    positions = tuple(map(tuple, served[1:]))
+    runs = [(rows, len(list(same))) for rows, same in itertools.groupby(positions)]
+    layout = Layout(positions, tuple(runs), slots, _models_used(checked, members, group), mixes)
     if len(group.memo) >= LAYOUTS_MAX:
         group.memo.clear()
     group.memo[key] = layout
@@ -583,15 +587,17 @@ def _inputs(
     # partner p's impact view is the task view of agent p (`Domain.impact_view`)
     partners = checked.partners
     joined: dict[tuple[int, ...], np.ndarray] = {}  # members serving the same partners share
-    for positions in layout.positions:
-        if positions not in joined:
+    for positions, count in layout.position_runs:
+        rows = joined.get(positions)
+        if rows is None:
             if len(positions) == 1:
-                joined[positions] = views_BKP[:, partners[positions[0]].index - 1]
+                rows = views_BKP[:, partners[positions[0]].index - 1]
             else:  # partner after partner, B rows each
                 columns = [partners[position].index - 1 for position in positions]
                 rows_PBF = views_BKP[:, columns].transpose(1, 0, 2)
-                joined[positions] = rows_PBF.reshape(-1, views_BKP.shape[-1])
-        inputs.append(joined[positions])
+                rows = rows_PBF.reshape(-1, views_BKP.shape[-1])
+            joined[positions] = rows
+        inputs += [rows] * count
     return inputs
 
 

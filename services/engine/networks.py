@@ -28,7 +28,7 @@ import threading
 from collections import OrderedDict
 from collections.abc import Hashable, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Generic, TypeVar
+from typing import Any, Generic, TypeVar, overload
 
 import numpy as np
 
@@ -226,15 +226,40 @@ def _runs(part: Partition, inputs: Sequence[np.ndarray]) -> list[tuple[int, int,
     return runs
 
 
-class MemberQ(list[np.ndarray]):
+class MemberQ(Sequence[np.ndarray]):
     """`forward_group`'s answer: member j's Q-values (rows_j, A) float32 at [j] (a view into
-    its call's output), and the outputs of the calls that served consecutive members
+    the output of the call that served it, made when asked for), and those outputs
     (`calls`: first member, end, (members, R, A) array), so that `rows_from` hands out many
-    members' rows without gathering their views again."""
+    members' rows at once. Why the views are made on demand: a belief's pass serves 35
+    members in one call and its mix reads them through `rows_from`; a view per member was a
+    numpy call each, for rows nobody indexed."""
 
     def __init__(self, count: int) -> None:
-        super().__init__([np.empty(0)] * count)
+        self._count = count
+        self._served: list[tuple[np.ndarray, int] | None] = [None] * count  # (output, i)
         self.calls: list[tuple[int, int, np.ndarray]] = []
+
+    def __len__(self) -> int:
+        return self._count
+
+    @overload
+    def __getitem__(self, j: int) -> np.ndarray: ...
+
+    @overload
+    def __getitem__(self, j: slice) -> list[np.ndarray]: ...
+
+    def __getitem__(self, j: int | slice) -> np.ndarray | list[np.ndarray]:
+        if isinstance(j, slice):
+            return [self[k] for k in range(*j.indices(self._count))]
+        if j < 0:
+            j += self._count
+        served = self._served[j] if 0 <= j < self._count else None
+        if served is not None:
+            return served[0][served[1]]
+        for start, end, q_GRA in self.calls:
+            if start <= j < end:
+                return q_GRA[j - start]
+        raise IndexError(f"member {j}: not served (members 0..{self._count - 1})")
 
     def rows_from(self, first: int) -> np.ndarray:
         """The rows of members `first`.. one after the other, (sum of rows_j, A): the output
@@ -258,8 +283,9 @@ def forward_group(group: StackedGroup, inputs: Sequence[np.ndarray]) -> MemberQ:
                 rows = inputs[same[0]].shape[0]
                 x_XRD = np.concatenate([inputs[j] for j in same]).reshape(len(same), rows, -1)
             q_GRA = _forward_members(part, x_XRD, g, end - g)
-            for i, j in enumerate(same):
-                outputs[j] = q_GRA[i]
-            if same[-1] - same[0] == len(same) - 1:  # consecutive members (`rows_from`)
+            if same[-1] - same[0] == len(same) - 1:  # consecutive members: found by their call
                 outputs.calls.append((same[0], same[-1] + 1, q_GRA))
+            else:
+                for i, j in enumerate(same):
+                    outputs._served[j] = (q_GRA, i)
     return outputs
