@@ -74,6 +74,16 @@ def _pair_columns(n_agents: int) -> np.ndarray:
     return columns
 
 
+@functools.cache
+def _partner_columns(n_agents: int) -> np.ndarray:
+    """(N-1, 8) column indices of the partner views [other_j, ego], j = 1..N-1 (N >= 2): the
+    pair views with their two blocks swapped."""
+    swapped = np.r_[STATE_DIM : 2 * STATE_DIM, 0:STATE_DIM]
+    columns = np.ascontiguousarray(_pair_columns(n_agents)[:, swapped])
+    columns.flags.writeable = False  # shared by every call
+    return columns
+
+
 class ParticleDomain(DomainCounts):
     """Domain description of the particle world (implements `envs.base.Domain`)."""
 
@@ -132,9 +142,10 @@ class ParticleDomain(DomainCounts):
         return obs_BD.take(_pair_columns(n_agents)[partner - 1], axis=1)
 
     def partner_view(self, obs_BD: np.ndarray, n_agents: int, partner: int) -> np.ndarray:
-        blocks_BN4 = self._blocks(obs_BD, n_agents)
+        obs_BD = self._checked(obs_BD, n_agents)
         self._check_partner(n_agents, partner)
-        return np.concatenate([blocks_BN4[:, partner], blocks_BN4[:, 0]], axis=-1)
+        # one take (goal inference asks for every partner's view at every session step)
+        return obs_BD.take(_partner_columns(n_agents)[partner - 1], axis=1)
 
     def goal_reached(self, obs_BD: np.ndarray, n_agents: int, goal: str) -> np.ndarray:
         """Whether the ego is inside (or on the border of) its target area, (B,) bool."""
