@@ -84,6 +84,15 @@ def _partner_columns(n_agents: int) -> np.ndarray:
     return columns
 
 
+@functools.cache
+def _target_corners(goal_index: int) -> tuple[np.ndarray, np.ndarray]:
+    """A target area's lower-left and upper-right corners, (x_min, y_min) and (x_max, y_max)."""
+    x_lo, x_hi, y_lo, y_hi = TARGET_BOXES_G4[goal_index]
+    low, high = np.array([x_lo, y_lo]), np.array([x_hi, y_hi])
+    low.flags.writeable = high.flags.writeable = False  # shared by every call
+    return low, high
+
+
 class ParticleDomain(DomainCounts):
     """Domain description of the particle world (implements `envs.base.Domain`)."""
 
@@ -148,10 +157,13 @@ class ParticleDomain(DomainCounts):
         return obs_BD.take(_partner_columns(n_agents)[partner - 1], axis=1)
 
     def goal_reached(self, obs_BD: np.ndarray, n_agents: int, goal: str) -> np.ndarray:
-        """Whether the ego is inside (or on the border of) its target area, (B,) bool."""
-        x_lo, x_hi, y_lo, y_hi = TARGET_BOXES_G4[check_goal(self, goal)]
-        x, y = self._blocks(obs_BD, n_agents)[:, 0, :2].T
-        return (x >= x_lo) & (x <= x_hi) & (y >= y_lo) & (y <= y_hi)
+        """Whether the ego is inside (or on the border of) its target area, (B,) bool. Its
+        position is the observation's first two columns (AAIL-B, the default method, asks at
+        every act: (B, 2) compared with the box's two corners)."""
+        low_2, high_2 = _target_corners(check_goal(self, goal))
+        xy_B2 = self._checked(obs_BD, n_agents)[:, :2]
+        inside_B2 = (xy_B2 >= low_2) & (xy_B2 <= high_2)
+        return inside_B2[:, 0] & inside_B2[:, 1]
 
     def goal_kept(self, obs_BD: np.ndarray, n_agents: int, goal: str) -> np.ndarray:
         """(B, A) bool: whether after each action the ego is inside its target area and stays
