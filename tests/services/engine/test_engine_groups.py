@@ -180,3 +180,35 @@ def test_members_sharing_an_input_equal_members_on_copies(tiny_zoo, rows: int) -
         alone = forward_group(build_group([net]), [inputs[j]])[0]
         np.testing.assert_allclose(together[j], apart[j], rtol=1e-5, atol=1e-5)
         np.testing.assert_allclose(together[j], alone, rtol=1e-5, atol=1e-5)
+
+
+def test_member_q_values_of_non_consecutive_members_are_found_by_member(tiny_zoo) -> None:
+    """A partition whose members are not consecutive in the group (two specs interleaved) is
+    served by one call; `MemberQ[j]` still gives member j's own rows (from either kind of call,
+    negative indices too), iteration stops at the last member and a member beyond it is an
+    IndexError."""
+    from services.engine.networks import forward_group
+
+    store = tiny_zoo.store
+    names = [
+        task_model_name("particle", "a2"),
+        *(f"particle/impact/{g}" for g in ("b3", "c1")),
+    ]
+    nets = [load_net(store, store.resolve(f"{name}@production")) for name in names]
+    # the same weights under another activation: a second partition, member 1 alone
+    nets[1] = dataclasses.replace(
+        nets[1], spec=dataclasses.replace(nets[1].spec, activation="tanh")
+    )
+    group = build_group(nets)
+    assert [part.members for part in group.partitions] == [(0, 2), (1,)]
+    rng = np.random.default_rng(7)
+    inputs = [rng.standard_normal((3, 8)).astype(np.float32) for _ in nets]
+    q = forward_group(group, inputs)
+    assert len(q) == 3 and len(list(q)) == 3
+    for j, net in enumerate(nets):
+        alone = forward_group(build_group([net]), [inputs[j]])[0]
+        np.testing.assert_array_equal(q[j], alone)
+        np.testing.assert_array_equal(q[j - 3], alone)
+    np.testing.assert_array_equal(q.rows_from(1), np.concatenate([q[1], q[2]]))
+    with pytest.raises(IndexError):
+        q[3]
