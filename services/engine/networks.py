@@ -7,7 +7,7 @@
 | `load_net`      | store -> `LoadedNet` (the store verifies the sha256 on every load)        |
 | `StackedGroup`  | the networks one request needs, stacked per architecture                  |
 | `forward_group` | member inputs (rows_j, D) -> member Q-values (rows_j, A)                  |
-| `MemberQ`       | its answer: a list of them, and many members' rows at once (`rows_from`)  |
+| `MemberQ`       | its answer: a sequence of them; many members' rows at once (`rows_from`)  |
 
 A group is split into *partitions* of members with the same spec, whose weights are stacked
 once, (G, in, out) per layer. `forward_group` evaluates the members of a partition that have
@@ -242,6 +242,12 @@ class MemberQ(Sequence[np.ndarray]):
     def __len__(self) -> int:
         return self._count
 
+    def serve(self, members: Sequence[int], q_GRA: np.ndarray) -> None:
+        """Members that are not consecutive, served by one call's output (`q_GRA[i]` is
+        `members[i]`'s); a call serving consecutive members goes to `calls` instead."""
+        for i, j in enumerate(members):
+            self._served[j] = (q_GRA, i)
+
     @overload
     def __getitem__(self, j: int) -> np.ndarray: ...
 
@@ -286,6 +292,5 @@ def forward_group(group: StackedGroup, inputs: Sequence[np.ndarray]) -> MemberQ:
             if same[-1] - same[0] == len(same) - 1:  # consecutive members: found by their call
                 outputs.calls.append((same[0], same[-1] + 1, q_GRA))
             else:
-                for i, j in enumerate(same):
-                    outputs._served[j] = (q_GRA, i)
+                outputs.serve(same, q_GRA)
     return outputs
