@@ -475,9 +475,9 @@ def _plan_members(request: ActRequest, checked: CheckedRequest) -> MemberPlan:
 class Layout(NamedTuple):
     """What a request layout (members, partners' indices and goals) fixes, per stacked group."""
 
-    positions: tuple[tuple[int, ...], ...]  # per impact member: the partners it serves, in order
-    # `positions` as runs of consecutive members serving the same partners: (positions,
-    # members); one run for a belief's group, whose members all take the same input rows
+    # the impact members in order, as runs of consecutive members serving the same partners:
+    # (the partners' positions, in order; how many members); one run for a belief's group,
+    # whose members all take the same input rows
     position_runs: tuple[tuple[tuple[int, ...], int], ...]
     slots: Slots  # (partner position, goal) -> (member, block)
     models: tuple[ModelUsed, ...]  # the models used, the same objects on every call
@@ -540,9 +540,8 @@ def _layout(checked: CheckedRequest, members: Sequence[Member], group: StackedGr
         )
         for positions in by_count.values()
     )
-    positions = tuple(map(tuple, served[1:]))
-    runs = [(rows, len(list(same))) for rows, same in itertools.groupby(positions)]
-    layout = Layout(positions, tuple(runs), slots, _models_used(checked, members, group), mixes)
+    runs = tuple((tuple(rows), len(list(same))) for rows, same in itertools.groupby(served[1:]))
+    layout = Layout(runs, slots, _models_used(checked, members, group), mixes)
     if len(group.memo) >= LAYOUTS_MAX:
         group.memo.clear()
     group.memo[key] = layout
