@@ -77,6 +77,21 @@ def _cache_sizes() -> dict[int, str]:
     return sizes
 
 
+def last_level_cache_bytes(caches: dict[int, str] | None = None) -> int | None:
+    """The largest cache's size in bytes (of `caches` as sysfs writes them, "2048K", else CPU
+    0's), or None where it is not known: what a benchmark must read past to find its data
+    back in memory."""
+    sizes = _cache_sizes() if caches is None else caches
+    if not sizes:
+        return None
+    sysfs = sizes[max(sizes)]
+    if sysfs.endswith("K") and sysfs[:-1].isdigit():
+        return int(sysfs[:-1]) * 1024
+    if sysfs.endswith("M") and sysfs[:-1].isdigit():
+        return int(sysfs[:-1]) * 2**20
+    return None
+
+
 def _size(sysfs: str) -> str:
     """ "2048K" -> "2 MiB", "48K" -> "48 KiB" (sysfs's K is KiB)."""
     if sysfs.endswith("K") and sysfs[:-1].isdigit():

@@ -38,6 +38,14 @@ def test_what_is_missing_is_left_out() -> None:
     assert machine.describe_from("", 4, {}).endswith(", 4 CPUs")  # no /proc/cpuinfo
 
 
+def test_the_last_level_cache_is_read_in_bytes() -> None:
+    assert machine.last_level_cache_bytes({1: "48K", 2: "2048K", 3: "266240K"}) == 260 * 2**20
+    assert machine.last_level_cache_bytes({2: "512K"}) == 512 * 1024  # no L3: the L2
+    assert machine.last_level_cache_bytes({3: "32M"}) == 32 * 2**20
+    assert machine.last_level_cache_bytes({3: "a lot"}) is None
+    assert machine.last_level_cache_bytes({}) is None
+
+
 def test_this_machine_is_described() -> None:
     line = machine.describe()
     assert line and "CPU" in line
