@@ -41,8 +41,8 @@ from trainer.config import TaskConfig
 
 PAIR_OBS_DIM, N_ACTIONS = 8, 5  # the particle world's pair view and actions
 CASES = ((35, 1), (35, 4), (1, 1024), (4, 256))
-# the cold case reads 1.5x the last-level cache (at least 64 MiB) before each call: the kinds
-# measured range from 32 MiB to 300 MiB of L3, so a fixed size left the weights in some of them
+# the cold case reads 1.5x the last-level cache (at least this) before each call: the kinds of
+# machine measured differ several-fold in L3 size, and a fixed size left the weights in the larger
 MIN_EVICT_BYTES = 64 * 2**20
 
 Layers = list[tuple[np.ndarray, np.ndarray]]
