@@ -50,6 +50,7 @@ from services.metrics import (
     request_registry,
     scrape_registry,
 )
+from services.oip.rest import V2ErrorBodies
 from services.oip.rest import router as v2_router
 from services.registry import router as registry_router
 from services.registry.errors import install_error_handlers as install_registry_errors
@@ -195,6 +196,9 @@ def create_app(
         record=http_metrics.record,
         tracer=tracer,
     )
+    # outside even that: every error answer on /v2 in the protocol's shape (`{"error": str}`),
+    # whichever layer made it
+    app.add_middleware(V2ErrorBodies)
 
     # The probes first: routes are matched in order, and a load balancer polls these often.
     @app.get("/healthz", tags=["health"])
