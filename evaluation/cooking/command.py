@@ -17,7 +17,6 @@ say so). Writes `results.md`, `results.json`, `fig9_cooking.png` and `aail_episo
 
 from __future__ import annotations
 
-import shlex
 import time
 from contextlib import ExitStack
 from dataclasses import dataclass
@@ -25,6 +24,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from evaluation.base import EvalOptions, OptionError, Ui
+from evaluation.command_line import portable_command
 
 if TYPE_CHECKING:
     from evaluation.cooking.suite import CookingResults
@@ -116,4 +116,4 @@ def _command(server: str | None, store_url: str | None, out: Path, settings: dic
     words += ["--store-url", store_url] if store_url else []
     for name, value in settings.items():
         words += [f"--{name.replace('_', '-')}", str(value)]
-    return shlex.join([*words, "--out", str(out)])
+    return portable_command([*words, "--out", str(out)])

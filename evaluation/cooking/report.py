@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from evaluation.command_line import portable_command, portable_path, variables_note
 from evaluation.cooking.suite import (
     RECIPES,
     CookingResults,
@@ -97,7 +98,8 @@ def write_cooking_files(
     plot_cooking(results, out / FIGURE)
     if results.trajectory:
         save_cooking_gif(results, out / GIF)
-    footer = f"\n\nCommand: `{command}` ({backend}, {wall_s:.0f} s).\n"
+    note = variables_note(command)
+    footer = f"\n\nCommand: `{command}` ({backend}, {wall_s:.0f} s).{' ' + note if note else ''}\n"
     (out / "results.md").write_text(results.to_markdown() + footer, encoding="utf-8")
     payload = results_json(results, command=command, backend=backend, wall_s=round(wall_s, 1))
     path = out / RESULTS_JSON
@@ -112,7 +114,8 @@ def cooking_section(cooking_dir: Path, report_dir: Path) -> str:
     file = cooking_dir / RESULTS_JSON
     if not file.exists():
         return (
-            f"{title}\n\nNot run yet: `coexist eval --suite cooking --out {cooking_dir}` "
+            f"{title}\n\nNot run yet: `coexist eval --suite cooking --out "
+            f"{portable_path(cooking_dir)}` "
             f"writes the results to `{rel}/` and this section."
         )
     data = json.loads(file.read_text(encoding="utf-8"))
@@ -181,7 +184,7 @@ def main(argv: list[str]) -> None:
         backend = EngineBackend(InferenceEngine(store))
         start = time.perf_counter()
         results = evaluate_cooking(backend, episodes=episodes, temperature=temperature)
-        command = "python -m evaluation.cooking " + " ".join(argv)
+        command = portable_command(["python", "-m", "evaluation.cooking", *argv])
         write_cooking_files(
             results,
             out,

@@ -1,4 +1,4 @@
-"""`coexist eval --suite inference`: online goal inference, its accuracy and value (issue 9).
+"""`coexist eval --suite inference`: online goal inference, its accuracy and value.
 
     coexist eval --suite inference --store-url URL [--episodes N] [--pairs K] [--out DIR]
     coexist eval --suite inference --fast          # a tiny zoo in a temporary store
@@ -12,13 +12,13 @@ adds the latency section to the same README. The paper suite's other options are
 
 from __future__ import annotations
 
-import shlex
 from contextlib import AbstractContextManager, ExitStack
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from evaluation.base import EvalOptions, OptionError, Ui
+from evaluation.command_line import portable_command
 
 if TYPE_CHECKING:
     from evaluation.inference.suite import InferenceSuiteConfig
@@ -123,4 +123,4 @@ def _command(config: InferenceSuiteConfig, store_url: str | None, out: Path) -> 
     words += ["--pair-episodes", str(value.pair_episodes), "--max-steps", str(value.max_steps)]
     words += ["--seed", str(value.seed), "--alias", value.alias]
     words += ["--partner-alias", value.partner_alias, "--out", str(out)]
-    return shlex.join(words)
+    return portable_command(words)

@@ -19,6 +19,7 @@ import json
 from pathlib import Path
 from typing import Any
 
+from evaluation.command_line import variables_note
 from evaluation.inference.plots import (
     plot_accuracy,
     plot_cross_entropy,
@@ -138,7 +139,7 @@ def render_readme(out: Path) -> Path:
     )
     fast = results is not None and results.get("fast")
     parts = [
-        "# Online goal inference: accuracy, value, latency (issue 9)"
+        "# Online goal inference: accuracy, value, latency"
         + (" (**--fast: tiny networks, numbers test the harness only**)" if fast else ""),
         "Partners who do not announce their goals: the server keeps a belief over each "
         "partner's goal, P(g | history) ∝ P(g) Π_t π_g(a_t | s_t), the partner's 35 task "
@@ -150,7 +151,8 @@ def render_readme(out: Path) -> Path:
     if results is not None:
         parts += [
             "## Setup",
-            f"- Command: `{results['command']}` ({results['generated']}).",
+            f"- Command: `{results['command']}` ({results['generated']}"
+            f"{'; ' + variables_note(results['command']) if '$' in results['command'] else ''}).",
             "- The partner acts by its true goal's task policy softmax(Q/α) from the "
             f"**`{results['accuracy']['config']['partner_alias']}` population**, trained with "
             "another seed; the belief scores its actions with the "
@@ -178,7 +180,7 @@ def paper_section(paper_out: Path) -> str:
     link = "[`reports/inference/README.md`](../inference/README.md)"
     if results is None:
         return f"Not run yet (`coexist eval --suite inference`); the report goes to {link}."
-    lines = [f"Partners who do not announce their goals (issue 9); the full report is {link}."]
+    lines = [f"Partners who do not announce their goals; the full report is {link}."]
     series = results["accuracy"]["series"]
     first = next(iter(series))
     acc, top3 = series[first]["accuracy"], series[first]["top3"]

@@ -16,13 +16,13 @@ runs nothing.
 
 from __future__ import annotations
 
-import shlex
 from contextlib import AbstractContextManager, ExitStack
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from evaluation.base import EvalOptions, OptionError, Ui
+from evaluation.command_line import portable_command
 
 if TYPE_CHECKING:
     from evaluation.config import Scenario, SuiteConfig
@@ -157,4 +157,4 @@ def _command(config: SuiteConfig, options: EvalOptions, out: Path) -> str:
     words += ["--timing-log", str(options.timing_log)] if options.timing_log else []
     for run_dir in options.run_dir:
         words += ["--run-dir", str(run_dir)]
-    return shlex.join(words)
+    return portable_command(words)

@@ -26,6 +26,7 @@ from collections.abc import Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 
+from evaluation.command_line import variables_note
 from evaluation.cooking.report import COOKING_HEADING, cooking_section
 from evaluation.inference.report import paper_section
 from evaluation.paper import plots
@@ -71,7 +72,7 @@ SECTIONS = (
     "## Episode strip",
     "## Models used",
     "## Discussion",
-    "## Online goal inference (issue 9)",
+    "## Online goal inference",
     COOKING_HEADING,
 )
 FIGURE_NAMES = {
@@ -130,6 +131,11 @@ def _verdicts(claims: list[Claim]) -> str:
     return "\n".join(lines)
 
 
+def _note(command: str) -> str:
+    note = variables_note(command)
+    return f" ({note})" if note else ""
+
+
 def _setup(result: SuiteResult, command: str) -> str:
     cfg = result.config
     rows = [
@@ -160,7 +166,7 @@ def _setup(result: SuiteResult, command: str) -> str:
     walls = ", ".join(f"{k} {v:.1f} s" for k, v in result.wall_s.items())
     return "\n".join(
         [
-            f"- Command: `{command}`",
+            f"- Command: `{command}`" + _note(command),
             f"- Backend: {result.backend}; {result.backend_calls:,} policy calls; wall time: {walls}.",
             f"- Seed {cfg.seed}; episodes end when every agent is inside its target at one step or "
             f"after **{cfg.max_steps} steps** (the paper: 1000). Controlled agent (agent 1 in the "
