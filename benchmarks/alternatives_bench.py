@@ -1,4 +1,4 @@
-"""coexist's REST server beside what a user would pick instead, measured in one run (issue 22):
+"""coexist's REST server beside what a user would pick instead, measured in one run:
 the same AAIL act on the same networks, served by `coexist serve`, by a bare FastAPI app with
 numpy and by Ray Serve.
 

@@ -16,7 +16,7 @@ client waits for it), on the session benchmarks' store (every particle network, 
 at the trainer's size, `benchmarks/session_scene.py`). The variants run call by call in turn
 (all compiled, then each kernel off), so a burst of load from a neighbour on a shared machine
 hits all of them alike; each figure is the median of `--calls` calls. A kernel whose numpy
-reference costs less than 10 % more on every case is not worth its C (issue 18).
+reference costs less than 10 % more on every case is not worth its compiled form.
 """
 
 from __future__ import annotations

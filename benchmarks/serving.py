@@ -31,10 +31,10 @@ servers measured minutes apart at most, each alone on its CPU.
 | act default| the act's body without       | the act's message without `method`    | AAIL-B, c = 1  |
 |            | `method`: the server default |                                       | (informational)|
 
-Targets (issue 5), per transport: act p50 at c=1 <= 2x the no-op p50; act throughput at c=32
->= 40 % of the no-op's; batch actions/s >= 30x the single-request rate (both at c=1), with the
-columnar batch ("batch rows" is informational: the default format, one result per row).
-Against the floors (issue 22), at c=1 unless said: REST no-op p50 <= 1.15x the bare FastAPI
+Targets against its own no-op, per transport: act p50 at c=1 <= 2x the no-op p50; act
+throughput at c=32 >= 40 % of the no-op's; batch actions/s >= 30x the single-request rate (both
+at c=1), with the columnar batch ("batch rows" is informational: the default format, one result
+per row). Against the floors, at c=1 unless said: REST no-op p50 <= 1.15x the bare FastAPI
 no-op's, act p50 <= 1.8x it, act req/s at c=32 >= 40 % of its req/s at c=32; gRPC health p50
 <= 1.15x the bare grpcio health server's, act p50 <= 1.5x it.
 With `--rounds N` the whole plan runs N times one after the other; the table shows each case's
@@ -494,7 +494,7 @@ def verdicts(cases: list[Case]) -> list[tuple[str, float, float, bool]]:
 
 
 def floor_verdicts(get: dict[tuple[str, str, int], Case]) -> list[tuple[str, float, float, bool]]:
-    """Issue 22's targets: coexist against the bare servers (what coexist adds to a request)."""
+    """The floor targets: coexist against the bare servers (what coexist adds to a request)."""
     rows = []
     floor_rest, floor_grpc = get["REST", "floor no-op", 1], get["gRPC", "floor no-op", 1]
     against = [

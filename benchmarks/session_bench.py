@@ -1,4 +1,4 @@
-"""Session step latency (issue 9): a REST step with goal inference against a plain `/v1/act`.
+"""Session step latency: a REST step with goal inference against a plain `/v1/act`.
 
 Run: `.venv/bin/python benchmarks/session_bench.py [--duration 5] [--rounds 3] [--steps 200] [--no-prefetch]
 [--out reports/inference]` (needs `wrk` and `taskset`; the plumbing is `benchmarks/wrk_server.py`).
@@ -15,7 +15,7 @@ Run: `.venv/bin/python benchmarks/session_bench.py [--duration 5] [--rounds 3] [
 | act, 4 announced             | `POST /v1/act`, five agents, 4 announced partners    | 1 task + 4 impact    |
 | step, 4 inferred (+ top-8)   | the session, 4 partners inferred, 4 actions a step   | 35 task + 1 + 4 × 35 |
 
-Target (issue 9): step p50 <= 1.5 × the plain act's p50 (1 partner; 4 partners reported too).
+Target: step p50 <= 1.5 × the plain act's p50 (1 partner; 4 partners reported too).
 
 Closed loop and paced. wrk sends each request the moment the previous answer is in (closed
 loop: no time between steps) and, in the "paced" cases, `--pause-ms` after it (default 5 ms:

@@ -18,7 +18,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("cli", "envs", "evaluation", "model_store", "policy", "services", "trainer")
 SCRIPTS = "benchmarks"  # scripts that import each other by bare name (their folder on sys.path)
-# cycles other branches are removing (trainer/ and evaluation/ reshaping, issue 18): listed so
+# cycles other branches are removing (trainer/ and evaluation/ reshaping): listed so
 # that this test guards everything else now; a cycle not listed here fails
 KNOWN: set[frozenset[str]] = set()  # no cycle is allowed
 

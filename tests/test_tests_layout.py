@@ -1,4 +1,4 @@
-"""`tests/` mirrors the source tree folder for folder (issue 18): every folder of Python source
+"""`tests/` mirrors the source tree folder for folder: every folder of Python source
 has a folder of tests at the same path, so the tests of a module are found where it lives.
 
 The SDK's sources live in `sdk/coexist_client/` (its own distribution) and its tests in

@@ -1,4 +1,4 @@
-"""Online goal inference (issue 9, `coexist eval --suite inference`).
+"""Online goal inference (`coexist eval --suite inference`).
 
 | module     | what                                                              |
 |------------|-------------------------------------------------------------------|

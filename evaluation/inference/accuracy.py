@@ -1,4 +1,4 @@
-"""Online goal inference (issue 9), part 1: does the belief find a partner's goal?
+"""Online goal inference, part 1: does the belief find a partner's goal?
 
     result = run_accuracy(engine, AccuracyConfig())   # belief after k observed actions, k = 0..50
     result.summary()                                  # accuracy, top-3, cross-entropy per k

@@ -22,7 +22,7 @@ from evaluation.inference.plots import VALUE_LABELS
 from evaluation.inference.suite import REPORT_KS
 from evaluation.paper.tables import fmt_p, table
 
-LATENCY_TARGET = 1.5  # session step p50 / plain act p50 (issue 9)
+LATENCY_TARGET = 1.5  # session step p50 / plain act p50, the latency target
 
 
 def report_ks(acc: dict[str, Any]) -> list[int]:

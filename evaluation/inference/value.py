@@ -1,4 +1,4 @@
-"""Online goal inference (issue 9), part 2: what inferring a partner's goal is worth.
+"""Online goal inference, part 2: what inferring a partner's goal is worth.
 
     value = run_value(engine, ValueConfig())      # SL, AAIL announced, AAIL inferred, paired
     value.scenarios["non_aligned"].comparison      # returns, tests, recovered fraction

@@ -1,4 +1,4 @@
-"""The paper's claims (issue 6, list 1-4) turned into checks with fixed thresholds.
+"""The paper's four claims turned into checks with fixed thresholds.
 
 The thresholds were fixed before any result was seen and are the same for the hand-picked
 scenarios and the pair sample; a claim is *reproduced* when all its checks pass, *not

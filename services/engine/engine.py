@@ -319,7 +319,7 @@ class InferenceEngine:
         self.stats.catalogue_group_acts += 1
         return members, group
 
-    # --- goal inference (issue 9; `goal_inference`) -----------------------------------------
+    # --- goal inference (`goal_inference`) --------------------------------------------------
     def goal_log_likelihoods(
         self,
         env: str,

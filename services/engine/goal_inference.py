@@ -1,4 +1,4 @@
-"""The engine's side of online goal inference (issue 9): how likely each goal makes a partner's
+"""The engine's side of online goal inference: how likely each goal makes a partner's
 observed action, for every goal at once, and the partners' actions recovered from observations.
 The belief itself (prior, forgetting, floor) is pure maths in `policy.belief`.
 

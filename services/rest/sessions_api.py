@@ -1,4 +1,4 @@
-"""The session routes: a partner's goal inferred online over REST (issue 9).
+"""The session routes: a partner's goal inferred online over REST.
 
 | route                              | what                                            | answer |
 |------------------------------------|-------------------------------------------------|--------|

@@ -1,4 +1,4 @@
-"""Sessions: a partner's goal inferred online from its observed actions (issue 9).
+"""Sessions: a partner's goal inferred online from its observed actions.
 
     store = SessionStore(engine)                                  # REST: many sessions
     info = store.create(SessionSettings("particle", "a2", (SessionPartner(1, infer=True),)))

@@ -1,4 +1,4 @@
-"""The acceptance test of the client distribution (issue 21): build the `sdk/` wheel, install it
+"""The acceptance test of the client distribution: build the `sdk/` wheel, install it
 into a fresh virtual environment (no torch, FastAPI or SQLAlchemy there, nor any of the server's
 packages), and run act (HTTP and gRPC), a session and a registry promote against a real
 `coexist serve` (`sdk_install_script.py`)."""
