@@ -127,7 +127,9 @@ def create_app(
                 reuse_port=True,  # uvicorn workers of one server share the gRPC port
                 tokens=settings.accepted_tokens() if settings.reads_need_token else None,
                 tls=settings.tls_pair(),
+                max_episodes=settings.max_episodes,
                 episodes_per_client=settings.max_episodes_per_client,
+                episode_idle_s=settings.episode_idle_timeout_s,
                 metrics=app.state.grpc_metrics,
                 tracer=tracer,
             )

@@ -28,10 +28,16 @@ by the test suite and by Ray.
 |                               |                    |               | neither; docs/security.md)                        |
 | `COEXIST_GRPC_PORT`           | 50051              | server        | gRPC port (0: any free port)                      |
 | `COEXIST_GRPC_ENABLED`        | true               | server        | serve gRPC beside REST                            |
-| `COEXIST_GRPC_WORKERS`        | 8                  | server        | gRPC thread pool size                             |
-| `COEXIST_MAX_EPISODES_PER_CLIENT` | half the workers | server      | open gRPC `Episode` streams of one client address |
-|                               |                    |               | (each holds a worker thread); behind a proxy      |
-|                               |                    |               | every client has its address: raise it there      |
+| `COEXIST_GRPC_WORKERS`        | 8                  | server        | gRPC thread pool size (at least 2; health Check   |
+|                               |                    |               | has 2 threads of its own besides)                 |
+| `COEXIST_MAX_EPISODES`        | half the workers   | server        | open gRPC `Episode` streams (and health `Watch`   |
+|                               |                    |               | streams) of all clients together; each holds a    |
+|                               |                    |               | worker thread, so it must be fewer than           |
+|                               |                    |               | `GRPC_WORKERS`: unary calls always find one       |
+| `COEXIST_MAX_EPISODES_PER_CLIENT` | `MAX_EPISODES` | server        | open gRPC `Episode` streams of one client address |
+|                               |                    |               | (behind a proxy every client has its address)     |
+| `COEXIST_EPISODE_IDLE_TIMEOUT_S` | 60              | server        | an `Episode` stream that sent no step this long   |
+|                               |                    |               | is ended with DEADLINE_EXCEEDED                   |
 | `COEXIST_REFRESH_INTERVAL_S`  | 2.0                | server        | how often aliases are re-checked (hot reload)     |
 | `COEXIST_CACHE_SIZE`          | 256                | server        | networks kept loaded (LRU)                        |
 | `COEXIST_MAX_BATCH`           | 4096               | server        | rows allowed in one act:batch                     |
@@ -78,7 +84,7 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Literal
 
-from pydantic import Field, SecretStr, field_validator
+from pydantic import Field, SecretStr, field_validator, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 from model_store.sql.sql_store import DEFAULT_MAX_ARTIFACT_BYTES
@@ -109,8 +115,10 @@ class Settings(BaseSettings):
     http_port: int = Field(default=8000, ge=0, le=65535)
     grpc_port: int = Field(default=50051, ge=0, le=65535)
     grpc_enabled: bool = True
-    grpc_workers: int = Field(default=8, ge=1, le=256)
+    grpc_workers: int = Field(default=8, ge=2, le=256)
+    max_episodes: int | None = Field(default=None, ge=1)
     max_episodes_per_client: int | None = Field(default=None, ge=1)
+    episode_idle_timeout_s: float = Field(default=60.0, gt=0, le=86400)
     refresh_interval_s: float = Field(default=2.0, gt=0, le=3600)
     cache_size: int = Field(default=256, ge=1)
     max_batch: int = Field(default=4096, ge=1)
@@ -124,6 +132,16 @@ class Settings(BaseSettings):
     shutdown_grace_s: int = Field(default=10, ge=0, le=3600)
     otel_enabled: bool = False  # OpenTelemetry spans (services.tracing; the `otel` extra)
     job_lease_s: float = Field(default=30.0, ge=1.0, le=3600)
+
+    @model_validator(mode="after")
+    def _streams_leave_workers(self) -> Settings:
+        if self.max_episodes is not None and self.max_episodes >= self.grpc_workers:
+            raise ValueError(
+                f"COEXIST_MAX_EPISODES ({self.max_episodes}) must be fewer than "
+                f"COEXIST_GRPC_WORKERS ({self.grpc_workers}): each open Episode stream holds a "
+                "worker thread, and unary calls need some"
+            )
+        return self
 
     @field_validator("log_format", "log_level", mode="before")
     @classmethod

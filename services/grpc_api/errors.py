@@ -9,6 +9,7 @@
 | `services.engine.ModelUnavailable`              | UNAVAILABLE      | the engine's message   |
 | `services.sessions.SessionNotFound`             | NOT_FOUND        | "session_id: ..."      |
 | `services.sessions.SessionLimitReached`         | RESOURCE_EXHAUSTED | the store's message  |
+| `episode_slots.EpisodeIdle` (a silent stream)   | DEADLINE_EXCEEDED | how long it was idle  |
 | `services.sessions.StepConflict`                | ABORTED          | "expected_step: ..."   |
 | `services.sessions.SessionsUnavailable`         | UNIMPLEMENTED    | the message            |
 | `model_store.StoreUnavailable`, other store err | UNAVAILABLE      | the store's message    |
@@ -41,6 +42,7 @@ from google.protobuf.message import DecodeError
 from model_store.errors import ModelStoreError, clip
 from model_store.errors import NotFound as StoreNotFound
 from services.engine import EngineError, InvalidRequest, ModelNotFound, ModelUnavailable
+from services.grpc_api.episode_slots import EpisodeIdle
 from services.sessions.errors import (
     SessionLimitReached,
     SessionNotFound,
@@ -106,6 +108,7 @@ _SESSION_CODES: tuple[tuple[type[EngineError], grpc.StatusCode], ...] = (
     (SessionLimitReached, grpc.StatusCode.RESOURCE_EXHAUSTED),
     (StepConflict, grpc.StatusCode.ABORTED),
     (SessionsUnavailable, grpc.StatusCode.UNIMPLEMENTED),
+    (EpisodeIdle, grpc.StatusCode.DEADLINE_EXCEEDED),
 )
 
 

@@ -15,6 +15,12 @@ call's trailers, a stream's initial metadata), and each call ends with one acces
     server = build_grpc_server(engine, port=0)     # port 0: the OS picks; see server.port
     server.start(); ...; server.stop(grace=5.0)    # health -> NOT_SERVING, then drain
 
+Threads: unary calls and `Episode` streams share the `max_workers` pool. An open stream holds a
+thread until it ends, so streams are bounded (`episode_slots`: fewer than the workers, shared by
+all clients, a few per client, ended when silent) and unary calls always find a thread. Health
+`Check` runs on a small pool of its own (grpcio's per-method `experimental_thread_pool`), so a
+probe answers even while every worker is busy; health `Watch` streams take stream slots.
+
 Readiness is checked lazily: a health `Check`/`Watch` re-reads `ready()` at most once per
 `health_recheck_s`, so probes stay cheap and no background thread is needed. `stop(grace)` first
 switches health to NOT_SERVING (load balancers stop routing), then lets in-flight calls finish for
@@ -38,6 +44,7 @@ from grpc_reflection.v1alpha import reflection
 
 from services.auth import TokenInterceptor
 from services.engine import InferenceEngine
+from services.grpc_api.episode_slots import EpisodeSlots
 from services.grpc_api.errors import parse_or_malformed
 from services.grpc_api.gen.coexist.v1 import policy_pb2 as pb
 from services.grpc_api.request_ids import RequestIdInterceptor
@@ -46,21 +53,30 @@ from services.metrics import GrpcMetrics
 from services.oip.grpc_servicer import SERVICE_NAME as OIP_SERVICE_NAME
 from services.oip.grpc_servicer import InferenceServicer
 from services.oip.grpc_servicer import handlers as oip_handlers
+from services.sessions.errors import SessionLimitReached
 
 log = logging.getLogger(__name__)
 
 SERVICE_NAME: str = pb.DESCRIPTOR.services_by_name["PolicyService"].full_name
 SERVING = health_pb2.HealthCheckResponse.SERVING
 NOT_SERVING = health_pb2.HealthCheckResponse.NOT_SERVING
+HEALTH_CHECK = "/grpc.health.v1.Health/Check"
+HEALTH_WORKERS = 2  # threads of health Check alone: a probe never waits for the workers
 
 
 class EngineHealthServicer(health.HealthServicer):
     """Standard health service whose status follows `ready()`, re-read at most every
     `recheck_s` seconds when a client asks."""
 
-    def __init__(self, ready: Callable[[], bool], recheck_s: float = 1.0) -> None:
+    def __init__(
+        self,
+        ready: Callable[[], bool],
+        recheck_s: float = 1.0,
+        streams: EpisodeSlots | None = None,
+    ) -> None:
         super().__init__()
         self._ready = ready
+        self._streams = streams  # a blocking `Watch` holds a worker thread: it takes a slot
         self._recheck_s = recheck_s
         self._checked_at = -float("inf")
         self._refresh_lock = threading.Lock()
@@ -89,7 +105,24 @@ class EngineHealthServicer(health.HealthServicer):
 
     def Watch(self, request: Any, context: Any, send_response_callback: Any = None) -> Any:
         self.refresh()
-        return super().Watch(request, context, send_response_callback)
+        if send_response_callback is not None or self._streams is None:
+            return super().Watch(request, context, send_response_callback)
+        return self._watch_in_a_slot(request, context)
+
+    def _watch_in_a_slot(self, request: Any, context: Any) -> Any:
+        """grpcio's blocking `Watch` (the server's interceptors make it so), holding one of the
+        stream slots for as long as it holds its worker thread."""
+        assert self._streams is not None
+        try:
+            with self._streams.held(context.peer()):
+                yield from super().Watch(request, context)
+        except SessionLimitReached as err:
+            limit = f"{err.limit} open streams" + (" of this client" if err.per_client else "")
+            context.abort(
+                grpc.StatusCode.RESOURCE_EXHAUSTED,
+                f"the server holds its maximum of {limit} (Episode and health Watch); "
+                "retry once one ends, or poll with health Check",
+            )
 
 
 class GrpcServer(grpc.Server):
@@ -120,6 +153,43 @@ class GrpcServer(grpc.Server):
 
     def wait_for_termination(self, timeout: float | None = None) -> bool:
         return bool(self._server.wait_for_termination(timeout))
+
+
+class OwnPool(grpc.ServerInterceptor):
+    """Runs the calls of `methods` on `pool` instead of the server's workers: grpcio takes a
+    handler's `experimental_thread_pool`. First among the interceptors, so the attribute sits on
+    the handler grpcio runs (the others wrap theirs in new functions)."""
+
+    def __init__(self, methods: tuple[str, ...], pool: futures.ThreadPoolExecutor) -> None:
+        self.methods, self.pool = methods, pool
+        self._wrapped: dict[int, tuple[grpc.RpcMethodHandler, grpc.RpcMethodHandler]] = {}
+
+    def intercept_service(
+        self,
+        continuation: Callable[[grpc.HandlerCallDetails], grpc.RpcMethodHandler | None],
+        handler_call_details: grpc.HandlerCallDetails,
+    ) -> grpc.RpcMethodHandler | None:
+        handler = continuation(handler_call_details)
+        if handler is None or handler.unary_unary is None:
+            return handler
+        if str(handler_call_details.method) not in self.methods:
+            return handler
+        kept = self._wrapped.get(id(handler))
+        if kept is not None and kept[0] is handler:
+            return kept[1]
+        behaviour = handler.unary_unary
+
+        def on_pool(request: Any, context: grpc.ServicerContext) -> Any:
+            return behaviour(request, context)
+
+        on_pool.experimental_thread_pool = self.pool  # type: ignore[attr-defined]
+        wrapped = grpc.unary_unary_rpc_method_handler(
+            on_pool,
+            request_deserializer=handler.request_deserializer,
+            response_serializer=handler.response_serializer,
+        )
+        self._wrapped[id(handler)] = (handler, wrapped)  # few methods: kept for every call
+        return wrapped
 
 
 def _policy_handlers(servicer: PolicyServicer) -> dict[str, grpc.RpcMethodHandler]:
@@ -154,15 +224,19 @@ def build_grpc_server(
     session_prefetch: bool = True,
     tokens: tuple[str, ...] | None = None,
     tls: tuple[bytes, bytes] | None = None,
+    max_episodes: int | None = None,
     episodes_per_client: int | None = None,
+    episode_idle_s: float = 60.0,
     metrics: GrpcMetrics | None = None,
     tracer: Any = None,
 ) -> GrpcServer:
     """A gRPC server (not started) bound to `host:port`; port 0 binds a free port (`.port`).
 
     `ready` decides health SERVING; by default the engine's store must be reachable.
-    Each open Episode stream holds one of the `max_workers` threads until it ends; one client
-    (address) may hold at most `episodes_per_client` of them (None: half; `episode_slots`).
+    Each open Episode stream holds one of the `max_workers` threads until it ends: at most
+    `max_episodes` are open (None: half the workers; always fewer than them), at most
+    `episodes_per_client` of one client address (None: `max_episodes`), and a stream that sent
+    nothing for `episode_idle_s` seconds is ended (`episode_slots`).
     `reuse_port` lets several processes bind the same port (SO_REUSEPORT: the kernel spreads
     connections over them), as uvicorn workers of one server do; otherwise a port already in
     use is an error. `session_prefetch`: an `Episode` with inferred partners scores the next
@@ -173,10 +247,22 @@ def build_grpc_server(
     (`services.metrics.GrpcMetrics`, served on the REST server's `/metrics`); `tracer`: every
     call a span (`services.tracing.Tracer`; None, the default: tracing off).
     """
-    if max_workers < 1:
-        raise ValueError(f"max_workers: expected >= 1, got {max_workers}")
-    # ids, access lines, metrics, spans
-    interceptors: list[grpc.ServerInterceptor] = [RequestIdInterceptor(metrics, tracer)]
+    if max_workers < 2:
+        raise ValueError(
+            f"max_workers: expected >= 2 (a stream and a unary call), got {max_workers}"
+        )
+    total = max_episodes or max(1, max_workers // 2)
+    if total >= max_workers:
+        raise ValueError(
+            f"max_episodes: expected fewer than the {max_workers} workers (each open stream holds "
+            f"one, and unary calls need some), got {total}"
+        )
+    streams = EpisodeSlots(total, episodes_per_client)
+    health_pool = futures.ThreadPoolExecutor(HEALTH_WORKERS, thread_name_prefix="coexist-health")
+    interceptors: list[grpc.ServerInterceptor] = [
+        OwnPool((HEALTH_CHECK,), health_pool),  # first: see `OwnPool`
+        RequestIdInterceptor(metrics, tracer),  # ids, access lines, metrics, spans
+    ]
     if tokens is not None:
         interceptors.append(TokenInterceptor(tokens))  # inside: refusals are logged with ids
     server = grpc.server(
@@ -184,9 +270,11 @@ def build_grpc_server(
         options=[("grpc.so_reuseport", 1 if reuse_port else 0)],
         interceptors=interceptors,
     )
-    per_client = episodes_per_client or max(1, max_workers // 2)
     servicer = PolicyServicer(
-        engine, session_prefetch=session_prefetch, episodes_per_client=per_client
+        engine,
+        session_prefetch=session_prefetch,
+        episode_slots=streams,
+        episode_idle_s=episode_idle_s,
     )
     handlers = _policy_handlers(servicer)
     server.add_generic_rpc_handlers((grpc.method_handlers_generic_handler(SERVICE_NAME, handlers),))
@@ -198,7 +286,9 @@ def build_grpc_server(
     )
 
     health_servicer = EngineHealthServicer(
-        ready or (lambda: engine.status().store_reachable), recheck_s=health_recheck_s
+        ready or (lambda: engine.status().store_reachable),
+        recheck_s=health_recheck_s,
+        streams=streams,
     )
     health_pb2_grpc.add_HealthServicer_to_server(health_servicer, server)
     reflection.enable_server_reflection(

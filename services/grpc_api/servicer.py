@@ -13,9 +13,10 @@ maps errors (`errors`); the engine does the work, exactly as for the REST routes
 |            | `services.sessions.Session` per stream| updated from `observed`, then act; after |
 |            |                                       | each answer `prepare_next` (ahead)       |
 
-On the sync server each open `Episode` stream holds one worker thread until the client closes it,
-so `max_workers` bounds the number of concurrent episodes plus in-flight unary calls; one client
-may hold at most `episodes_per_client` streams (`episode_slots`), so it cannot take them all.
+On the sync server each open `Episode` stream holds one worker thread until it ends, so the
+streams are bounded (`episode_slots`): `episode_slots.total` of all clients (fewer than the
+workers, so unary calls always have threads), `per_client` of one client, and a stream silent for
+`episode_idle_s` seconds is ended with DEADLINE_EXCEEDED.
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ import numpy as np
 
 from services.engine import ActRequest, ActResult, EngineError, InferenceEngine, InvalidRequest
 from services.grpc_api import convert
-from services.grpc_api.episode_slots import EpisodeSlots
+from services.grpc_api.episode_slots import EpisodeSlots, steps_within
 from services.grpc_api.errors import (
     StepError,
     check_parsed,
@@ -48,11 +49,13 @@ class PolicyServicer(pb_grpc.PolicyServiceServicer):
         engine: InferenceEngine,
         *,
         session_prefetch: bool = True,
-        episodes_per_client: int = 4,
+        episode_slots: EpisodeSlots | None = None,
+        episode_idle_s: float = 60.0,
     ) -> None:
         self.engine = engine
         self.session_prefetch = session_prefetch  # `Session.prepare_next` after each answer
-        self.episode_slots = EpisodeSlots(episodes_per_client)  # open streams per client
+        self.episode_slots = episode_slots or EpisodeSlots(4)  # open streams, shared and per client
+        self.episode_idle_s = episode_idle_s  # a stream silent this long is ended
 
     def _run(
         self, message: convert.Row, build: Callable[[], ActRequest]
@@ -101,8 +104,8 @@ class PolicyServicer(pb_grpc.PolicyServiceServicer):
     def Episode(
         self, requests: Iterator[pb.EpisodeStep], context: grpc.ServicerContext
     ) -> Iterator[pb.ActResponse]:
-        with self.episode_slots.held(context.peer()):  # RESOURCE_EXHAUSTED beyond the bound
-            yield from self._episode(requests)
+        with self.episode_slots.held(context.peer()):  # RESOURCE_EXHAUSTED beyond the bounds
+            yield from self._episode(steps_within(requests, self.episode_idle_s))
 
     def _episode(self, requests: Iterator[pb.EpisodeStep]) -> Iterator[pb.ActResponse]:
         settings: pb.EpisodeSettings | None = None

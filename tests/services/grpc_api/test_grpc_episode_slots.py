@@ -1,6 +1,7 @@
-"""One client may hold at most half the gRPC server's worker threads with open `Episode`
-streams: the next stream is RESOURCE_EXHAUSTED, and a closed stream frees its slot (each open
-stream holds a thread of the sync server, so one client could otherwise take them all)."""
+"""One client may hold at most `episodes_per_client` open `Episode` streams, fewer than all
+clients together may: the next stream is RESOURCE_EXHAUSTED, and a closed stream frees its slot
+(each open stream holds a thread of the sync server, so one client could otherwise take them
+all). The bound shared by all clients: test_grpc_idle_streams.py."""
 
 from __future__ import annotations
 
@@ -43,8 +44,10 @@ class OpenEpisode:
         list(self.responses)
 
 
-def test_a_client_holds_at_most_half_the_workers(tiny_zoo_store: SqlModelStore) -> None:
-    with live_grpc_server(tiny_zoo_store, max_workers=4) as live:
+def test_a_client_holds_at_most_its_own_bound(tiny_zoo_store: SqlModelStore) -> None:
+    with live_grpc_server(
+        tiny_zoo_store, max_workers=4, max_episodes=3, episodes_per_client=2
+    ) as live:
         held = [OpenEpisode(live.stub) for _ in range(2)]
         with pytest.raises(grpc.RpcError) as caught:
             OpenEpisode(live.stub)
