@@ -28,7 +28,9 @@ def serve(
     store_url: Annotated[
         str | None,
         typer.Option(
-            envvar="COEXIST_STORE_URL", help="Model store URL (default: SQLite in the data dir)."
+            envvar="COEXIST_STORE_URL",
+            help="Model store URL (default: SQLite in the data dir). A URL with a password "
+            "belongs in COEXIST_STORE_URL: every user of the machine sees a command line.",
         ),
     ] = None,
     bootstrap: Annotated[
@@ -99,6 +101,7 @@ def _bootstrap(store_url: str, data_dir: Path, steps: int | None) -> None:
     from cli.train import progress_bars
     from envs.particle.goals import GOAL_IDS
     from model_store.defaults import open_store
+    from model_store.sql.engine import redact_url
     from trainer.config import ImpactConfig, TaskConfig
     from trainer.report import print_summary
     from trainer.zoo import RunState, goals_without, run_impacts, run_tasks
@@ -111,7 +114,7 @@ def _bootstrap(store_url: str, data_dir: Path, steps: int | None) -> None:
             return
         console.print(
             f"[bold]first run:[/bold] training the particle zoo ({len(tasks)} task and "
-            f"{len(impacts)} impact networks) into {store_url}"
+            f"{len(impacts)} impact networks) into {redact_url(store_url)}"
         )
         task_cfg, impact_cfg = TaskConfig(), ImpactConfig()
         if steps is not None:
@@ -135,5 +138,5 @@ def _bootstrap(store_url: str, data_dir: Path, steps: int | None) -> None:
                     f"[bold yellow]warning:[/bold yellow] no {kind} network passed its gates "
                     f"for {', '.join(unserved)}; requests that need one are refused. Train "
                     f"another: coexist train {kind} --goals {','.join(unserved)} --seed 1 "
-                    f"--store-url {store_url}"
+                    f"--store-url {redact_url(store_url)}"
                 )

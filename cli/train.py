@@ -41,7 +41,13 @@ WorkersOpt = Annotated[
     int,
     typer.Option(min=1, help="Batches trained at once, one process each (the same networks as 1)."),
 ]
-StoreOpt = Annotated[str | None, typer.Option(help="Model store URL (default: embedded SQLite).")]
+StoreOpt = Annotated[
+    str | None,
+    typer.Option(
+        help="Model store URL (default: COEXIST_STORE_URL, else embedded SQLite). A URL with "
+        "a password belongs in COEXIST_STORE_URL: every user of the machine sees a command line."
+    ),
+]
 RunDirOpt = Annotated[Path, typer.Option(help="Where the run's record and plots go.")]
 ResumeOpt = Annotated[bool, typer.Option(help="Skip batches this run directory already finished.")]
 CombosOpt = Annotated[

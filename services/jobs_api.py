@@ -77,7 +77,9 @@ class JobRequest(RequestBody):
 
 
 def _store_url(app: FastAPI) -> str:
-    """The store's URL for a subprocess in another directory (SQLite paths made absolute)."""
+    """The store's URL for a subprocess in another directory (SQLite paths made absolute),
+    password included: it goes only to the job table's engine and into the trainer's
+    environment (`JobRunner`), never onto a command line, into a log or into an answer."""
     url = getattr(getattr(app.state, "store", None), "url", None)
     if url is None:
         raise StoreUnavailable("training jobs need a SQL model store (and it is not open)")

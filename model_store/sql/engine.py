@@ -21,6 +21,7 @@ database in its place.
 
 from __future__ import annotations
 
+import re
 import sqlite3
 import time
 from pathlib import Path
@@ -39,13 +40,31 @@ WAL_RETRY_S = 0.01  # between two tries of a new file's WAL switch (`_set_wal`)
 BEGIN_MODE_OPTION = "coexist_sqlite_begin"  # execution option: "IMMEDIATE" for write sessions
 
 
+# `scheme://user:PASSWORD@`: what `redact_url` masks in a URL that does not even parse
+_USERINFO_PASSWORD = re.compile(r"(://[^:/?#@\s]*:)[^@\s]*@")
+
+
+def redact_url(url: str | URL) -> str:
+    """`url` safe to log, print or answer: its password (if any) replaced by `***`. Every place
+    that shows a store URL goes through this (or `render_as_string(hide_password=True)`);
+    the password only ever reaches the database driver."""
+    if isinstance(url, URL):
+        return str(url.render_as_string(hide_password=True))
+    try:
+        return str(make_url(url).render_as_string(hide_password=True))
+    except Exception:  # unparsable: mask by shape (sqlalchemy's own message would echo it)
+        return _USERINFO_PASSWORD.sub(r"\1***@", url)
+
+
 def normalise_url(url: str | URL) -> URL:
     """Parse a store URL; plain `postgresql://` (and `postgres://`) become psycopg 3 URLs."""
     try:
         parsed = make_url(str(url) if isinstance(url, URL) else url)
-    except Exception as exc:  # sqlalchemy raises ArgumentError and others
+    except Exception:  # sqlalchemy raises ArgumentError and others, their text echoes the URL
         raise InvalidArgument(
-            f"store_url: cannot parse {url!r} ({exc})", field="store_url"
+            f"store_url: cannot parse {redact_url(url)!r} (expected sqlite:///path or "
+            "postgresql://user:password@host:port/database)",
+            field="store_url",
         ) from None
     if parsed.drivername in ("postgresql", "postgres"):
         parsed = parsed.set(drivername="postgresql+psycopg")

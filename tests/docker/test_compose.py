@@ -94,7 +94,44 @@ def test_compose_describes_the_topology() -> None:
         assert service["build"]["target"] in STAGES, name
         assert "postgresql://" in service["environment"]["COEXIST_STORE_URL"], name
     with pytest.raises(KeyError, match="COEXIST_ADMIN_TOKEN"):  # no default secret
-        interpolate(SERVICES["inference"]["environment"], {})
+        interpolate(SERVICES["inference"]["environment"], {"POSTGRES_PASSWORD": "pw"})
+
+
+SECRETS = {
+    "POSTGRES_PASSWORD": "pg-secret-for-the-test",
+    "COEXIST_ADMIN_TOKEN": "admin-secret-for-the-test",
+    "COEXIST_READ_TOKEN": "read-secret-for-the-test",
+    "GRAFANA_ADMIN_PASSWORD": "grafana-secret-for-the-test",
+}
+
+
+@pytest.mark.parametrize("secret", sorted(SECRETS))
+def test_compose_refuses_to_start_without_each_secret(secret: str) -> None:
+    """No secret has a default (a default password is a public one): leaving any one unset
+    makes compose's interpolation fail, for every service that needs it."""
+    given = {k: v for k, v in SECRETS.items() if k != secret}
+    needing = [name for name, s in SERVICES.items() if secret in json.dumps(s)]
+    assert needing, secret
+    for name in needing:
+        with pytest.raises(KeyError, match=secret):
+            interpolate(SERVICES[name], given)
+    everything = interpolate(COMPOSE, SECRETS)  # with all of them set, all of it resolves
+    assert (
+        everything["services"]["postgres"]["environment"]["POSTGRES_PASSWORD"]
+        == (SECRETS["POSTGRES_PASSWORD"])
+    )
+
+
+def test_compose_requires_the_read_token_and_prometheus_sends_it() -> None:
+    env = interpolate(SERVICES["inference"]["environment"], SECRETS)
+    assert env["COEXIST_REQUIRE_READ_TOKEN"] == "true"
+    assert env["COEXIST_READ_TOKEN"] == SECRETS["COEXIST_READ_TOKEN"]
+    assert f":{SECRETS['POSTGRES_PASSWORD']}@" in env["COEXIST_STORE_URL"]
+    (mount,) = SERVICES["prometheus"]["configs"]
+    content = interpolate(COMPOSE["configs"][mount["source"]]["content"], SECRETS)
+    assert content == SECRETS["COEXIST_READ_TOKEN"]
+    (job,) = yaml.safe_load((DOCKER / "prometheus.yml").read_text())["scrape_configs"]
+    assert job["authorization"] == {"type": "Bearer", "credentials_file": mount["target"]}
 
 
 LEAF_COMMANDS = {
@@ -252,7 +289,7 @@ def _service_env(service: str, base: dict[str, str], store_url: str) -> dict[str
         if k.startswith("COEXIST_") and k not in ("COEXIST_DATA_DIR", "COEXIST_HOST")
     }
     compose = interpolate(
-        SERVICES[service].get("environment", {}), {"COEXIST_ADMIN_TOKEN": ADMIN_TOKEN}
+        SERVICES[service].get("environment", {}), {**SECRETS, "COEXIST_ADMIN_TOKEN": ADMIN_TOKEN}
     )
     return {**base, **kept, **compose, "COEXIST_STORE_URL": store_url}
 
@@ -344,6 +381,8 @@ def test_the_topology_runs_as_plain_processes(tmp_path: Path) -> None:
             start_server(f"replica-{k}", env, tmp_path, inference, launcher=launcher, cwd=run_dir)
             for k in range(2)
         ]
+        read_token = env["COEXIST_READ_TOKEN"]
+        read_auth = {"Authorization": f"Bearer {read_token}"}
         with running(replicas):
             health = list(STAGES["server"].healthcheck or [])
             if health[0] == "python":  # the image's interpreter; here, this one
@@ -363,21 +402,27 @@ def test_the_topology_runs_as_plain_processes(tmp_path: Path) -> None:
                 RoundRobinProxy(http_backends) as http_lb,
                 RoundRobinProxy(grpc_backends) as grpc_lb,
             ):
+                lb_act = f"http://127.0.0.1:{http_lb.port}/v1/act"
+                anonymous = httpx.post(lb_act, json=act_body())  # reads need the token
+                assert anonymous.status_code == 401, anonymous.text
                 for k in range(4):  # a new connection each: round robin over the replicas
                     resp = httpx.post(
-                        f"http://127.0.0.1:{http_lb.port}/v1/act",
+                        lb_act,
                         json=act_body(),
-                        headers={"X-Request-ID": f"through-lb-{k}"},
+                        headers={"X-Request-ID": f"through-lb-{k}", **read_auth},
                     )
                     assert resp.status_code == 200 and resp.json()["models"][0]["version"] == 1
                 own = [("grpc.use_local_subchannel_pool", 1)]  # no connection shared
                 for _ in range(2):
-                    with GrpcCoexistClient(f"127.0.0.1:{grpc_lb.port}", options=own) as client:
+                    with GrpcCoexistClient(
+                        f"127.0.0.1:{grpc_lb.port}", options=own, token=read_token
+                    ) as client:
                         action = client.act("particle", "a2", OBS, partners={1: "b3"}, seed=1)
                         assert len(action.probs) == 5
-                assert http_lb.counts == [2, 2] and grpc_lb.counts == [1, 1]
+                assert http_lb.counts == [3, 2] and grpc_lb.counts == [1, 1]
             for server in replicas:  # what Prometheus scrapes: every dashboard metric is there
-                page = httpx.get(f"{server.http_url}/metrics").text
+                assert httpx.get(f"{server.http_url}/metrics").status_code == 401
+                page = httpx.get(f"{server.http_url}/metrics", headers=read_auth).text
                 exported = set(re.findall(r"^(coexist_[a-z_]+)", page, flags=re.MULTILINE))
                 assert _dashboard_metrics() <= exported, _dashboard_metrics() - exported
         for k, server in enumerate(replicas):

@@ -1,6 +1,6 @@
 """A stand-in for `coexist train`, run by the job tests' runner instead of the real trainer.
 
-    python jobs_fake_train.py MODE STORE_URL
+    COEXIST_STORE_URL=... python jobs_fake_train.py MODE   # the runner sets the variable
 
 | mode       | does                                                                      |
 |------------|---------------------------------------------------------------------------|
@@ -46,7 +46,7 @@ def _register(store_url: str) -> None:
     print(f"registered {version.ref}", flush=True)
 
 
-def main(mode: str, store_url: str) -> int:
+def main(mode: str) -> int:
     if mode == "ok":
         print("trained every batch", flush=True)
         return 0
@@ -56,11 +56,11 @@ def main(mode: str, store_url: str) -> int:
     if mode == "stubborn":
         signal.signal(signal.SIGTERM, signal.SIG_IGN)
     if mode == "register":
-        _register(store_url)
+        _register(os.environ["COEXIST_STORE_URL"])  # as the real trainer: never in argv
     print(f"training started (pid {os.getpid()})", flush=True)
     time.sleep(60)
     return 0
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1], sys.argv[2]))
+    sys.exit(main(sys.argv[1]))

@@ -30,8 +30,8 @@ FAKE_TRAIN = Path(__file__).with_name("jobs_fake_train.py")
 GRACE_S = 0.5  # SIGTERM -> SIGKILL in these tests
 
 
-def fake_command(spec: JobSpec, store_url: str, run_dir: Path) -> list[str]:
-    return [sys.executable, str(FAKE_TRAIN), MODES[spec.seed], store_url]
+def fake_command(spec: JobSpec, run_dir: Path) -> list[str]:
+    return [sys.executable, str(FAKE_TRAIN), MODES[spec.seed]]
 
 
 def settings_for(tmp_path: Path) -> Settings:

@@ -62,7 +62,7 @@ OPEN_APP, TOKEN_APP = _app(False), _app(True)
 open_schema, token_schema = _schema(OPEN_APP), _schema(TOKEN_APP)
 
 
-def no_training(spec: JobSpec, store_url: str, run_dir: Path) -> list[str]:
+def no_training(spec: JobSpec, run_dir: Path) -> list[str]:
     return ["true"]
 
 

@@ -137,7 +137,7 @@ def test_unknown_job_is_404(offline_client: TestClient) -> None:
 
 def test_train_command_always_resumes() -> None:
     spec = JobSpec("joint", combos="a2+b3", seed=3, steps=50).validate()
-    cmd = train_command(spec, "sqlite:////x.db", Path("/r/1"))
+    cmd = train_command(spec, Path("/r/1"))  # no store URL: it travels in the environment
     assert cmd[1:] == [
         "-m",
         "cli.main",
@@ -151,8 +151,6 @@ def test_train_command_always_resumes() -> None:
         "3",
         "--steps",
         "50",
-        "--store-url",
-        "sqlite:////x.db",
         "--run-dir",
         "/r/1",
         "--resume",

@@ -4,8 +4,11 @@
     runner.start()        # requeues jobs left running by a dead process, then works the queue
     runner.stop()         # stops the running subprocess and leaves its job for the next process
 
-Each job runs `python -m cli.main train <kind> ... --store-url <store> --run-dir <run_root>/<id>
---resume` (`spec.train_command`), stdout and stderr appended to `<run_dir>/log.txt`. One job at a
+Each job runs `python -m cli.main train <kind> ... --run-dir <run_root>/<id> --resume`
+(`spec.train_command`), stdout and stderr appended to `<run_dir>/log.txt`. The store URL, which
+may hold the database's password, reaches the trainer only in its environment
+(`COEXIST_STORE_URL`, readable by the same user and root, unlike the command line, which every
+user sees in `ps` and which the job's log repeats). One job at a
 time per process: training takes every core there is. The loop wakes every `poll_s` (or at once
 on `wake()`), refreshes the running job's heartbeat every `heartbeat_s`, and re-runs `recover`
 every `stale_after_s / 2` so a job abandoned by another, dead, process is picked up too.
@@ -47,8 +50,9 @@ log = logging.getLogger("coexist.jobs")
 LOG_NAME = "log.txt"
 _PROJECT_ROOT = Path(__file__).resolve().parents[2]  # `-m cli.main` resolves from here
 
-# (spec, store URL, run directory) -> argv; tests swap in a stand-in for `coexist train`
-CommandFn = Callable[[JobSpec, str, Path], list[str]]
+# (spec, run directory) -> argv; tests swap in a stand-in for `coexist train`
+CommandFn = Callable[[JobSpec, Path], list[str]]
+STORE_URL_ENV = "COEXIST_STORE_URL"  # how the trainer learns the store (`default_store_url`)
 
 
 def read_log(run_dir: str | Path, max_chars: int) -> str:
@@ -149,7 +153,7 @@ class JobRunner:
     def _run(self, job: Job) -> None:
         run_dir = Path(job.run_dir)
         run_dir.mkdir(parents=True, exist_ok=True)
-        cmd = self.command(job.spec, self.store_url, run_dir)
+        cmd = self.command(job.spec, run_dir)
         log.info("job %s: attempt %d: %s", job.id, job.attempts, " ".join(cmd))
         with (run_dir / LOG_NAME).open("ab") as out:
             out.write(f"--- attempt {job.attempts}: {' '.join(cmd)}\n".encode())
@@ -168,6 +172,7 @@ class JobRunner:
                 stdout=out,
                 stderr=subprocess.STDOUT,
                 stdin=subprocess.DEVNULL,
+                env={**os.environ, STORE_URL_ENV: self.store_url},
                 cwd=_PROJECT_ROOT,
                 start_new_session=True,
             )

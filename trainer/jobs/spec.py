@@ -103,8 +103,10 @@ def _check(check_goal: Any, domain: Any, goal: str, field: str) -> None:
         raise InvalidArgument(str(err), field=field) from None
 
 
-def train_command(spec: JobSpec, store_url: str, run_dir: Path) -> list[str]:
-    """`python -m cli.main train <kind> ... --resume`: always resumable from `run_dir`."""
+def train_command(spec: JobSpec, run_dir: Path) -> list[str]:
+    """`python -m cli.main train <kind> ... --resume`: always resumable from `run_dir`. No
+    store URL: a command line is public (`ps`, the job's log), and the URL may hold the
+    database's password, so the runner hands it over in the environment (`COEXIST_STORE_URL`)."""
     cmd = [sys.executable, "-m", "cli.main", "train", spec.kind, "--env", spec.env]
     if spec.kind != "joint":
         cmd += ["--goals", spec.goals]
@@ -113,4 +115,4 @@ def train_command(spec: JobSpec, store_url: str, run_dir: Path) -> list[str]:
     cmd += ["--seed", str(spec.seed)]
     if spec.steps is not None:
         cmd += ["--steps", str(spec.steps)]
-    return [*cmd, "--store-url", store_url, "--run-dir", str(run_dir), "--resume"]
+    return [*cmd, "--run-dir", str(run_dir), "--resume"]

@@ -46,7 +46,7 @@ def alive(pid: int) -> bool:
     return state != "Z"
 
 
-def sleeper(spec: JobSpec, store_url: str, run_dir: Path) -> list[str]:
+def sleeper(spec: JobSpec, run_dir: Path) -> list[str]:
     return [sys.executable, "-c", SLEEPER]
 
 
