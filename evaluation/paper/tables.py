@@ -75,16 +75,25 @@ def summary_table(summaries: Sequence[MethodSummary]) -> str:
 
 
 def tests_table(tests: Sequence[PairedTest]) -> str:
-    """Rows: the other method; columns: measures (Δ = AAIL − other, mean ± SE, p)."""
+    """Rows: one per compared pair (method, other), in the order given; columns: measures
+    (Δ = method − other, mean ± SE, p). A cell is keyed by the whole pair, so two comparisons
+    that share `other` (AAIL − SL and AAIL-B − SL) keep their own rows."""
     measures = list(dict.fromkeys(t.measure for t in tests))
-    others = list(dict.fromkeys(t.other for t in tests))
-    cell = {(t.other, t.measure): t for t in tests}
+    pairs = list(dict.fromkeys((t.method, t.other) for t in tests))
+    cell: dict[tuple[str, str, str], PairedTest] = {}
+    for t in tests:
+        key = (t.method, t.other, t.measure)
+        if key in cell:
+            raise ValueError(
+                f"tests_table: {label(t.method)} − {label(t.other)} on {t.measure} twice"
+            )
+        cell[key] = t
     rows = []
-    for other in others:
-        row = [f"{label(tests[0].method)} − {label(other)}"]
+    for method, other in pairs:
+        row = [f"{label(method)} − {label(other)}"]
         for m in measures:
-            t = cell[(other, m)]
-            row.append(f"{fmt_ms(t.diff)} (p = {fmt_p(t.p)})")
+            found = cell.get((method, other, m))
+            row.append("-" if found is None else f"{fmt_ms(found.diff)} (p = {fmt_p(found.p)})")
         rows.append(row)
     names = [f"{m} ({'McNemar' if m == 'ego success' else 'Wilcoxon'})" for m in measures]
     return table(["paired difference", *names], rows)
