@@ -201,6 +201,7 @@ def test_reflection_lists_and_describes_the_service(live: LiveServer) -> None:
     database = ProtoReflectionDescriptorDatabase(live.channel)
     services = set(database.get_services())
     assert {"coexist.v1.PolicyService", "grpc.health.v1.Health"} <= services
+    assert "inference.GRPCInferenceService" in services  # the v2 service, for grpcurl & co.
     from google.protobuf.descriptor_pool import DescriptorPool
 
     pool = DescriptorPool(database)

@@ -9,6 +9,7 @@ error shape `{"error": "<message>"}`."""
 from __future__ import annotations
 
 import json
+import os
 import struct
 import subprocess
 import sys
@@ -190,6 +191,43 @@ def test_tritonclient_reads_metadata_config_index_and_statistics(
     assert int(stats["inference_stats"]["fail"]["count"]) >= 2  # the bad goal and observation
     every = calls["statistics"]["ok"]["model_stats"]
     assert {s["name"] for s in every} == {"particle", "cooking"}
+
+
+@pytest.mark.skipif(
+    not os.environ.get("KSERVE_PYTHON"),
+    reason="KServe's package is not in the dev extra (docs/client.md): set KSERVE_PYTHON to a "
+    "Python that has it",
+)
+def test_kserve_clients_and_types(server: Server) -> None:
+    """KServe's own v2 clients (`kserve_calls.py`) in a Python of their own."""
+    done = subprocess.run(
+        [
+            os.environ["KSERVE_PYTHON"],
+            str(HERE / "kserve_calls.py"),
+            server.http_url,
+            server.grpc_target,
+            json.dumps(OBS),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    answers = json.loads(done.stdout)
+    rest, grpc_calls = answers["rest"], answers["grpc"]
+    crashes = [n for calls in answers.values() for n, c in calls.items() if "crash" in c]
+    assert crashes == []
+    got = rest["infer_json"]["ok"]
+    assert rest["infer_binary"]["ok"] == got
+    assert grpc_calls["infer"]["ok"] == grpc_calls["infer_v1"]["ok"] == got
+    for calls in (rest, grpc_calls):
+        assert calls["live"] == calls["ready"] == calls["model_ready"] == {"ok": True}
+    assert rest["model_ready_missing_model"] == {"ok": False}
+    assert rest["infer_bad_goal"]["error"] == "400"
+    assert rest["infer_missing_model"]["error"] == "404"
+    assert grpc_calls["infer_missing_version"]["error"] == "StatusCode.NOT_FOUND"
+    assert grpc_calls["infer_bad_goal"]["error"] == "StatusCode.INVALID_ARGUMENT"
 
 
 def test_a_version_that_does_not_exist_is_404_everywhere(server: Server) -> None:
