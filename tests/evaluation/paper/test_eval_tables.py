@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from evaluation.paper import tables
-from evaluation.stats import MeanSE, PairedTest
+from evaluation.stats import Interval, MeanSE, PairedTest
 
 MEASURES = ("ego return", "team return")
 
@@ -15,7 +15,17 @@ def known_tests() -> list[PairedTest]:
     difference is 10 × pair number + measure number, the p 10^-(pair number)."""
     pairs = [("aail", "sl"), ("aail", "nail"), ("aail_bounded", "sl")]
     return [
-        PairedTest(measure, method, other, 30, MeanSE(10.0 * i + j, 0.5), 10.0**-i, "wilcoxon")
+        PairedTest(
+            measure,
+            method,
+            other,
+            30,
+            MeanSE(10.0 * i + j, 0.5),
+            10.0**-i,
+            "wilcoxon",
+            Interval(10.0 * i + j - 1, 10.0 * i + j + 1, 0.95),
+            i / 10,
+        )
         for i, (method, other) in enumerate(pairs, 1)
         for j, measure in enumerate(MEASURES, 1)
     ]
