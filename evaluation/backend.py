@@ -7,8 +7,9 @@ running policy server through the SDK (HTTP or gRPC). Both answer the same `ActR
 | `ServerBackend` | `CoexistClient` (http://...) or              | `client.act_batch(...)`          |
 |                 | `GrpcCoexistClient` (grpc://host:port)       |                                  |
 
-`probs(request)` returns the blended action distributions, shape (B, A), and the models the
-server reports it used (name, version, sha256). The evaluation samples actions itself from these
+`answer(request)` returns the blended action distributions, shape (B, A), the models the
+server reports it used (name, version, sha256) and, for `aail_budget`, each row's episode budget
+state to carry to its next step (`policy.regret_budget`); `probs(request)` the first two. The evaluation samples actions itself from these
 probabilities (common random numbers, see `evaluation.rollout`), so the engine's own sampled
 `action` is not used and both backends give the same episodes up to float rounding.
 
@@ -41,8 +42,20 @@ class ModelRecord:
     role: str
 
 
+@dataclass(frozen=True, eq=False)
+class Answer:
+    """What a backend answered for B rows."""
+
+    probs_BA: np.ndarray
+    models: set[ModelRecord]
+    budget_spent_B: np.ndarray | None = None  # aail_budget: S after this step
+    budget_total_B: np.ndarray | None = None  # aail_budget: the episode's budget B
+
+
 class PolicyBackend(Protocol):
     description: str
+
+    def answer(self, request: ActRequest) -> Answer: ...
 
     def probs(self, request: ActRequest) -> tuple[np.ndarray, set[ModelRecord]]: ...
 
@@ -53,22 +66,42 @@ MAX_ROWS = 4096  # the engine's and the server's default batch limit
 
 
 def _rows(request: ActRequest, start: int, stop: int) -> ActRequest:
-    return replace(request, observations=np.asarray(request.observations)[start:stop])
+    def part(values: Any) -> Any:
+        return None if values is None else np.asarray(values)[start:stop]
+
+    return replace(
+        request,
+        observations=np.asarray(request.observations)[start:stop],
+        budget_spent=part(request.budget_spent),
+        budget_total=part(request.budget_total),
+    )
 
 
 def _first_row(request: ActRequest) -> ActRequest:
     return _rows(request, 0, 1)
 
 
-def _sliced(probs: Any, request: ActRequest) -> tuple[np.ndarray, set[ModelRecord]]:
-    """`probs(slice)` over consecutive slices of at most `MAX_ROWS` rows, concatenated."""
+def _sliced(answer: Any, request: ActRequest) -> Answer:
+    """`answer(slice)` over consecutive slices of at most `MAX_ROWS` rows, concatenated."""
     n_rows = len(request.observations)
-    parts, models = [], set()
-    for start in range(0, max(n_rows, 1), MAX_ROWS):
-        part, used = probs(_rows(request, start, start + MAX_ROWS))
-        parts.append(part)
-        models |= used
-    return np.concatenate(parts), models
+    parts: list[Answer] = [
+        answer(_rows(request, start, start + MAX_ROWS))
+        for start in range(0, max(n_rows, 1), MAX_ROWS)
+    ]
+
+    def joined(values: list[np.ndarray | None]) -> np.ndarray | None:
+        return None if values[0] is None else np.concatenate(values)  # type: ignore[arg-type]
+
+    return Answer(
+        np.concatenate([p.probs_BA for p in parts]),
+        set().union(*(p.models for p in parts)),
+        joined([p.budget_spent_B for p in parts]),
+        joined([p.budget_total_B for p in parts]),
+    )
+
+
+def _models(models: Any) -> set[ModelRecord]:
+    return {ModelRecord(m.name, m.version, m.sha256, m.role) for m in models}
 
 
 class EngineBackend:
@@ -78,13 +111,17 @@ class EngineBackend:
         self.engine = engine
         self.description = description
 
-    def probs(self, request: ActRequest) -> tuple[np.ndarray, set[ModelRecord]]:
+    def answer(self, request: ActRequest) -> Answer:
         if len(request.observations) > MAX_ROWS:
-            return _sliced(self.probs, request)
-        results = self.engine.act(request)
-        probs_BA = np.asarray([r.probs for r in results], dtype=np.float64)
-        models = {ModelRecord(m.name, m.version, m.sha256, m.role) for m in results[0].models}
-        return probs_BA, models
+            return _sliced(self.answer, request)
+        columns = self.engine.act_columns(request)
+        return Answer(
+            columns.probs, _models(columns.models), columns.budget_spent, columns.budget_total
+        )
+
+    def probs(self, request: ActRequest) -> tuple[np.ndarray, set[ModelRecord]]:
+        answer = self.answer(request)
+        return answer.probs_BA, answer.models
 
     def has_models(self, request: ActRequest) -> bool:
         try:
@@ -112,18 +149,32 @@ class ServerBackend:
             method=request.method,
             temperature=request.temperature,
             regret_bound=request.regret_bound,
+            budget=request.budget,
+            budget_spent=_listed(request.budget_spent),
+            budget_total=_listed(request.budget_total),
             seed=request.seed,
             alias=request.alias,
             versions=dict(request.versions) or None,
         )
 
-    def probs(self, request: ActRequest) -> tuple[np.ndarray, set[ModelRecord]]:
+    def answer(self, request: ActRequest) -> Answer:
         if len(request.observations) > MAX_ROWS:
-            return _sliced(self.probs, request)
+            return _sliced(self.answer, request)
         columns = self._call(request)
-        probs_BA = np.asarray(columns.probs, dtype=np.float64)
-        models = {ModelRecord(m.name, m.version, m.sha256, m.role) for m in columns.models}
-        return probs_BA, models
+
+        def column(values: Any) -> np.ndarray | None:
+            return None if values is None else np.asarray(values, dtype=np.float64)
+
+        return Answer(
+            np.asarray(columns.probs, dtype=np.float64),
+            _models(columns.models),
+            column(columns.budget_spent),
+            column(columns.budget_total),
+        )
+
+    def probs(self, request: ActRequest) -> tuple[np.ndarray, set[ModelRecord]]:
+        answer = self.answer(request)
+        return answer.probs_BA, answer.models
 
     def has_models(self, request: ActRequest) -> bool:
         from coexist_client import NotFound
@@ -133,6 +184,10 @@ class ServerBackend:
         except NotFound:
             return False
         return True
+
+
+def _listed(values: Any) -> list[float] | None:
+    return None if values is None else np.asarray(values, dtype=np.float64).tolist()
 
 
 def policy_backend(server: str | None, store: ModelStore | None) -> PolicyBackend:

@@ -26,7 +26,7 @@ paired Wilcoxon tests. Finished episodes stop being sent to the backend.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -164,9 +164,12 @@ def run_cells(
     record_episode: int = 0,
     progress: ProgressFn | None = None,
     regret_bound: float | None = None,
+    budget: float | None = None,
 ) -> RunOutput:
     """Run every cell's episodes to the end (module docstring); results in cell order.
-    `regret_bound` is aail_bounded's ε (None: the engine's default)."""
+    `regret_bound` is aail_bounded's ε, `budget` aail_budget's fraction k (None: the engine's
+    defaults); an aail_budget episode carries its budget state from step to step as a client
+    of `/v1/act` does."""
     if not cells:
         raise ValueError("cells: expected at least one cell")
     layout = _Layout(cells, seed, max_steps)
@@ -182,11 +185,17 @@ def run_cells(
         for c in cells
     ]
 
-    def act(request: ActRequest) -> np.ndarray:
-        probs_BA, models = backend.probs(request)
-        out.models.update((request.alias, m) for m in models)
+    spent_B = np.zeros(n_rows)  # aail_budget's episode state per row (S, B)
+    total_B = np.zeros(n_rows)
+
+    def act(request: ActRequest, rows: np.ndarray | None = None) -> np.ndarray:
+        answer = backend.answer(request)
+        out.models.update((request.alias, m) for m in answer.models)
         out.backend_calls += 1
-        return probs_BA
+        if rows is not None and answer.budget_spent_B is not None:
+            spent_B[rows] = answer.budget_spent_B
+            total_B[rows] = answer.budget_total_B
+        return answer.probs_BA
 
     for t in range(max_steps):
         active_B = ~tally.done_B
@@ -209,7 +218,15 @@ def run_cells(
                 alias=alias,
                 regret_bound=regret_bound if cell.method == "aail_bounded" else None,
             )
-            actions_BN[rows, 0] = sample_actions(act(request), layout.u_TBN[t, rows, 0])
+            if cell.method == "aail_budget":
+                carried = t > 0  # the episode's first step sends no state
+                request = replace(
+                    request,
+                    budget=budget,
+                    budget_spent=spent_B[rows] if carried else None,
+                    budget_total=total_B[rows] if carried else None,
+                )
+            actions_BN[rows, 0] = sample_actions(act(request, rows), layout.u_TBN[t, rows, 0])
         for goal, slots in layout.partner_slots.items():
             picked = [(live[k], slot) for k, slot in slots if live[k].size]
             if not picked:

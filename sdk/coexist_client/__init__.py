@@ -52,6 +52,7 @@ from coexist_client.sessions import AsyncSession, Session
 from coexist_client.types import (
     Action,
     ActionColumns,
+    Budget,
     Diagnostics,
     EnvInfo,
     Health,
@@ -76,6 +77,7 @@ __all__ = [
     "AsyncJobsClient",
     "AsyncRegistryClient",
     "AsyncSession",
+    "Budget",
     "ChecksumMismatch",
     "Client",
     "CoexistClient",

@@ -31,6 +31,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from coexist_client.errors import InvalidArgument
+from coexist_client.types import Budget
 
 # The values are `str | Mapping[str, float]`; typed `Any` so mixed dict literals type-check.
 Partners = Mapping[int, Any] | Sequence[Any] | None
@@ -109,6 +110,7 @@ class Settings(TypedDict, total=False):
     method: str
     temperature: float | None
     regret_bound: float | None
+    budget: float | None
     seed: int | None
     alias: str
     versions: Mapping[str, int] | None
@@ -122,16 +124,21 @@ def policy_settings(
     method: str = "aail_bounded",
     temperature: float | None = None,
     regret_bound: float | None = None,
+    budget: float | None = None,
     seed: int | None = None,
     alias: str = "production",
     versions: Mapping[str, int] | None = None,
 ) -> dict[str, Any]:
     """The JSON fields of `Settings`, common to every body: the one place their defaults live
     and an unknown keyword is refused (TypeError); mypy checks `Settings` against it."""
-    for name, value in (("temperature", temperature), ("regret_bound", regret_bound)):
+    for name, value in (
+        ("temperature", temperature),
+        ("regret_bound", regret_bound),
+        ("budget", budget),
+    ):
         if value is not None and not math.isfinite(value):
             raise _bad(name, "expected a finite number")
-    return {
+    body = {
         "env": env,
         "ego_goal": ego_goal,
         "partners": normalise_partners(partners),
@@ -142,6 +149,9 @@ def policy_settings(
         "alias": alias,
         "versions": dict(versions or {}),
     }
+    if budget is not None:  # aail_budget only (a server refuses it with any other method)
+        body["budget"] = budget
+    return body
 
 
 F = TypeVar("F", bound=Callable[..., Any])
@@ -169,11 +179,15 @@ def act_body(
     *,
     state: ArrayLike | None = None,
     ego_index: int = 0,
+    budget_state: Budget | None = None,
     **settings: Unpack[Settings],
 ) -> dict[str, Any]:
-    """The JSON body of `POST /v1/act`."""
+    """The JSON body of `POST /v1/act`; `budget_state`: aail_budget's `Action.budget` of the
+    episode's last step (None at its first)."""
     body = policy_settings(env, ego_goal, **settings)
     body.update(observation_fields(observation, state, ego_index))
+    if budget_state is not None:
+        body["budget_spent"], body["budget_total"] = budget_state.spent, budget_state.total
     return body
 
 
@@ -199,11 +213,17 @@ def act_batch_body(
     *,
     states: ArrayLike | None = None,
     ego_index: int = 0,
+    budget_spent: ArrayLike | None = None,
+    budget_total: ArrayLike | None = None,
     **settings: Unpack[Settings],
 ) -> dict[str, Any]:
-    """The JSON body of `POST /v1/act:batch` (rows; `columns_exchange` asks for columns)."""
+    """The JSON body of `POST /v1/act:batch` (rows; `columns_exchange` asks for columns);
+    `budget_spent` and `budget_total`: aail_budget's state per row from the last answer."""
     body = policy_settings(env, ego_goal, **settings)
     body.update(observation_fields(observations, states, ego_index, batch=True))
+    for field, values in (("budget_spent", budget_spent), ("budget_total", budget_total)):
+        if values is not None:
+            body[field] = _finite_rows(values, field, 1)
     return body
 
 

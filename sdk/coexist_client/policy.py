@@ -43,6 +43,7 @@ class RemotePolicy:
         greedy: bool = False,
         alias: str = "production",
         regret_bound: float | None = None,
+        budget: float | None = None,
         temperature: float | None = None,
     ) -> None:
         if not 0 <= agent < len(goals):
@@ -60,6 +61,8 @@ class RemotePolicy:
             "regret_bound": regret_bound,
             "temperature": temperature,
         }
+        if budget is not None:  # aail_budget's fraction; the episode carries what it spent
+            self.settings["budget"] = budget
         self.greedy = greedy
         self.seed = seed
         self.last: Action | None = None

@@ -26,6 +26,7 @@ from coexist_client.types import (
     COLUMN_FIELDS,
     Action,
     ActionColumns,
+    Budget,
     Diagnostics,
     EnvInfo,
     ModelUsed,
@@ -55,7 +56,7 @@ def _settings_kwargs(body: dict[str, Any]) -> dict[str, Any]:
         partners.append(partner)
     kwargs["partners"] = partners
     kwargs["versions"] = body["versions"]
-    for key in ("temperature", "regret_bound", "seed"):
+    for key in ("temperature", "regret_bound", "budget", "seed"):
         if body.get(key) is not None:
             kwargs[key] = body[key]
     if body.get("belief"):  # episodes only (session_body); unset fields: the server's defaults
@@ -83,6 +84,9 @@ def _observation_kwargs(fields: dict[str, Any]) -> dict[str, Any]:
 def act_request(body: dict[str, Any]) -> pb.ActRequest:
     kwargs = _settings_kwargs(body)
     kwargs.update(_observation_kwargs(body))
+    for key in ("budget_spent", "budget_total"):  # aail_budget's carried state
+        if body.get(key) is not None:
+            kwargs[key] = body[key]
     message: pb.ActRequest = _build(pb.ActRequest, kwargs)
     return message
 
@@ -100,6 +104,9 @@ def act_batch_request(body: dict[str, Any]) -> pb.ActBatchRequest:
     else:
         kwargs["states"] = [_state(s) for s in body["states"]]
         kwargs["ego_index"] = body["ego_index"]
+    for key in ("budget_spent", "budget_total"):  # aail_budget's carried state, per row
+        if body.get(key) is not None:
+            kwargs[key] = body[key]
     message: pb.ActBatchRequest = _build(pb.ActBatchRequest, kwargs)
     return message
 
@@ -144,6 +151,9 @@ def action_from_proto(response: pb.ActResponse) -> Action:
             )
             for b in response.beliefs
         ),
+        budget=Budget(response.budget.spent, response.budget.total)
+        if response.HasField("budget")
+        else None,
     )
 
 
@@ -163,6 +173,8 @@ def columns_from_proto(columns: pb.ActColumns) -> ActionColumns:
         rows=columns.rows,
         method=columns.method,
         models=[_model_from_proto(m) for m in columns.models],
+        budget_spent=columns.budget_spent,
+        budget_total=columns.budget_total,
         **{name: getattr(columns, name) for name in COLUMN_FIELDS},
     )
 

@@ -100,6 +100,19 @@ class PartnerBelief:
 
 
 @dataclass(frozen=True)
+class Budget:
+    """aail_budget's episode state after a step: the task value given up so far and the
+    episode's budget; pass it back with the next step (`act(..., budget_state=action.budget)`)."""
+
+    spent: float
+    total: float
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any] | None) -> Budget | None:
+        return None if data is None else cls(float(data["spent"]), float(data["total"]))
+
+
+@dataclass(frozen=True)
 class Action:
     """The server's answer for one observation."""
 
@@ -111,6 +124,7 @@ class Action:
     diagnostics: Diagnostics
     models: tuple[ModelUsed, ...] = ()
     beliefs: tuple[PartnerBelief, ...] = ()  # one per inferred partner (sessions, episodes)
+    budget: Budget | None = None  # aail_budget only
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> Action:
@@ -127,7 +141,15 @@ def _action_fields(data: Mapping[str, Any]) -> dict[str, Any]:
         "diagnostics": Diagnostics.from_json(data["diagnostics"]),
         "models": tuple(ModelUsed.from_json(m) for m in data.get("models", ())),
         "beliefs": tuple(PartnerBelief.from_json(b) for b in data.get("beliefs", ())),
+        "budget": Budget.from_json(data.get("budget")),
     }
+
+
+def _column(values: Sequence[float] | None) -> np.ndarray | None:
+    """An optional per-row column (absent, or empty in protobuf: None)."""
+    if values is None or len(values) == 0:
+        return None
+    return np.array(values, dtype=np.float64)
 
 
 # The per-row fields of a columns answer: the same names in the REST JSON and in protobuf.
@@ -158,6 +180,8 @@ class ActionColumns:
     task_weights: np.ndarray  # (B,) float64, w_t
     partner_indices: tuple[int, ...]  # P, in the request's partner order
     partner_weights: np.ndarray  # (B, P) float64, w_i in `partner_indices` order
+    budget_spent: np.ndarray | None = None  # (B,) aail_budget's state per row, else None
+    budget_total: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.probs)
@@ -177,6 +201,8 @@ class ActionColumns:
         task_weights: Sequence[float],
         partner_indices: Iterable[int],
         partner_weights: Sequence[Any],
+        budget_spent: Sequence[float] | None = None,
+        budget_total: Sequence[float] | None = None,
     ) -> ActionColumns:
         """From JSON lists (nested) or protobuf repeated fields (flat, row-major) of `rows` rows."""
         indices = tuple(int(i) for i in partner_indices)
@@ -191,6 +217,8 @@ class ActionColumns:
             task_weights=np.array(task_weights, dtype=np.float64),
             partner_indices=indices,
             partner_weights=np.array(partner_weights, dtype=np.float64).reshape(rows, len(indices)),
+            budget_spent=_column(budget_spent),
+            budget_total=_column(budget_total),
         )
 
     @classmethod
@@ -200,6 +228,8 @@ class ActionColumns:
             rows=len(data["actions"]),
             method=data["method"],
             models=[ModelUsed.from_json(m) for m in data["models"]],
+            budget_spent=data.get("budget_spent"),
+            budget_total=data.get("budget_total"),
             **{name: data[name] for name in COLUMN_FIELDS},
         )
 
@@ -208,6 +238,12 @@ class ActionColumns:
         probs, actions = self.probs.tolist(), self.actions.tolist()
         greedy, entropies = self.greedy_actions.tolist(), self.task_entropies.tolist()
         task_weights, partner_weights = self.task_weights.tolist(), self.partner_weights.tolist()
+        budgets: list[Budget | None] = [None] * len(probs)
+        if self.budget_spent is not None and self.budget_total is not None:
+            budgets = [
+                Budget(s, t)
+                for s, t in zip(self.budget_spent.tolist(), self.budget_total.tolist(), strict=True)
+            ]
         return [
             Action(
                 probs=tuple(probs[b]),
@@ -226,6 +262,7 @@ class ActionColumns:
                     ),
                 ),
                 models=self.models,
+                budget=budgets[b],
             )
             for b in range(len(probs))
         ]

@@ -15,7 +15,8 @@ bottom in `_act`; every batch size takes the same steps (a single observation is
 | reduce   | task Q = mean over the K task views; one impact Q per partner,| `mean_views`,  |
 |          | a goal distribution's the expectation over its goals (§3.2)   |                |
 | blend    | `policy.blend.blend_checked` (eqs. 8-10; R1 for aail_bounded);| `policy.blend` |
-|          | jl: the joint Q alone                                         |                |
+|          | jl: the joint Q alone; aail_budget: AAIL's policy mixed with  | `spend_budget` |
+|          | the task's within the episode's budget (eqs. B1-B4)           |                |
 | sample   | inverse CDF per row from `default_rng(seed)`, one stream over | `sample_rows`  |
 |          | the rows (row r of a batch is not row 1 of a single request)  |                |
 
@@ -79,7 +80,9 @@ from model_store.naming import joint_model_name
 from model_store.store import ModelStore
 from policy.belief_compiled import compiled_mix_goals
 from policy.blend import BlendMethod, blend_checked
+from policy.maths import boltzmann
 from policy.regret_bound import DEFAULT_EPSILON_PER_ALPHA, keep_goal_rows
+from policy.regret_budget import DEFAULT_BUDGET_FRACTION, budget_rows, initial_budget
 from policy.row_forward import mean_views
 from policy.sampling import sample_rows
 from services.engine import networks
@@ -191,8 +194,9 @@ class InferenceEngine:
         if finished_B is not None:  # R3: nothing left to earn, the exact task Q is flat
             flat_BA = np.broadcast_to(q_task_BA.mean(axis=1, keepdims=True), q_task_BA.shape)
             q_task_BA = np.where(finished_B[:, None], flat_BA, q_task_BA)
-        if method in ("nail", "aail", "aail_bounded"):
-            blend_method: BlendMethod = method
+        if method in ("nail", "aail", "aail_bounded", "aail_budget"):
+            # aail_budget mixes AAIL's policy with the task's after the blend (eqs. B1-B4)
+            blend_method: BlendMethod = "aail" if method == "aail_budget" else method
             q_impact_BPA = _impact_q(checked, q_members, layout)
         else:  # sl, jl: the task/joint network alone
             blend_method = "sl"
@@ -221,6 +225,11 @@ class InferenceEngine:
         kept_BA = goal_kept_of(request, checked, epsilon_B)
         if kept_BA is not None:  # R4: no action that loses the reached goal where one keeps it
             probs_BA = keep_goal_rows(probs_BA, kept_BA)
+        spent_B = total_B = None
+        if method == "aail_budget":
+            probs_BA, spent_B, total_B = spend_budget(
+                request, checked, q_task_BA, q_impact_BPA, probs_BA, float(temperature)
+            )
         # one uniform per row, in order: row r of a batch is not row 1 of a single request
         actions_B, greedy_B = sample_rows(probs_BA, rng.random((batch,)))
         return ActColumns(
@@ -232,6 +241,8 @@ class InferenceEngine:
             task_entropies=blended.task_entropy_B,
             task_weights=blended.task_weight_B,
             partner_weights=partner_weights_BP,
+            budget_spent=spent_B,
+            budget_total=total_B,
         )
 
     def _resolve_members(
@@ -435,7 +446,7 @@ def _with_distributions(request: ActRequest, checked: CheckedRequest) -> bool:
     else:
         return False
     return (
-        request.method in ("nail", "aail", "aail_bounded")
+        request.method in ("nail", "aail", "aail_bounded", "aail_budget")
         and not request.versions
         and networks.ROW_FORWARD  # read at call time: tests switch it
     )
@@ -675,6 +686,29 @@ def aail_bounded_guard(
     reached_B = np.asarray(reached, dtype=bool)
     finished_B = reached_B if domain.goal_is_final and reached_B.any() else None
     return np.where(reached_B, epsilon, 0.0), finished_B
+
+
+def spend_budget(
+    request: ActRequest,
+    checked: CheckedRequest,
+    q_task_BA: np.ndarray,
+    q_impact_BPA: np.ndarray,
+    probs_blend_BA: np.ndarray,
+    temperature: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """aail_budget's policy, (B, A), and the episode's spent S' and budget B, (B,) each
+    (`policy.regret_budget`, eqs. B1-B4). At an episode's first step (no carried state) the
+    budget is the request's fraction k (default `DEFAULT_BUDGET_FRACTION`) of the ego's task
+    value here; later steps carry S and B from the last answer (k is then not read)."""
+    probs_task_BA = boltzmann(q_task_BA, temperature)
+    if checked.budget_total_B is None or checked.budget_spent_B is None:
+        fraction = DEFAULT_BUDGET_FRACTION if request.budget is None else float(request.budget)
+        total_B = initial_budget(probs_task_BA, q_task_BA, fraction)
+        spent_B = np.zeros_like(total_B)
+    else:
+        total_B, spent_B = checked.budget_total_B, checked.budget_spent_B
+    step = budget_rows(probs_task_BA, probs_blend_BA, q_task_BA, q_impact_BPA, spent_B, total_B)
+    return step.probs_BA, step.spent_B, total_B
 
 
 def goal_kept_of(

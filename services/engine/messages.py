@@ -5,7 +5,7 @@
 | `PartnerSpec`  | one partner: its index in the ego's observation layout and its goal    |
 |                | (one announced `goal`, or `goal_probs`, a distribution over goals)     |
 | `ActRequest`   | env, ego goal, observations (B, obs_dim), partners, method, temperature,|
-|                | regret bound, seed, alias and pinned versions                          |
+|                | regret bound, budget state, seed, alias and pinned versions            |
 | `ModelUsed`    | one network a result was computed with (name, version, sha256, role)   |
 | `ActResult`    | one per observation row: probabilities, sampled and greedy action,     |
 |                | blend diagnostics, models used                                         |
@@ -24,8 +24,8 @@ from typing import Literal
 
 import numpy as np
 
-Method = Literal["aail_bounded", "aail", "nail", "sl", "jl"]
-METHODS: tuple[Method, ...] = ("aail_bounded", "aail", "nail", "sl", "jl")
+Method = Literal["aail_bounded", "aail_budget", "aail", "nail", "sl", "jl"]
+METHODS: tuple[Method, ...] = ("aail_bounded", "aail_budget", "aail", "nail", "sl", "jl")
 Role = Literal["task", "impact", "joint"]
 Member = tuple[Role, str]  # one network a request needs: its role and the goal it serves
 DEFAULT_ALIAS = "production"
@@ -49,6 +49,12 @@ class ActRequest:
     method: Method = DEFAULT_METHOD
     temperature: float | None = None  # default: the task (or joint) model's training α
     regret_bound: float | None = None  # aail_bounded's ε; default: twice the task model's α
+    # aail_budget (`policy.regret_budget`): the budget's fraction k of |V_t(s_0)| (default
+    # DEFAULT_BUDGET_FRACTION), and the episode's state carried from its last step, per row
+    # (B,): S spent so far and the episode's budget B (both None at the episode's first step)
+    budget: float | None = None
+    budget_spent: Sequence[float] | np.ndarray | None = None
+    budget_total: Sequence[float] | np.ndarray | None = None
     seed: int | None = None  # seeds the sampled action(s); one stream over the B rows
     alias: str = DEFAULT_ALIAS  # the alias every model is resolved by
     versions: Mapping[str, int] = field(default_factory=dict)  # pinned versions by model name
@@ -74,6 +80,8 @@ class ActResult:  # times dearer, and a batch makes one per row (docs/performanc
     task_weight: float  # w_t (1 for sl and jl)
     partner_weights: list[float]  # one per partner, in `partners` order
     models: list[ModelUsed]
+    budget_spent: float | None = None  # aail_budget: S after this step (eq. B4)
+    budget_total: float | None = None  # aail_budget: the episode's budget B
 
 
 @dataclass(frozen=True, eq=False)  # eq=False: the fields are arrays
@@ -88,6 +96,8 @@ class ActColumns:
     task_entropies: np.ndarray  # (B,) float64
     task_weights: np.ndarray  # (B,) float64
     partner_weights: np.ndarray  # (B, P) float64, partners in request order
+    budget_spent: np.ndarray | None = None  # (B,) aail_budget's S after this step, else None
+    budget_total: np.ndarray | None = None  # (B,) aail_budget's episode budget B, else None
 
     def __len__(self) -> int:
         return len(self.probs)
@@ -98,6 +108,10 @@ class ActColumns:
         greedy, entropy = self.greedy_actions.tolist(), self.task_entropies.tolist()
         w_task, w_partners = self.task_weights.tolist(), self.partner_weights.tolist()
         method, models = self.method, self.models
+        spent: list[float | None] = [None] * len(probs)
+        total: list[float | None] = [None] * len(probs)
+        if self.budget_spent is not None and self.budget_total is not None:
+            spent, total = self.budget_spent.tolist(), self.budget_total.tolist()
         return [
             ActResult(
                 probs[b],
@@ -108,6 +122,8 @@ class ActColumns:
                 w_task[b],
                 w_partners[b],
                 list(models),
+                spent[b],
+                total[b],
             )
             for b in range(len(probs))
         ]
@@ -129,6 +145,12 @@ class ActColumns:
             partner_weights=np.array(
                 [r.partner_weights for r in results], dtype=np.float64
             ).reshape(len(results), len(first.partner_weights)),
+            budget_spent=None
+            if first.budget_spent is None
+            else np.array([r.budget_spent for r in results], dtype=np.float64),
+            budget_total=None
+            if first.budget_total is None
+            else np.array([r.budget_total for r in results], dtype=np.float64),
         )
 
 

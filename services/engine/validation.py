@@ -12,6 +12,10 @@
 | `partners[i].goal_probs`  | known goals, finite probabilities >= 0 summing to 1 (within 1e-6)   |
 | `method`                  | one of aail, nail, sl, jl; jl needs >= 1 partner, each with a `goal`|
 | `temperature`             | None or a finite number > 0                                         |
+| `regret_bound`            | aail_bounded only; None or a finite number >= 0                     |
+| `budget`                  | aail_budget only; None or a finite number >= 0                      |
+| `budget_spent`,           | aail_budget only; both None (the episode's first step) or both B    |
+| `budget_total`            | finite numbers >= 0, one per observation row                        |
 | `seed`                    | None or an integer >= 0                                             |
 | `alias`, `versions[name]` | a valid alias; pinned names are model names, their versions        |
 |                           | integers in 1..MAX_VERSION; `engine.act` then refuses a pin of a    |
@@ -50,6 +54,9 @@ class CheckedRequest:
     obs_BD: np.ndarray  # float32
     n_agents: int
     partners: tuple[CheckedPartner, ...]
+    # aail_budget's carried episode state, (B,) float64 each, or None at the first step
+    budget_spent_B: np.ndarray | None = None
+    budget_total_B: np.ndarray | None = None
 
     @property
     def partners_key(self) -> tuple[tuple[int, tuple[str, ...], bool], ...]:
@@ -258,12 +265,64 @@ def check_request(request: ActRequest, max_batch: int) -> CheckedRequest:
             raise InvalidRequest(
                 "regret_bound", f"expected a finite number >= 0, got {brief(regret_bound)}"
             )
+    spent_B, total_B = check_budget(request, obs_BD.shape[0])
     seed = request.seed
     if seed is not None and (not _is_int(seed) or seed < 0):
         raise InvalidRequest("seed", f"expected an integer >= 0, got {brief(seed)}")
     check_alias(request.alias)
     check_versions(request.versions)
-    return CheckedRequest(runtime, obs_BD, n_agents, partners)
+    return CheckedRequest(runtime, obs_BD, n_agents, partners, spent_B, total_B)
+
+
+def check_budget(request: ActRequest, n_rows: int) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """aail_budget's `budget`, `budget_spent` and `budget_total` (module docstring): the carried
+    state as (B,) float64 arrays, (None, None) at an episode's first step."""
+    fields = {
+        "budget": request.budget,
+        "budget_spent": request.budget_spent,
+        "budget_total": request.budget_total,
+    }
+    if request.method != "aail_budget":
+        for name, value in fields.items():
+            if value is not None:
+                raise InvalidRequest(
+                    name, f"applies to method aail_budget only, not {brief(request.method)}"
+                )
+        return None, None
+    budget = request.budget
+    if budget is not None and (not _is_real(budget) or not math.isfinite(budget) or budget < 0):
+        raise InvalidRequest("budget", f"expected a finite number >= 0, got {brief(budget)}")
+    if (request.budget_spent is None) != (request.budget_total is None):
+        missing = "budget_total" if request.budget_total is None else "budget_spent"
+        raise InvalidRequest(
+            missing,
+            "give budget_spent and budget_total together (both from the episode's last answer), "
+            "or neither at the episode's first step",
+        )
+    if request.budget_spent is None:
+        return None, None
+    spent_B = _budget_column(request.budget_spent, "budget_spent", n_rows)
+    total_B = _budget_column(request.budget_total, "budget_total", n_rows)
+    return spent_B, total_B
+
+
+def _budget_column(values: object, field: str, n_rows: int) -> np.ndarray:
+    """One finite number >= 0 per row, (B,) float64 (a scalar for one row is accepted)."""
+    if _is_real(values):
+        values = [values]
+    if not isinstance(values, list | tuple | np.ndarray):
+        raise InvalidRequest(field, f"expected one number >= 0 per row, got {brief(values)}")
+    try:
+        array = np.asarray(values, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InvalidRequest(field, f"expected numbers >= 0, got {brief(values)}") from None
+    if array.shape != (n_rows,):
+        raise InvalidRequest(
+            field, f"expected {n_rows} number(s), one per observation row, got shape {array.shape}"
+        )
+    if not np.isfinite(array).all() or (array < 0).any():
+        raise InvalidRequest(field, f"expected finite numbers >= 0, got {brief(values)}")
+    return array
 
 
 # Checked partners are kept, so that a client sending the same partners on every call has them

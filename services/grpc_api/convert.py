@@ -30,6 +30,7 @@ has no history of the partner's actions).
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 from itertools import chain
 from typing import Any
 
@@ -86,6 +87,7 @@ def _request(settings: Settings, observations: np.ndarray, seed_offset: int = 0)
         method=settings.method or DEFAULT_METHOD,  # type: ignore[arg-type]  # the engine checks it
         temperature=settings.temperature if settings.HasField("temperature") else None,
         regret_bound=settings.regret_bound if settings.HasField("regret_bound") else None,
+        budget=settings.budget if settings.HasField("budget") else None,
         seed=settings.seed + seed_offset if settings.HasField("seed") else None,
         alias=settings.alias or DEFAULT_ALIAS,
         versions=dict(settings.versions),
@@ -140,24 +142,48 @@ def act_request(message: pb.ActRequest) -> ActRequest:
     """The engine request of one `Act` call (its settings converted once: `repeated`)."""
     observation = _single_observation(message.env, message)
     seed = message.seed if message.HasField("seed") else None
-    return repeated.request_with(message, lambda: _request(message, _NO_ROWS), observation, seed)
+    request = repeated.request_with(message, lambda: _request(message, _NO_ROWS), observation, seed)
+    spent = [message.budget_spent] if message.HasField("budget_spent") else None
+    total = [message.budget_total] if message.HasField("budget_total") else None
+    if spent is None and total is None:
+        return request
+    return replace(request, budget_spent=spent, budget_total=total)
 
 
-def episode_request(settings: pb.EpisodeSettings, step: pb.EpisodeStep, t: int) -> ActRequest:
-    """Step t of an episode: the episode's settings, this step's observation, seed + t."""
+def episode_request(
+    settings: pb.EpisodeSettings,
+    step: pb.EpisodeStep,
+    t: int,
+    budget: tuple[float, float] | None = None,
+) -> ActRequest:
+    """Step t of an episode: the episode's settings, this step's observation, seed + t, and
+    aail_budget's state (spent, total) carried from the last step (None at the first)."""
     observation = _single_observation(settings.env, step)
     seed = settings.seed + t if settings.HasField("seed") else None
-    return repeated.request_with(settings, lambda: _request(settings, _NO_ROWS), observation, seed)
+    request = repeated.request_with(
+        settings, lambda: _request(settings, _NO_ROWS), observation, seed
+    )
+    if budget is None:
+        return request
+    return replace(request, budget_spent=[budget[0]], budget_total=[budget[1]])
 
 
 def act_batch_request(message: pb.ActBatchRequest, source: str) -> ActRequest:
     """The engine request of a batch given in its input form `source` (`batch_source`)."""
+    return _with_budget(message, _batch_rows(message, source))
+
+
+def _batch_rows(message: pb.ActBatchRequest, source: str) -> np.ndarray:
+    """The batch's observations from its input form `source`."""
     if source == "observation_matrix":
-        return _request(message, _matrix(message.observation_matrix))
+        return _matrix(message.observation_matrix)
     if source == "states":
         states = [_rows(s) for s in message.states]
-        return _request(message, observations_from_states(message.env, states, message.ego_index))
-    rows = [row.values for row in message.observations]
+        return observations_from_states(message.env, states, message.ego_index)
+    return _vectors([row.values for row in message.observations])
+
+
+def _vectors(rows: Sequence[Any]) -> np.ndarray:
     lengths = set(map(len, rows))
     if len(lengths) > 1:
         raise InvalidRequest("observations", f"rows of different lengths {sorted(lengths)}")
@@ -165,7 +191,19 @@ def act_batch_request(message: pb.ActBatchRequest, source: str) -> ActRequest:
     # one pass over the rows' containers, no list in between (cheaper than a flat list
     # comprehension: `docs/performance.md`)
     flat = np.fromiter(chain.from_iterable(rows), dtype=np.float64, count=len(rows) * width)
-    return _request(message, flat.reshape(len(rows), width))
+    return flat.reshape(len(rows), width)
+
+
+def _with_budget(message: pb.ActBatchRequest, observations: np.ndarray) -> ActRequest:
+    """The batch's engine request; aail_budget's carried state where the client sent it."""
+    request = _request(message, observations)
+    if not message.budget_spent and not message.budget_total:
+        return request
+    return replace(
+        request,
+        budget_spent=list(message.budget_spent) or None,
+        budget_total=list(message.budget_total) or None,
+    )
 
 
 def _matrix(matrix: pb.Matrix) -> np.ndarray:
@@ -212,6 +250,7 @@ def session_settings(settings: pb.EpisodeSettings) -> SessionSettings:
         method=settings.method or DEFAULT_METHOD,  # type: ignore[arg-type]  # the session checks it
         temperature=settings.temperature if settings.HasField("temperature") else None,
         regret_bound=settings.regret_bound if settings.HasField("regret_bound") else None,
+        budget=settings.budget if settings.HasField("budget") else None,
         seed=settings.seed if settings.HasField("seed") else None,
         alias=settings.alias or DEFAULT_ALIAS,
         versions=dict(settings.versions),
@@ -301,6 +340,9 @@ def _fill(
     diagnostics.task_weight = result.task_weight
     for index, weight in zip(partner_indices, result.partner_weights, strict=True):
         diagnostics.partner_weights.add(index=index, weight=weight)
+    if result.budget_total is not None and result.budget_spent is not None:
+        message.budget.spent = result.budget_spent
+        message.budget.total = result.budget_total
 
 
 def _shared(request: ActRequest, results: Sequence[ActResult]) -> tuple[bytes, list[int], Any]:
@@ -342,6 +384,9 @@ def act_columns_response(request: ActRequest, columns: ActColumns) -> pb.ActBatc
     out.task_weights.extend(columns.task_weights)
     out.partner_indices.extend([p.index for p in request.partners])
     out.partner_weights.extend(columns.partner_weights.ravel())
+    if columns.budget_spent is not None and columns.budget_total is not None:
+        out.budget_spent.extend(columns.budget_spent)
+        out.budget_total.extend(columns.budget_total)
     return batch
 
 

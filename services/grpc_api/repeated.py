@@ -9,7 +9,8 @@ method and models cost more than the blend's arithmetic for one partner
 | memo        | key                                          | value                               |
 |-------------|----------------------------------------------|-------------------------------------|
 | `_SETTINGS` | the message's bytes without the per-call     | an `ActRequest` whose observation   |
-|             | fields (observation, state, seed)            | and seed each call fills in         |
+|             | fields (observation, state, seed, budget     | and seed each call fills in         |
+|             | state)                                       |                                     |
 | `_HEADS`    | env, method, the request's partners tuple    | the serialized method + models, the |
 |             | and its result's models, by identity         | partner indices, action meanings    |
 
@@ -31,7 +32,7 @@ from services.engine import ActRequest, ActResult, ModelUsed
 from services.grpc_api.gen.coexist.v1 import policy_pb2 as pb
 
 MEMO_MAX = 256
-_PER_CALL_FIELDS = ("observation", "state", "seed")
+_PER_CALL_FIELDS = ("observation", "state", "seed", "budget_spent", "budget_total")
 
 K = TypeVar("K")
 V = TypeVar("V")
@@ -73,6 +74,7 @@ def request_with(
         method=t.method,
         temperature=t.temperature,
         regret_bound=t.regret_bound,
+        budget=t.budget,
         seed=seed,
         alias=t.alias,
         versions=t.versions,

@@ -111,12 +111,13 @@ class PolicyServicer(pb_grpc.PolicyServiceServicer):
         settings: pb.EpisodeSettings | None = None
         session: Session | None = None  # while a partner is inferred
         previous: tuple[str, np.ndarray] | None = None  # env, observation: for a later session
+        budget: tuple[float, float] | None = None  # aail_budget's (spent, total), carried
         for t, step in enumerate(requests):
             try:
                 check_parsed(step)
                 if step.HasField("settings"):
                     settings = step.settings
-                    session = self._episode_session(settings, session, t, previous)
+                    session = self._episode_session(settings, session, t, previous, budget)
                 if settings is None:
                     raise InvalidRequest(
                         "settings", "the first message of an episode must carry the settings"
@@ -130,10 +131,12 @@ class PolicyServicer(pb_grpc.PolicyServiceServicer):
                             "no partner of this episode is inferred: set infer on a partner "
                             "(or give it no goal) to send its actions",
                         )
-                    build = partial(convert.episode_request, settings, step, t)
+                    build = partial(convert.episode_request, settings, step, t, budget)
                     act_request, results = self._run(step, build)
                     response = convert.act_response(act_request, results[0])
                     previous = (settings.env, act_request.observations[0])
+                    spent, total = results[0].budget_spent, results[0].budget_total
+                    budget = None if spent is None or total is None else (spent, total)
             except Exception as err:
                 raise StepError(t, err) from err
             yield response
@@ -146,6 +149,7 @@ class PolicyServicer(pb_grpc.PolicyServiceServicer):
         session: Session | None,
         t: int,
         previous: tuple[str, np.ndarray] | None,
+        budget: tuple[float, float] | None = None,
     ) -> Session | None:
         """The stream's session under new settings: None when no partner is inferred; the same
         session with replaced settings (beliefs kept) or a new one starting at step t."""
@@ -163,6 +167,7 @@ class PolicyServicer(pb_grpc.PolicyServiceServicer):
             first_step=t,
             previous_observation=observation,
             prefetch=self.session_prefetch,
+            budget_state=budget,
         )
 
     def _session_step(self, session: Session, step: pb.EpisodeStep) -> pb.ActResponse:

@@ -110,6 +110,9 @@ def _act(
             method=body.method,
             temperature=body.temperature,
             regret_bound=body.regret_bound,
+            budget=body.budget,
+            budget_spent=_budget_rows(getattr(body, "budget_spent", None), single),
+            budget_total=_budget_rows(getattr(body, "budget_total", None), single),
             seed=body.seed,
             alias=body.alias,
             versions=body.versions,
@@ -122,6 +125,13 @@ def _act(
     return answer, partners
 
 
+def _budget_rows(values: Any, single: bool) -> Any:
+    """A body's carried budget state as the engine's per-row form."""
+    if values is None or not single:
+        return values
+    return [values]
+
+
 def encoder(env: str, partner_indices: Sequence[int]) -> Encoder:
     """The `ActResponse` JSON of a result (also the first fields of a session step's answer)."""
     meanings = env_runtime(env).info.action_meanings
@@ -131,7 +141,7 @@ def encoder(env: str, partner_indices: Sequence[int]) -> Encoder:
             {"index": index, "weight": w}
             for index, w in zip(partner_indices, result.partner_weights, strict=True)
         ]
-        return {
+        answer = {
             "probs": result.probs,
             "action": result.action,
             "greedy_action": result.greedy_action,
@@ -144,6 +154,9 @@ def encoder(env: str, partner_indices: Sequence[int]) -> Encoder:
             },
             "models": models,
         }
+        if result.budget_total is not None:
+            answer["budget"] = {"spent": result.budget_spent, "total": result.budget_total}
+        return answer
 
     return encode
 
@@ -178,6 +191,14 @@ def _columns(env: str, partners: Sequence[PartnerSpec], columns: ActColumns) -> 
         "task_weights": np.ascontiguousarray(columns.task_weights),
         "partner_indices": [p.index for p in partners],
         "partner_weights": np.ascontiguousarray(columns.partner_weights),
+        **(
+            {}
+            if columns.budget_total is None or columns.budget_spent is None
+            else {
+                "budget_spent": np.ascontiguousarray(columns.budget_spent),
+                "budget_total": np.ascontiguousarray(columns.budget_total),
+            }
+        ),
     }
 
 

@@ -32,12 +32,22 @@ from services.rest.bounded import (
 )
 from services.rest.number_rows import NumberRows, NumberStates
 
-MethodName = Literal["aail_bounded", "aail", "nail", "sl", "jl"]
+MethodName = Literal["aail_bounded", "aail_budget", "aail", "nail", "sl", "jl"]
 METHOD_HELP = (
     "blending method: aail_bounded (AAIL with a bound on the ego's own regret, the default), "
-    "aail (the paper's eqs. 8-10), nail (plain average), sl (task network alone), jl (joint "
-    "network)"
+    "aail_budget (AAIL within an episode's regret budget: send back `budget_spent` and "
+    "`budget_total` from each answer), aail (the paper's eqs. 8-10), nail (plain average), sl "
+    "(task network alone), jl (joint network)"
 )
+BUDGET_HELP = (
+    "aail_budget only: the episode's budget as a fraction k >= 0 of the ego's expected task "
+    "value at its first step (default 0.05); read at the first step only"
+)
+SPENT_HELP = (
+    "aail_budget only: the `budget.spent` of the episode's last answer (leave out, with "
+    "`budget_total`, at the episode's first step)"
+)
+TOTAL_HELP = "aail_budget only: the `budget.total` of the episode's last answer"
 REGRET_BOUND_HELP = (
     "aail_bounded only: ε >= 0, in the task network's Q units; actions whose task Q is more "
     "than ε below the best keep their task-policy probability (default: twice the task "
@@ -69,6 +79,7 @@ class ActFields(RequestBody):
         default=None, description="Boltzmann temperature > 0 (default: the model's training α)"
     )
     regret_bound: float | None = Field(default=None, description=REGRET_BOUND_HELP)
+    budget: float | None = Field(default=None, description=BUDGET_HELP)
     seed: int | None = Field(default=None, description="seeds the sampled action(s)")
     alias: str = Field(default="production", description="alias every model is resolved by")
     versions: VersionPins = Field(
@@ -88,6 +99,8 @@ class ActBody(ActFields):
     state: Matrix | None = Field(
         default=None, description="instead of `observation`: the global state, one row per agent"
     )
+    budget_spent: float | None = Field(default=None, description=SPENT_HELP)
+    budget_total: float | None = Field(default=None, description=TOTAL_HELP)
 
 
 class ActBatchBody(ActFields):
@@ -97,6 +110,8 @@ class ActBatchBody(ActFields):
     states: NumberStates | None = Field(
         default=None, description="instead of `observations`: global states"
     )
+    budget_spent: Vector | None = Field(default=None, description=SPENT_HELP + ", one per row")
+    budget_total: Vector | None = Field(default=None, description=TOTAL_HELP + ", one per row")
     format: Literal["rows", "columns"] = Field(
         default="rows",
         description="the response's form: `rows`, one result per observation (`results`), or "
@@ -116,6 +131,11 @@ class Diagnostics(BaseModel):
     partner_weights: list[PartnerWeight] = Field(description="normalised w_i per partner")
 
 
+class BudgetOut(BaseModel):
+    spent: float = Field(description="task value the episode has given up so far (eq. B4)")
+    total: float = Field(description="the episode's budget; send both back at the next step")
+
+
 class ModelUsedOut(BaseModel):
     role: Literal["task", "impact", "joint"]
     name: str
@@ -133,6 +153,7 @@ class ActResponse(BaseModel):
     method: MethodName
     diagnostics: Diagnostics
     models: list[ModelUsedOut]
+    budget: BudgetOut | None = Field(default=None, description="aail_budget only")
 
 
 class ActBatchResponse(BaseModel):
@@ -155,6 +176,8 @@ class ActColumnsResponse(BaseModel):
     partner_weights: list[list[float]] = Field(
         description="B x P partner weights w_i, columns in `partner_indices` order"
     )
+    budget_spent: list[float] | None = Field(default=None, description="aail_budget: B spent")
+    budget_total: list[float] | None = Field(default=None, description="aail_budget: B budgets")
 
 
 class EnvOut(BaseModel):

@@ -91,6 +91,12 @@ class SessionBody(RequestBody):
         default=None, description="Boltzmann temperature > 0 of the act (default: the model's α)"
     )
     regret_bound: float | None = Field(default=None, description=REGRET_BOUND_HELP)
+    budget: float | None = Field(
+        default=None,
+        description="aail_budget only: the episode's budget as a fraction k >= 0 of the ego's "
+        "expected task value at the session's first step (default 0.05); the session carries "
+        "what it spent from step to step",
+    )
     seed: int | None = Field(default=None, description="step t samples with seed + t")
     alias: str = Field(default="production", description="alias every model is resolved by")
     versions: VersionPins = Field(
@@ -155,6 +161,7 @@ class SessionSettingsOut(BaseModel):
     method: MethodName
     temperature: float | None
     regret_bound: float | None
+    budget: float | None = None
     seed: int | None
     alias: str
     versions: dict[str, int]

@@ -115,6 +115,7 @@ def _dry_act_request(settings: SessionSettings, runtime: EnvRuntime) -> ActReque
         method=settings.method,
         temperature=settings.temperature,
         regret_bound=settings.regret_bound,
+        budget=settings.budget,
         seed=settings.seed,
         alias=settings.alias,
         versions=settings.versions,

@@ -46,6 +46,7 @@ class SessionSettings:
     method: Method = DEFAULT_METHOD
     temperature: float | None = None  # of the act pass (default: the task model's training α)
     regret_bound: float | None = None  # aail_bounded's ε (default: twice the task model's α)
+    budget: float | None = None  # aail_budget's fraction k (`policy.regret_budget`)
     seed: int | None = None  # step t samples with seed + t
     alias: str = DEFAULT_ALIAS
     versions: Mapping[str, int] = field(default_factory=dict)

@@ -96,6 +96,7 @@ class Session:
         first_step: int = 0,
         previous_observation: ArrayLike | None = None,
         prefetch: bool = True,
+        budget_state: tuple[float, float] | None = None,
     ) -> None:
         self.engine = engine
         self.session_id = session_id
@@ -112,6 +113,9 @@ class Session:
         if previous_observation is not None:
             self._previous, self._previous_agents = self._observation(previous_observation)
         self._next_step = self._first_step = first_step
+        # aail_budget's episode state (S spent, B budget) after the last step; None before it
+        # (`budget_state`: what an episode begun without the session had spent)
+        self._budget: tuple[float, float] | None = budget_state
         # scoring ahead: the partners whose actions the next step is expected to bring, and
         # the table made for them (the step it serves, the table)
         self._table_partners: tuple[int, ...] = ()
@@ -164,6 +168,8 @@ class Session:
             self._next_step = t + 1
             self._last_views = (log_belief_PG, views)
             self._table_partners = self._expected_partners(entries, t, n_agents)
+            if result.budget_spent is not None and result.budget_total is not None:
+                self._budget = (result.budget_spent, result.budget_total)
             beliefs = self._beliefs(views, updates, actions)
         return SessionStepResult(self.session_id, t, result, beliefs)
 
@@ -400,11 +406,15 @@ class Session:
                 method=settings.method,
                 temperature=settings.temperature,
                 regret_bound=settings.regret_bound,
+                budget=settings.budget,
                 seed=settings.seed + t,
                 alias=settings.alias,
                 versions=settings.versions,
             )
-        ready = CheckedRequest(checked.runtime, obs_1D, n_agents, tuple(partners))
+        spent = total = None  # the episode's budget state, carried as a client of /v1/act would
+        if self._budget is not None:
+            spent, total = np.array([self._budget[0]]), np.array([self._budget[1]])
+        ready = CheckedRequest(checked.runtime, obs_1D, n_agents, tuple(partners), spent, total)
         try:
             return self.engine.act_checked(request, ready)[0]
         except EngineError as err:

@@ -60,7 +60,7 @@ class BeliefSettings(_message.Message):
     def __init__(self, forgetting: _Optional[float] = ..., floor: _Optional[float] = ..., temperature: _Optional[float] = ..., blend_mass: _Optional[float] = ..., blend_max_goals: _Optional[int] = ...) -> None: ...
 
 class ActRequest(_message.Message):
-    __slots__ = ("env", "ego_goal", "observation", "state", "ego_index", "partners", "method", "temperature", "seed", "alias", "versions", "regret_bound")
+    __slots__ = ("env", "ego_goal", "observation", "state", "ego_index", "partners", "method", "temperature", "seed", "alias", "versions", "regret_bound", "budget", "budget_spent", "budget_total")
     class VersionsEntry(_message.Message):
         __slots__ = ("key", "value")
         KEY_FIELD_NUMBER: _ClassVar[int]
@@ -80,6 +80,9 @@ class ActRequest(_message.Message):
     ALIAS_FIELD_NUMBER: _ClassVar[int]
     VERSIONS_FIELD_NUMBER: _ClassVar[int]
     REGRET_BOUND_FIELD_NUMBER: _ClassVar[int]
+    BUDGET_FIELD_NUMBER: _ClassVar[int]
+    BUDGET_SPENT_FIELD_NUMBER: _ClassVar[int]
+    BUDGET_TOTAL_FIELD_NUMBER: _ClassVar[int]
     env: str
     ego_goal: str
     observation: _containers.RepeatedScalarFieldContainer[float]
@@ -92,7 +95,10 @@ class ActRequest(_message.Message):
     alias: str
     versions: _containers.ScalarMap[str, int]
     regret_bound: float
-    def __init__(self, env: _Optional[str] = ..., ego_goal: _Optional[str] = ..., observation: _Optional[_Iterable[float]] = ..., state: _Optional[_Union[State, _Mapping]] = ..., ego_index: _Optional[int] = ..., partners: _Optional[_Iterable[_Union[PartnerSpec, _Mapping]]] = ..., method: _Optional[str] = ..., temperature: _Optional[float] = ..., seed: _Optional[int] = ..., alias: _Optional[str] = ..., versions: _Optional[_Mapping[str, int]] = ..., regret_bound: _Optional[float] = ...) -> None: ...
+    budget: float
+    budget_spent: float
+    budget_total: float
+    def __init__(self, env: _Optional[str] = ..., ego_goal: _Optional[str] = ..., observation: _Optional[_Iterable[float]] = ..., state: _Optional[_Union[State, _Mapping]] = ..., ego_index: _Optional[int] = ..., partners: _Optional[_Iterable[_Union[PartnerSpec, _Mapping]]] = ..., method: _Optional[str] = ..., temperature: _Optional[float] = ..., seed: _Optional[int] = ..., alias: _Optional[str] = ..., versions: _Optional[_Mapping[str, int]] = ..., regret_bound: _Optional[float] = ..., budget: _Optional[float] = ..., budget_spent: _Optional[float] = ..., budget_total: _Optional[float] = ...) -> None: ...
 
 class Matrix(_message.Message):
     __slots__ = ("rows", "cols", "values")
@@ -105,7 +111,7 @@ class Matrix(_message.Message):
     def __init__(self, rows: _Optional[int] = ..., cols: _Optional[int] = ..., values: _Optional[_Iterable[float]] = ...) -> None: ...
 
 class ActBatchRequest(_message.Message):
-    __slots__ = ("env", "ego_goal", "observations", "states", "ego_index", "partners", "method", "temperature", "seed", "alias", "versions", "observation_matrix", "format", "regret_bound")
+    __slots__ = ("env", "ego_goal", "observations", "states", "ego_index", "partners", "method", "temperature", "seed", "alias", "versions", "observation_matrix", "format", "regret_bound", "budget", "budget_spent", "budget_total")
     class VersionsEntry(_message.Message):
         __slots__ = ("key", "value")
         KEY_FIELD_NUMBER: _ClassVar[int]
@@ -127,6 +133,9 @@ class ActBatchRequest(_message.Message):
     OBSERVATION_MATRIX_FIELD_NUMBER: _ClassVar[int]
     FORMAT_FIELD_NUMBER: _ClassVar[int]
     REGRET_BOUND_FIELD_NUMBER: _ClassVar[int]
+    BUDGET_FIELD_NUMBER: _ClassVar[int]
+    BUDGET_SPENT_FIELD_NUMBER: _ClassVar[int]
+    BUDGET_TOTAL_FIELD_NUMBER: _ClassVar[int]
     env: str
     ego_goal: str
     observations: _containers.RepeatedCompositeFieldContainer[Vector]
@@ -141,10 +150,13 @@ class ActBatchRequest(_message.Message):
     observation_matrix: Matrix
     format: BatchFormat
     regret_bound: float
-    def __init__(self, env: _Optional[str] = ..., ego_goal: _Optional[str] = ..., observations: _Optional[_Iterable[_Union[Vector, _Mapping]]] = ..., states: _Optional[_Iterable[_Union[State, _Mapping]]] = ..., ego_index: _Optional[int] = ..., partners: _Optional[_Iterable[_Union[PartnerSpec, _Mapping]]] = ..., method: _Optional[str] = ..., temperature: _Optional[float] = ..., seed: _Optional[int] = ..., alias: _Optional[str] = ..., versions: _Optional[_Mapping[str, int]] = ..., observation_matrix: _Optional[_Union[Matrix, _Mapping]] = ..., format: _Optional[_Union[BatchFormat, str]] = ..., regret_bound: _Optional[float] = ...) -> None: ...
+    budget: float
+    budget_spent: _containers.RepeatedScalarFieldContainer[float]
+    budget_total: _containers.RepeatedScalarFieldContainer[float]
+    def __init__(self, env: _Optional[str] = ..., ego_goal: _Optional[str] = ..., observations: _Optional[_Iterable[_Union[Vector, _Mapping]]] = ..., states: _Optional[_Iterable[_Union[State, _Mapping]]] = ..., ego_index: _Optional[int] = ..., partners: _Optional[_Iterable[_Union[PartnerSpec, _Mapping]]] = ..., method: _Optional[str] = ..., temperature: _Optional[float] = ..., seed: _Optional[int] = ..., alias: _Optional[str] = ..., versions: _Optional[_Mapping[str, int]] = ..., observation_matrix: _Optional[_Union[Matrix, _Mapping]] = ..., format: _Optional[_Union[BatchFormat, str]] = ..., regret_bound: _Optional[float] = ..., budget: _Optional[float] = ..., budget_spent: _Optional[_Iterable[float]] = ..., budget_total: _Optional[_Iterable[float]] = ...) -> None: ...
 
 class EpisodeSettings(_message.Message):
-    __slots__ = ("env", "ego_goal", "partners", "method", "temperature", "seed", "alias", "versions", "belief", "regret_bound")
+    __slots__ = ("env", "ego_goal", "partners", "method", "temperature", "seed", "alias", "versions", "belief", "regret_bound", "budget")
     class VersionsEntry(_message.Message):
         __slots__ = ("key", "value")
         KEY_FIELD_NUMBER: _ClassVar[int]
@@ -162,6 +174,7 @@ class EpisodeSettings(_message.Message):
     VERSIONS_FIELD_NUMBER: _ClassVar[int]
     BELIEF_FIELD_NUMBER: _ClassVar[int]
     REGRET_BOUND_FIELD_NUMBER: _ClassVar[int]
+    BUDGET_FIELD_NUMBER: _ClassVar[int]
     env: str
     ego_goal: str
     partners: _containers.RepeatedCompositeFieldContainer[PartnerSpec]
@@ -172,7 +185,8 @@ class EpisodeSettings(_message.Message):
     versions: _containers.ScalarMap[str, int]
     belief: BeliefSettings
     regret_bound: float
-    def __init__(self, env: _Optional[str] = ..., ego_goal: _Optional[str] = ..., partners: _Optional[_Iterable[_Union[PartnerSpec, _Mapping]]] = ..., method: _Optional[str] = ..., temperature: _Optional[float] = ..., seed: _Optional[int] = ..., alias: _Optional[str] = ..., versions: _Optional[_Mapping[str, int]] = ..., belief: _Optional[_Union[BeliefSettings, _Mapping]] = ..., regret_bound: _Optional[float] = ...) -> None: ...
+    budget: float
+    def __init__(self, env: _Optional[str] = ..., ego_goal: _Optional[str] = ..., partners: _Optional[_Iterable[_Union[PartnerSpec, _Mapping]]] = ..., method: _Optional[str] = ..., temperature: _Optional[float] = ..., seed: _Optional[int] = ..., alias: _Optional[str] = ..., versions: _Optional[_Mapping[str, int]] = ..., belief: _Optional[_Union[BeliefSettings, _Mapping]] = ..., regret_bound: _Optional[float] = ..., budget: _Optional[float] = ...) -> None: ...
 
 class ObservedAction(_message.Message):
     __slots__ = ("index", "action")
@@ -253,7 +267,7 @@ class PartnerBelief(_message.Message):
     def __init__(self, index: _Optional[int] = ..., top: _Optional[_Iterable[_Union[GoalProb, _Mapping]]] = ..., entropy: _Optional[float] = ..., observed_action: _Optional[int] = ..., updates: _Optional[int] = ...) -> None: ...
 
 class ActResponse(_message.Message):
-    __slots__ = ("probs", "action", "greedy_action", "action_meaning", "method", "diagnostics", "models", "beliefs")
+    __slots__ = ("probs", "action", "greedy_action", "action_meaning", "method", "diagnostics", "models", "beliefs", "budget")
     PROBS_FIELD_NUMBER: _ClassVar[int]
     ACTION_FIELD_NUMBER: _ClassVar[int]
     GREEDY_ACTION_FIELD_NUMBER: _ClassVar[int]
@@ -262,6 +276,7 @@ class ActResponse(_message.Message):
     DIAGNOSTICS_FIELD_NUMBER: _ClassVar[int]
     MODELS_FIELD_NUMBER: _ClassVar[int]
     BELIEFS_FIELD_NUMBER: _ClassVar[int]
+    BUDGET_FIELD_NUMBER: _ClassVar[int]
     probs: _containers.RepeatedScalarFieldContainer[float]
     action: int
     greedy_action: int
@@ -270,10 +285,19 @@ class ActResponse(_message.Message):
     diagnostics: Diagnostics
     models: _containers.RepeatedCompositeFieldContainer[ModelUsed]
     beliefs: _containers.RepeatedCompositeFieldContainer[PartnerBelief]
-    def __init__(self, probs: _Optional[_Iterable[float]] = ..., action: _Optional[int] = ..., greedy_action: _Optional[int] = ..., action_meaning: _Optional[str] = ..., method: _Optional[str] = ..., diagnostics: _Optional[_Union[Diagnostics, _Mapping]] = ..., models: _Optional[_Iterable[_Union[ModelUsed, _Mapping]]] = ..., beliefs: _Optional[_Iterable[_Union[PartnerBelief, _Mapping]]] = ...) -> None: ...
+    budget: Budget
+    def __init__(self, probs: _Optional[_Iterable[float]] = ..., action: _Optional[int] = ..., greedy_action: _Optional[int] = ..., action_meaning: _Optional[str] = ..., method: _Optional[str] = ..., diagnostics: _Optional[_Union[Diagnostics, _Mapping]] = ..., models: _Optional[_Iterable[_Union[ModelUsed, _Mapping]]] = ..., beliefs: _Optional[_Iterable[_Union[PartnerBelief, _Mapping]]] = ..., budget: _Optional[_Union[Budget, _Mapping]] = ...) -> None: ...
+
+class Budget(_message.Message):
+    __slots__ = ("spent", "total")
+    SPENT_FIELD_NUMBER: _ClassVar[int]
+    TOTAL_FIELD_NUMBER: _ClassVar[int]
+    spent: float
+    total: float
+    def __init__(self, spent: _Optional[float] = ..., total: _Optional[float] = ...) -> None: ...
 
 class ActColumns(_message.Message):
-    __slots__ = ("method", "models", "rows", "n_actions", "probs", "actions", "greedy_actions", "action_meanings", "task_entropies", "task_weights", "partner_indices", "partner_weights")
+    __slots__ = ("method", "models", "rows", "n_actions", "probs", "actions", "greedy_actions", "action_meanings", "task_entropies", "task_weights", "partner_indices", "partner_weights", "budget_spent", "budget_total")
     METHOD_FIELD_NUMBER: _ClassVar[int]
     MODELS_FIELD_NUMBER: _ClassVar[int]
     ROWS_FIELD_NUMBER: _ClassVar[int]
@@ -286,6 +310,8 @@ class ActColumns(_message.Message):
     TASK_WEIGHTS_FIELD_NUMBER: _ClassVar[int]
     PARTNER_INDICES_FIELD_NUMBER: _ClassVar[int]
     PARTNER_WEIGHTS_FIELD_NUMBER: _ClassVar[int]
+    BUDGET_SPENT_FIELD_NUMBER: _ClassVar[int]
+    BUDGET_TOTAL_FIELD_NUMBER: _ClassVar[int]
     method: str
     models: _containers.RepeatedCompositeFieldContainer[ModelUsed]
     rows: int
@@ -298,7 +324,9 @@ class ActColumns(_message.Message):
     task_weights: _containers.RepeatedScalarFieldContainer[float]
     partner_indices: _containers.RepeatedScalarFieldContainer[int]
     partner_weights: _containers.RepeatedScalarFieldContainer[float]
-    def __init__(self, method: _Optional[str] = ..., models: _Optional[_Iterable[_Union[ModelUsed, _Mapping]]] = ..., rows: _Optional[int] = ..., n_actions: _Optional[int] = ..., probs: _Optional[_Iterable[float]] = ..., actions: _Optional[_Iterable[int]] = ..., greedy_actions: _Optional[_Iterable[int]] = ..., action_meanings: _Optional[_Iterable[str]] = ..., task_entropies: _Optional[_Iterable[float]] = ..., task_weights: _Optional[_Iterable[float]] = ..., partner_indices: _Optional[_Iterable[int]] = ..., partner_weights: _Optional[_Iterable[float]] = ...) -> None: ...
+    budget_spent: _containers.RepeatedScalarFieldContainer[float]
+    budget_total: _containers.RepeatedScalarFieldContainer[float]
+    def __init__(self, method: _Optional[str] = ..., models: _Optional[_Iterable[_Union[ModelUsed, _Mapping]]] = ..., rows: _Optional[int] = ..., n_actions: _Optional[int] = ..., probs: _Optional[_Iterable[float]] = ..., actions: _Optional[_Iterable[int]] = ..., greedy_actions: _Optional[_Iterable[int]] = ..., action_meanings: _Optional[_Iterable[str]] = ..., task_entropies: _Optional[_Iterable[float]] = ..., task_weights: _Optional[_Iterable[float]] = ..., partner_indices: _Optional[_Iterable[int]] = ..., partner_weights: _Optional[_Iterable[float]] = ..., budget_spent: _Optional[_Iterable[float]] = ..., budget_total: _Optional[_Iterable[float]] = ...) -> None: ...
 
 class ActBatchResponse(_message.Message):
     __slots__ = ("results", "columns")
