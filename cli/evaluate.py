@@ -124,6 +124,13 @@ def evaluate(
         "partners"
     ),
     fast: Annotated[bool, typer.Option(help="A few short episodes (tests the harness).")] = False,
+    partner_types: Annotated[
+        str | None,
+        typer.Option(
+            help="--suite partners: comma-separated partner types (evaluation/partner_types.py). "
+            "Default: all."
+        ),
+    ] = None,
     print_combos: Annotated[
         bool,
         typer.Option(
@@ -160,6 +167,7 @@ def evaluate(
         alias=alias,
         partner_alias=partner_alias,
         print_combos=print_combos,
+        partner_types=tuple(t.strip() for t in (partner_types or "").split(",") if t.strip()),
     )
     ui = _ConsoleUi()
     try:

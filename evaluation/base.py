@@ -52,6 +52,7 @@ class EvalOptions:
     alias: str = "production"
     partner_alias: str = "partners"
     print_combos: bool = False
+    partner_types: tuple[str, ...] = ()  # the partners suite's partner types (empty: all)
 
 
 class OptionError(ValueError):

@@ -56,6 +56,7 @@ METHOD_LABELS: dict[str, str] = {
     "nail": "NAIL",
     "aail": "AAIL",
     "aail_bounded": "AAIL-B",
+    "aail_budget": "AAIL-budget",
     "jl": "JL",
 }
 FIVE_AGENT_SET_SIZE = 5

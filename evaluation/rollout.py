@@ -31,11 +31,12 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from envs.particle.batched import BatchedParticleWorld, StepResult
-from envs.particle.goals import goal_indices
+from envs.particle.goals import GOAL_IDS, goal_indices
 from envs.particle.scenarios import start_states
-from envs.particle.world import in_target
+from envs.particle.world import ACTION_DIRECTIONS_A2, in_target
 from evaluation.backend import ModelRecord, PolicyBackend
 from evaluation.config import Scenario
+from evaluation.partner_types import SWITCH_STEP, PartnerType, partner_probs, switched_goals
 from policy.sampling import sample_actions
 from services.engine import ActRequest, PartnerSpec
 
@@ -145,11 +146,6 @@ class _Layout:
             [np.tile(goal_indices(c.scenario.goals), (c.scenario.episodes, 1)) for c in cells]
         )
         self.u_TBN = np.concatenate([noise[c.scenario.name] for c in cells], axis=1)
-        # partner goal -> [(cell index, slot)]: one backend call per partner goal and step
-        self.partner_slots: dict[str, list[tuple[int, int]]] = {}
-        for k, c in enumerate(cells):
-            for slot, goal in enumerate(c.scenario.partner_goals, start=1):
-                self.partner_slots.setdefault(goal, []).append((k, slot))
 
 
 def run_cells(
@@ -165,16 +161,29 @@ def run_cells(
     progress: ProgressFn | None = None,
     regret_bound: float | None = None,
     budget: float | None = None,
+    partner_type: PartnerType | None = None,
 ) -> RunOutput:
     """Run every cell's episodes to the end (module docstring); results in cell order.
     `regret_bound` is aail_bounded's ε, `budget` aail_budget's fraction k (None: the engine's
     defaults); an aail_budget episode carries its budget state from step to step as a client
-    of `/v1/act` does."""
+    of `/v1/act` does. Partners act as `partner_type` says (`evaluation.partner_types`;
+    default: the task networks of `partner_alias`)."""
+    partners = partner_type or PartnerType("population")
+    partners_alias = partners.alias(alias, partner_alias)
     if not cells:
         raise ValueError("cells: expected at least one cell")
     layout = _Layout(cells, seed, max_steps)
     n_rows, n_agents = layout.n_rows, layout.n_agents
     world = BatchedParticleWorld(layout.goals_BN, max_steps=max_steps)
+    n_actions = len(ACTION_DIRECTIONS_A2)
+    switched = layout.goals_BN.copy()  # a switching partner's goals after SWITCH_STEP
+    if partners.switches:
+        for k, c in enumerate(cells):  # per scenario, so every method meets the same switch
+            rows = layout.rows[k]
+            for slot in range(1, n_agents):
+                switched[rows, slot] = switched_goals(
+                    c.scenario.start_seed + slot, layout.goals_BN[rows, slot]
+                )
     obs_BND = world.reset(layout.starts_BN4)
     tally = EpisodeTally(
         layout.starts_BN4, [rows[min(record_episode, len(rows) - 1)] for rows in layout.rows]
@@ -227,22 +236,32 @@ def run_cells(
                     budget_total=total_B[rows] if carried else None,
                 )
             actions_BN[rows, 0] = sample_actions(act(request, rows), layout.u_TBN[t, rows, 0])
-        for goal, slots in layout.partner_slots.items():
-            picked = [(live[k], slot) for k, slot in slots if live[k].size]
-            if not picked:
-                continue
-            obs = np.concatenate([obs_BND[rows, slot] for rows, slot in picked])
-            request = ActRequest(
-                env=env, ego_goal=goal, observations=obs, method="sl", alias=partner_alias
+        if partners.switches and t == SWITCH_STEP:  # the partners' untold new goals
+            world.set_goals(switched)
+        goals_BN = world.goals
+        live_B = np.flatnonzero(active_B)
+        # one call per partner goal: the rows of every cell and slot whose partner pursues it
+        by_goal: dict[int, list[tuple[np.ndarray, int]]] = {}
+        for slot in range(1, n_agents):
+            for g in np.unique(goals_BN[live_B, slot]).tolist():
+                by_goal.setdefault(g, []).append((live_B[goals_BN[live_B, slot] == g], slot))
+        for g, picked in by_goal.items():
+            rows_R = np.concatenate([rows for rows, _ in picked])
+            slots_R = np.concatenate([np.full(rows.size, slot) for rows, slot in picked])
+            probs_RA = partner_probs(
+                partners,
+                partners_alias,
+                act,
+                GOAL_IDS[g],
+                obs_BND[rows_R, slots_R],
+                world.state[rows_R],
+                slots_R,
+                n_actions,
+                env,
             )
-            probs_BA = act(request)
-            start = 0
-            for rows, slot in picked:
-                part = probs_BA[start : start + rows.size]
-                actions_BN[rows, slot] = sample_actions(part, layout.u_TBN[t, rows, slot])
-                start += rows.size
+            actions_BN[rows_R, slots_R] = sample_actions(probs_RA, layout.u_TBN[t, rows_R, slots_R])
         step = world.step(actions_BN)
-        tally.record(step, world.state, layout.goals_BN)
+        tally.record(step, world.state, world.goals)
         obs_BND = step.next_obs_BND
 
     for k, cell in enumerate(cells):

@@ -5,6 +5,8 @@
 | `paper`     | `evaluation.paper.command.PAPER_SUITE`          | the particle world, §4.2 |
 | `inference` | `evaluation.inference.command.INFERENCE_SUITE`  | online goal inference    |
 | `cooking`   | `evaluation.cooking.command.COOKING_SUITE`      | the kitchen, Fig. 9      |
+| `partners`  | `evaluation.partners.command.PARTNERS_SUITE`    | every method against     |
+|             |                                                 | partners not coexist's   |
 
 To add a suite, add its folder `evaluation/<suite>/` whose `command.py` implements
 `evaluation.base.Suite`, and one entry to `SUITES`.
@@ -19,9 +21,10 @@ from evaluation.base import Suite
 from evaluation.cooking.command import COOKING_SUITE
 from evaluation.inference.command import INFERENCE_SUITE
 from evaluation.paper.command import PAPER_SUITE
+from evaluation.partners.command import PARTNERS_SUITE
 
 SUITES: dict[str, Suite[Any]] = {
-    suite.name: suite for suite in (PAPER_SUITE, INFERENCE_SUITE, COOKING_SUITE)
+    suite.name: suite for suite in (PAPER_SUITE, INFERENCE_SUITE, COOKING_SUITE, PARTNERS_SUITE)
 }
 DEFAULT_SUITE = PAPER_SUITE.name  # `coexist eval` without --suite
 

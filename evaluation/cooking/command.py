@@ -46,6 +46,7 @@ PAPER_ONLY = (
     "five_agent_sets",
     "set_episodes",
     "regret_bound",
+    "partner_types",
 )
 
 

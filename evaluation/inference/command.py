@@ -43,6 +43,8 @@ class InferenceSuite:
         from model_store.defaults import open_store
         from services.engine import InferenceEngine
 
+        if options.partner_types:
+            raise OptionError("used by --suite partners only", "--partner-types")
         if options.server is not None:
             raise OptionError(
                 "the inference suite runs in-process (the likelihood pass is the engine's); "

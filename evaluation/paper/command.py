@@ -102,6 +102,8 @@ def _config(options: EvalOptions) -> SuiteConfig:
     """The suite's settings: `--fast`'s or the full ones, with the options given."""
     from evaluation.config import SuiteConfig, fast_config
 
+    if options.partner_types:
+        raise OptionError("used by --suite partners only", "--partner-types")
     if options.pairs is not None:
         raise OptionError(
             "used by --suite inference only; the paper suite draws pairs per class "

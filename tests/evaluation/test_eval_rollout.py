@@ -9,7 +9,7 @@ from envs.particle.env import ParticleCoexistenceEnv
 from envs.particle.goals import goal_index
 from envs.particle.scenarios import start_states
 from envs.particle.scripted import scripted_actions
-from evaluation.backend import ModelRecord
+from evaluation.backend import Answer, ModelRecord
 from evaluation.config import Scenario
 from evaluation.rollout import Cell, run_cells
 from services.engine import ActRequest
@@ -29,6 +29,15 @@ class FakeBackend:
     def probs(self, request: ActRequest) -> tuple[np.ndarray, set[ModelRecord]]:
         self.requests.append(request)
         return self.policy(request), {RECORD}  # type: ignore[operator]
+
+    def answer(self, request: ActRequest) -> Answer:
+        probs, models = self.probs(request)
+        if request.method != "aail_budget":
+            return Answer(probs, models)
+        # a budget state that counts the steps: what the rollout must carry back
+        rows = len(request.observations)
+        spent = np.zeros(rows) if request.budget_spent is None else request.budget_spent
+        return Answer(probs, models, np.asarray(spent) + 1.0, np.full(rows, 100.0))
 
     def has_models(self, request: ActRequest) -> bool:
         return request.method != "jl"
@@ -107,3 +116,43 @@ def test_cells_must_share_an_agent_count() -> None:
         )
     with pytest.raises(ValueError, match="at least one cell"):
         run_cells(FakeBackend(uniform_policy), [], max_steps=5, seed=0)
+
+
+def test_an_aail_budget_episode_carries_its_budget_state_step_to_step() -> None:
+    scenario = Scenario("s", "a2", ("b3",), 4, 11)
+    backend = FakeBackend(uniform_policy)
+    run_cells(backend, [Cell(scenario, "aail_budget")], max_steps=6, seed=3, budget=0.2)
+    ego = [r for r in backend.requests if r.method == "aail_budget"]
+    assert ego[0].budget_spent is None and ego[0].budget_total is None  # the first step
+    for t, request in enumerate(ego[1:], start=1):
+        assert request.budget == 0.2
+        np.testing.assert_array_equal(request.budget_spent, np.full(4, float(t)))
+        np.testing.assert_array_equal(request.budget_total, np.full(4, 100.0))
+
+
+@pytest.mark.parametrize("name", ["idle", "scripted", "eps_0.3", "hot", "switching", "same"])
+def test_partner_types_act_as_their_table_says(name: str) -> None:
+    from evaluation.partner_types import SWITCH_STEP, partner_type
+
+    scenario = Scenario("s", "a2", ("e0",), 6, 11)
+    backend = FakeBackend(scripted_policy)
+    out = run_cells(
+        backend, [Cell(scenario, "sl")], max_steps=30, seed=3, partner_type=partner_type(name)
+    )
+    trajectory = out.results[0].trajectory_TN4
+    partner_calls = [r for r in backend.requests if r.ego_goal != "a2"]
+    if name == "idle":  # rests: damping only, from a standing start it never moves
+        np.testing.assert_allclose(
+            trajectory[:, 1, :2], np.broadcast_to(trajectory[0, 1, :2], trajectory[:, 1, :2].shape)
+        )
+        assert not partner_calls
+    elif name == "scripted":  # no network asked; it heads for e0 (row 0) on its own
+        assert not partner_calls
+        assert out.results[0].success_EN[:, 1].mean() > 0.5 or out.results[0].length_E.max() == 30
+    elif name == "switching":  # its goal changes after SWITCH_STEP steps, to an untold one
+        goals = {r.ego_goal for r in partner_calls[SWITCH_STEP:]}
+        assert {r.ego_goal for r in partner_calls[:SWITCH_STEP]} == {"e0"}
+        assert goals - {"e0"}
+    else:
+        alias = "production" if name == "same" else "partners"
+        assert partner_calls and {r.alias for r in partner_calls} == {alias}

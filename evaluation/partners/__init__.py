@@ -1,0 +1,1 @@
+"""`coexist eval --suite partners`: every method against partners that are not coexist's own."""

@@ -1,0 +1,99 @@
+"""`coexist eval --suite partners --fast` end to end on a tiny zoo, and its report's numbers
+checked against the episodes they come from."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from cli.main import app
+from evaluation.partners.report import TOST_MARGIN, rows_of, tost_paired
+from evaluation.partners.suite import PartnersConfig, scenarios
+from evaluation.prepare import train_tiny_zoo
+from model_store.sql import SqlModelStore
+
+FAST = PartnersConfig(
+    aligned_pairs=1,
+    non_aligned_pairs=1,
+    pair_episodes=2,
+    five_agent_sets=1,
+    set_episodes=2,
+    max_steps=30,
+    partner_types=("other_seed", "scripted"),
+)
+
+
+@pytest.mark.slow
+def test_fast_suite_writes_a_report_whose_tables_match_the_episodes(tmp_path: Path) -> None:
+    drawn = [s for chosen in scenarios(FAST).values() for s in chosen]
+    goals = sorted({g for s in drawn for g in s.goals})
+    url = f"sqlite:///{tmp_path}/models.db"
+    with SqlModelStore(url) as store:
+        train_tiny_zoo(store, goals, goals, [])
+    out = tmp_path / "report"
+    args = ["eval", "--suite", "partners", "--fast", "--store-url", url, "--out", str(out)]
+    args += ["--partner-types", "other_seed,scripted"]
+    result = CliRunner().invoke(app, args)
+    assert result.exit_code == 0, result.output
+    report = (out / "REPORT.md").read_text()
+    data = json.loads((out / "results.json").read_text())
+    rows = data["rows"]
+    types = {r["partner_type"] for r in rows}
+    assert types == set(data["config"]["partner_types"])
+    methods = {r["method"] for r in rows}
+    assert methods == {"sl", "aail", "aail_bounded", "aail_budget"}
+    for r in rows:  # every row of the tables is in the report with its own numbers
+        assert f"| {r['units']} | {r['stranded']} |" in report
+        if r["method"] == "sl":
+            assert r["team_gain"] == 0.0 and r["stranded"] == 0
+    assert "## Verdicts for" in report and "never strands" in report
+
+
+def test_tost_is_equivalent_only_within_the_margin() -> None:
+    rng = np.random.default_rng(0)
+    b = rng.normal(-10, 1, 200)
+    close = b + rng.normal(0.0, 0.01, 200)
+    far = b + 0.5 + rng.normal(0.0, 0.01, 200)
+    assert tost_paired(close, b, 0.2) < 0.001
+    assert tost_paired(far, b, 0.2) > 0.99
+    assert TOST_MARGIN == 0.02
+
+
+def test_rows_are_computed_from_the_cells() -> None:
+    from evaluation.config import Scenario
+    from evaluation.partners.suite import PartnersResult
+    from evaluation.rollout import CellResult
+
+    def cell(method: str, ego: float, partner: float, success: list[bool]) -> CellResult:
+        n = len(success)
+        returns = np.array([[ego, partner]] * n)
+        ok = np.array([[s, True] for s in success])
+        return CellResult(
+            Scenario("non_aligned:a2+b3", "a2", ("b3",), n, 1),
+            method,
+            returns,
+            ok,
+            ok,
+            np.full(n, 10),
+            ok.all(axis=1),
+            np.zeros((1, 2, 4)),
+        )
+
+    result = PartnersResult(PartnersConfig(methods=("sl", "aail")))
+    result.cells = {
+        "idle": {
+            "non_aligned": [
+                cell("sl", -10.0, -5.0, [True, True, False]),
+                cell("aail", -11.0, -4.5, [True, False, True]),
+            ]
+        }
+    }
+    rows = {r.method: r for r in rows_of(result)}
+    assert rows["aail"].stranded == 1  # SL ok and AAIL not: episode 1 only
+    assert rows["aail"].regret_median == pytest.approx(0.1)
+    assert rows["aail"].team_gain == pytest.approx(-0.5)
+    assert rows["aail"].sets_below == 1
