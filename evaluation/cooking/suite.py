@@ -36,7 +36,7 @@ change; a warmer policy walks out of such loops.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -51,7 +51,7 @@ from envs.cooking import (
     save_gif,
     scripted_actions,
 )
-from evaluation.backend import EngineBackend, ModelRecord, PolicyBackend
+from evaluation.backend import Answer, EngineBackend, ModelRecord, PolicyBackend
 from evaluation.config import METHOD_LABELS
 from evaluation.stats import MeanSE, mcnemar_p, mean_se
 from model_store.store import ModelStore
@@ -127,7 +127,9 @@ class CookingResults:
                 ]
             lines.append(f"| {METHOD_LABELS.get(method, method)} | " + " | ".join(cells) + " |")
         compared = [
-            m for m in ("aail_bounded", "aail") if m in self.methods and "sl" in self.methods
+            m
+            for m in ("aail_budget", "aail_bounded", "aail")
+            if m in self.methods and "sl" in self.methods
         ]
         if compared:
             lines.append("")
@@ -157,9 +159,9 @@ def _inverse_cdf(probs_BA: np.ndarray, u_B: np.ndarray) -> np.ndarray:
 _ROLE_ORDER = {"task": 0, "impact": 1, "joint": 2}
 
 
-def _probs(backend: PolicyBackend, request: ActRequest) -> tuple[np.ndarray, list[str]]:
-    probs_BA, records = backend.probs(request)
-    return probs_BA, [f"{m.name}/{m.version}" for m in sorted(records, key=_model_order)]
+def _answer(backend: PolicyBackend, request: ActRequest) -> tuple[Answer, list[str]]:
+    answer = backend.answer(request)
+    return answer, [f"{m.name}/{m.version}" for m in sorted(answer.models, key=_model_order)]
 
 
 def _model_order(record: ModelRecord) -> tuple[int, str]:
@@ -178,19 +180,22 @@ def evaluate_cooking(
     *,
     episodes: int = 100,
     seed: int = 0,
-    methods: Sequence[str] = ("aail_bounded", "aail", "sl"),
+    methods: Sequence[str] = ("aail_bounded", "aail_budget", "aail", "sl"),
     max_steps: int = 400,
     alias: str = "production",
     partner_alias: str = "partners",
     record: str | None = "aail_bounded",
     temperature: float | None = None,
     progress: Callable[[int, int], None] | None = None,
+    scripted_partner: bool = False,
 ) -> CookingResults:
     """Run `episodes` paired episodes per method (module docstring); `record` keeps the states
     of the first episode of that method (for `save_cooking_gif`). `policies`: an engine or any
     `PolicyBackend`; the left cook's networks resolve by `alias`, the right cook's by
-    `partner_alias`. `store` is not needed by the rollout itself (the backend reads it); it is
-    accepted for the report's uniform call. `progress(step, running episodes)` after each step.
+    `partner_alias` (`scripted_partner`: the scripted cook even where a network is
+    registered). `store` is not needed by the rollout itself (the backend reads it); it is
+    accepted for the report's uniform call. An aail_budget cook carries its episode's budget
+    from step to step, as a client of `/v1/act` does. `progress(step, running episodes)` after each step.
     A LookupError, before any episode, when the left cook's networks are not served."""
     del store
     if episodes < 1 or max_steps < 1:
@@ -215,7 +220,10 @@ def evaluate_cooking(
             f"cooking/impact/{RECIPES[1]} at alias {alias!r} ({backend.description}); train them "
             "with `coexist train zoo --env cooking --goals TomatoLettuceSalad,CarrotBanana`"
         )
-    if backend.has_models(_partner_request(world.observe()[:1, 1], partner_alias)):
+    learned = not scripted_partner and backend.has_models(
+        _partner_request(world.observe()[:1, 1], partner_alias)
+    )
+    if learned:
         right_cook = f"learned task network, alias {partner_alias!r}"
     else:
         right_cook = "scripted cook (no partner-population network registered)"
@@ -227,6 +235,7 @@ def evaluate_cooking(
     record_row = methods.index(record) * episodes if record in methods else None
     trajectory = [] if record_row is None else [world.state.select(record_row)]
     obs_BND = world.observe()
+    spent_B, total_B = np.zeros(n_rows), np.zeros(n_rows)  # aail_budget's episode state
     for t in range(max_steps):
         active_B = ~np.all(served.reshape(n_rows, 2), axis=1)
         if not active_B.any():
@@ -247,13 +256,19 @@ def evaluate_cooking(
                 seed=seed,
                 alias=alias,
             )
-            probs_BA, models[method] = _probs(backend, request)
+            if method == "aail_budget" and t > 0:  # the first step sends no state
+                request = replace(request, budget_spent=spent_B[rows], budget_total=total_B[rows])
+            answer, models[method] = _answer(backend, request)
+            probs_BA = answer.probs_BA
+            if answer.budget_spent_B is not None and answer.budget_total_B is not None:
+                spent_B[rows], total_B[rows] = answer.budget_spent_B, answer.budget_total_B
             actions_BN[rows, 0] = _inverse_cdf(probs_BA, u_BN[rows, 0])
         rows = np.flatnonzero(active_B)
         if right_cook.startswith("learned"):
-            probs_BA, models["partner"] = _probs(
+            partner, models["partner"] = _answer(
                 backend, _partner_request(obs_BND[rows, 1], partner_alias)
             )
+            probs_BA = partner.probs_BA
             actions_BN[rows, 1] = _inverse_cdf(probs_BA, u_BN[rows, 1])
         else:
             actions_BN[:, 1] = scripted_actions(world.layout, world.state, scripted)[:, 1]

@@ -92,7 +92,7 @@ def test_envs_health_and_episode(client: CoexistClient, engine: InferenceEngine)
     particle = {e.name: e for e in client.envs()}["particle"]
     assert particle.obs_dims == {n: 4 * n for n in range(1, 6)}
     assert particle.observation_layouts[1] == ("self.x", "self.y", "self.vx", "self.vy")
-    assert particle.methods == ("aail_bounded", "aail", "nail", "sl", "jl")
+    assert particle.methods == ("aail_bounded", "aail_budget", "aail", "nail", "sl", "jl")
     health = client.health()
     assert health.live and health.ready
 

@@ -47,8 +47,9 @@ def store(tmp_path_factory: pytest.TempPathFactory) -> SqlModelStore:
 def test_paired_episodes_through_the_engine(store: SqlModelStore, tmp_path: Path) -> None:
     engine = InferenceEngine(store)
     results = evaluate_cooking(engine, store, episodes=3, seed=4, max_steps=15)
-    assert results.methods == ("aail_bounded", "aail", "sl") and results.episodes == 3
-    assert results.served_MEN.shape == results.returns_MEN.shape == (3, 3, 2)
+    assert results.methods == ("aail_bounded", "aail_budget", "aail", "sl")
+    assert results.episodes == 3
+    assert results.served_MEN.shape == results.returns_MEN.shape == (4, 3, 2)
     assert results.right_cook.startswith("learned")
     # no dish fits in 15 steps (the salad alone takes >= 20): every step costs 0.01
     assert not results.served_MEN.any()
@@ -63,7 +64,7 @@ def test_paired_episodes_through_the_engine(store: SqlModelStore, tmp_path: Path
 
     # common random numbers: SL's episodes do not depend on what else is evaluated beside them
     alone = evaluate_cooking(engine, store, episodes=3, seed=4, max_steps=15, methods=("sl",))
-    np.testing.assert_array_equal(alone.returns_MEN[0], results.returns_MEN[1])
+    np.testing.assert_array_equal(alone.returns_MEN[0], results.returns_MEN[3])
     first = [
         s.agent_rc
         for s in evaluate_cooking(

@@ -79,13 +79,15 @@ def test_cooking_suite_writes_results_and_the_paper_section(store_url: str, tmp_
     assert data["right_cook"].startswith("learned") and set(data["summary"]) == {
         "aail_bounded/left",
         "aail_bounded/right",
+        "aail_budget/left",
+        "aail_budget/right",
         "aail/left",
         "aail/right",
         "sl/left",
         "sl/right",
     }
     again = results_from_json(data)
-    assert again.served_MEN.shape == (3, 3, 2) and again.completion("sl", 0).mean == 0.0
+    assert again.served_MEN.shape == (4, 3, 2) and again.completion("sl", 0).mean == 0.0
     for name in ("results.md", "fig9_cooking.png", "aail_episode.gif"):
         assert (out / name).stat().st_size > 100, name
     report = paper.read_text()

@@ -172,7 +172,7 @@ def test_list_envs_describes_the_particle_world(live: LiveServer) -> None:
         "self.vy",
         "other1.x",
     ]
-    assert set(env.methods) == {"aail_bounded", "aail", "nail", "sl", "jl"}
+    assert set(env.methods) == {"aail_bounded", "aail_budget", "aail", "nail", "sl", "jl"}
 
 
 def test_health_is_serving_and_follows_readiness(tiny_zoo_store: SqlModelStore) -> None:

@@ -179,7 +179,7 @@ def test_envs(act_client) -> None:
     assert env["observation_layouts"]["1"] == ["self.x", "self.y", "self.vx", "self.vy"]
     assert len(env["observation_layouts"]["5"]) == 20
     assert env["state_layout"] == ["x", "y", "vx", "vy"]
-    assert env["methods"] == ["aail_bounded", "aail", "nail", "sl", "jl"]
+    assert env["methods"] == ["aail_bounded", "aail_budget", "aail", "nail", "sl", "jl"]
 
 
 def test_openapi_documents_the_routes(act_client) -> None:
