@@ -82,7 +82,12 @@ from policy.belief_compiled import compiled_mix_goals
 from policy.blend import BlendMethod, blend_checked
 from policy.maths import boltzmann
 from policy.regret_bound import DEFAULT_EPSILON_PER_ALPHA, keep_goal_rows
-from policy.regret_budget import DEFAULT_BUDGET_FRACTION, budget_rows, initial_budget
+from policy.regret_budget import (
+    BUDGET_EPSILON_PER_ALPHA,
+    DEFAULT_BUDGET_FRACTION,
+    budget_rows,
+    initial_budget,
+)
 from policy.row_forward import mean_views
 from policy.sampling import sample_rows
 from services.engine import networks
@@ -195,13 +200,15 @@ class InferenceEngine:
             flat_BA = np.broadcast_to(q_task_BA.mean(axis=1, keepdims=True), q_task_BA.shape)
             q_task_BA = np.where(finished_B[:, None], flat_BA, q_task_BA)
         if method in ("nail", "aail", "aail_bounded", "aail_budget"):
-            # aail_budget mixes AAIL's policy with the task's after the blend (eqs. B1-B4)
             blend_method: BlendMethod = "aail" if method == "aail_budget" else method
             q_impact_BPA = _impact_q(checked, q_members, layout)
         else:  # sl, jl: the task/joint network alone
             blend_method = "sl"
             q_impact_BPA = np.zeros((batch, 0, n_actions))
         temperature = request.temperature or group.nets[0].alpha or DEFAULT_TEMPERATURE
+        if method == "aail_budget":  # R1 at every step (no oracle), then the budget (B1-B4)
+            blend_method = "aail_bounded"
+            epsilon_B = np.full(batch, budget_epsilon(request, group))
         # every partner slot is used, one temperature for all rows
         try:
             blended = blend_checked(
@@ -688,6 +695,14 @@ def aail_bounded_guard(
     return np.where(reached_B, epsilon, 0.0), finished_B
 
 
+def budget_epsilon(request: ActRequest, group: StackedGroup) -> float:
+    """aail_budget's per-step ε (R1, at every step): the request's `regret_bound`, else
+    `BUDGET_EPSILON_PER_ALPHA` × the task network's training α."""
+    if request.regret_bound is not None:
+        return float(request.regret_bound)
+    return BUDGET_EPSILON_PER_ALPHA * float(group.nets[0].alpha or DEFAULT_TEMPERATURE)
+
+
 def spend_budget(
     request: ActRequest,
     checked: CheckedRequest,
@@ -717,8 +732,8 @@ def goal_kept_of(
     """(B, A) bool for R4 of `policy.regret_bound`: the actions that keep the ego's reached goal,
     on the rows where `aail_bounded` blends (ε > 0); every action elsewhere. None where nothing
     is to keep (another method, no row blending, or a goal that cannot be lost)."""
-    if epsilon_B is None or not (epsilon_B > 0.0).any():
-        return None
+    if request.method != "aail_bounded" or epsilon_B is None or not (epsilon_B > 0.0).any():
+        return None  # aail_budget's ε has no oracle behind it: R4 is aail_bounded's alone
     domain = checked.runtime.domain
     kept_BA = domain.goal_kept(checked.obs_BD, checked.n_agents, request.ego_goal)
     if kept_BA is None:

@@ -12,7 +12,7 @@
 | `partners[i].goal_probs`  | known goals, finite probabilities >= 0 summing to 1 (within 1e-6)   |
 | `method`                  | one of aail, nail, sl, jl; jl needs >= 1 partner, each with a `goal`|
 | `temperature`             | None or a finite number > 0                                         |
-| `regret_bound`            | aail_bounded only; None or a finite number >= 0                     |
+| `regret_bound`            | aail_bounded, aail_budget; None or a finite number >= 0             |
 | `budget`                  | aail_budget only; None or a finite number >= 0                      |
 | `budget_spent`,           | aail_budget only; both None (the episode's first step) or both B    |
 | `budget_total`            | finite numbers >= 0, one per observation row                        |
@@ -257,9 +257,10 @@ def check_request(request: ActRequest, max_batch: int) -> CheckedRequest:
         )
     regret_bound = request.regret_bound
     if regret_bound is not None:
-        if request.method != "aail_bounded":
+        if request.method not in ("aail_bounded", "aail_budget"):
             raise InvalidRequest(
-                "regret_bound", f"applies to method aail_bounded only, not {brief(request.method)}"
+                "regret_bound",
+                f"applies to methods aail_bounded and aail_budget only, not {brief(request.method)}",
             )
         if not _is_real(regret_bound) or not math.isfinite(regret_bound) or regret_bound < 0:
             raise InvalidRequest(

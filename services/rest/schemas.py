@@ -41,7 +41,7 @@ METHOD_HELP = (
 )
 BUDGET_HELP = (
     "aail_budget only: the episode's budget as a fraction k >= 0 of the ego's expected task "
-    "value at its first step (default 0.05); read at the first step only"
+    "value at its first step (default 0.01); read at the first step only"
 )
 SPENT_HELP = (
     "aail_budget only: the `budget.spent` of the episode's last answer (leave out, with "
@@ -49,9 +49,9 @@ SPENT_HELP = (
 )
 TOTAL_HELP = "aail_budget only: the `budget.total` of the episode's last answer"
 REGRET_BOUND_HELP = (
-    "aail_bounded only: ε >= 0, in the task network's Q units; actions whose task Q is more "
-    "than ε below the best keep their task-policy probability (default: twice the task "
-    "model's training α)"
+    "aail_bounded and aail_budget: ε >= 0, in the task network's Q units; actions whose task Q "
+    "is more than ε below the best keep their task-policy probability (default: twice the task "
+    "model's training α for aail_bounded, 8 times for aail_budget)"
 )
 
 

@@ -94,7 +94,7 @@ class SessionBody(RequestBody):
     budget: float | None = Field(
         default=None,
         description="aail_budget only: the episode's budget as a fraction k >= 0 of the ego's "
-        "expected task value at the session's first step (default 0.05); the session carries "
+        "expected task value at the session's first step (default 0.01); the session carries "
         "what it spent from step to step",
     )
     seed: int | None = Field(default=None, description="step t samples with seed + t")

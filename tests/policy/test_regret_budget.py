@@ -91,7 +91,7 @@ def test_initial_budget_is_a_fraction_of_the_expected_task_value() -> None:
 
 @pytest.mark.parametrize("bad", [-0.1, math.inf, math.nan, "0.1", True, None])
 def test_bad_parameters_are_refused_naming_the_field(bad: object) -> None:
-    with pytest.raises(ValueError, match="^budget:"):
+    with pytest.raises(ValueError, match=r"^budget:"):
         check_budget_fraction(bad)
-    with pytest.raises(ValueError, match="^gain_ratio:"):
+    with pytest.raises(ValueError, match=r"^gain_ratio:"):
         check_gain_ratio(bad)

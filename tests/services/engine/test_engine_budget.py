@@ -7,10 +7,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
+from zoo_fixtures import ZOO_ALPHA
 
+from policy.blend import blend
 from policy.maths import boltzmann
 from policy.qnet import QNetSpec, qnet_from_safetensors
-from policy.regret_budget import DEFAULT_BUDGET_FRACTION, budget_rows, initial_budget
+from policy.regret_budget import (
+    BUDGET_EPSILON_PER_ALPHA,
+    DEFAULT_BUDGET_FRACTION,
+    budget_rows,
+    initial_budget,
+)
 from services.engine import ActRequest, InferenceEngine, InvalidRequest, PartnerSpec
 
 PARTNERS = (PartnerSpec(1, goal="b3"),)
@@ -39,19 +46,29 @@ def _q(store, name: str, x_BD: np.ndarray) -> np.ndarray:
 
 def test_first_step_mixes_task_and_aail_as_eqs_b1_b4_say(tiny_zoo_store) -> None:
     engine = InferenceEngine(tiny_zoo_store)
-    obs = _obs(64)
+    obs = _obs(256)
     budget = engine.act_columns(_request(obs, method="aail_budget", budget=0.3))
-    aail = engine.act_columns(_request(obs, method="aail"))
     sl = engine.act_columns(_request(obs, method="sl"))
     # two agents: the ego's task view and the partner's impact view are both (ego, partner)
     q_task = _q(tiny_zoo_store, "particle/task/a2", obs)
     q_impact = _q(tiny_zoo_store, "particle/impact/b3", obs)
+    # AAIL bounded by R1 at every step (no goal-reached guard), ε = 8α; then eqs. B1-B4
+    epsilon = BUDGET_EPSILON_PER_ALPHA * ZOO_ALPHA
+    bounded = blend("aail_bounded", q_task, q_impact[:, None], ZOO_ALPHA, regret_bound=epsilon)
     total = initial_budget(sl.probs, q_task, 0.3)
-    want = budget_rows(sl.probs, aail.probs, q_task, q_impact[:, None], np.zeros(64), total)
-    np.testing.assert_allclose(budget.probs, want.probs_BA, atol=2e-5)
-    np.testing.assert_allclose(budget.budget_spent, want.spent_B, atol=2e-5)
+    want = budget_rows(sl.probs, bounded.probs_BA, q_task, q_impact[:, None], np.zeros(256), total)
+    # rows at a threshold of the rule (an action at R1's edge max Q - ε, a cost near 0, a gain
+    # near the cost) may fall either side in float32 arithmetic: left out
+    edge = np.abs(q_task - (q_task.max(axis=1, keepdims=True) - epsilon)) < 1e-4
+    cost, gain = want.cost_B, want.gain_B
+    moved = np.abs(bounded.probs_BA - sl.probs).max(axis=1) > 1e-6  # where β matters at all
+    ties = moved & (np.abs(gain - np.maximum(cost, 0.0)) < 1e-4)
+    clear = ~edge.any(axis=1) & ~ties
+    assert clear.sum() > 200
+    np.testing.assert_allclose(budget.probs[clear], want.probs_BA[clear], atol=2e-5)
+    np.testing.assert_allclose(budget.budget_spent[clear], want.spent_B[clear], atol=2e-5)
     np.testing.assert_allclose(budget.budget_total, total, rtol=2e-5, atol=1e-6)
-    assert 0 < (budget.budget_spent > 0).sum() < 64  # some rows pay, some do not
+    assert 0 < (budget.budget_spent > 0).sum() < 256  # some rows pay, some do not
 
 
 def test_an_episode_carries_its_state_and_ends_as_sl_when_spent(tiny_zoo_store) -> None:
@@ -70,6 +87,17 @@ def test_an_episode_carries_its_state_and_ends_as_sl_when_spent(tiny_zoo_store) 
     assert spent.budget_spent == 1.0 and spent.budget_total == 1.0
 
 
+def test_regret_bound_sets_the_per_step_epsilon(tiny_zoo_store) -> None:
+    engine = InferenceEngine(tiny_zoo_store)
+    obs = _obs(32, seed=8)
+    q_task = _q(tiny_zoo_store, "particle/task/a2", obs)
+    zero = engine.act_columns(_request(obs, method="aail_budget", regret_bound=0.0, budget=5.0))
+    # ε = 0: only the task's best action(s) may take the blend's share, and they hold it all
+    best = q_task >= q_task.max(axis=1, keepdims=True)
+    sl = engine.act_columns(_request(obs, method="sl"))
+    np.testing.assert_allclose(zero.probs[~best], sl.probs[~best], atol=1e-6)
+
+
 def test_other_methods_answer_no_budget(tiny_zoo_store) -> None:
     engine = InferenceEngine(tiny_zoo_store)
     for method in ("aail", "aail_bounded", "sl", "nail"):
@@ -82,6 +110,7 @@ def test_other_methods_answer_no_budget(tiny_zoo_store) -> None:
     ("kwargs", "field"),
     [
         ({"method": "aail", "budget": 0.1}, "budget"),
+        ({"method": "aail", "regret_bound": 0.1}, "regret_bound"),
         ({"method": "aail_bounded", "budget_spent": [0.0], "budget_total": [1.0]}, "budget_spent"),
         ({"budget": -0.1}, "budget"),
         ({"budget": float("nan")}, "budget"),
@@ -123,3 +152,22 @@ def test_budget_state_is_per_row_in_a_batch(tiny_zoo_store) -> None:
         assert batch.budget_spent[b] == pytest.approx(single.budget_spent)
     np.testing.assert_array_equal(batch.budget_total, total)
     assert boltzmann(np.zeros((1, 5)), 1.0).shape == (1, 5)
+
+
+def test_aail_budget_asks_the_environment_nothing(tiny_zoo_store, monkeypatch) -> None:
+    """No oracle: the answers are the same where the domain cannot tell whether the ego's goal
+    is reached or kept (both None), and neither is even asked."""
+    from envs.particle.domain import PARTICLE
+
+    engine = InferenceEngine(tiny_zoo_store)
+    obs = _obs(16, seed=11)
+    before = engine.act_columns(_request(obs, method="aail_budget"))
+
+    def refuse(*args: object, **kwargs: object) -> None:
+        raise AssertionError("aail_budget asked the environment")
+
+    monkeypatch.setattr(type(PARTICLE), "goal_reached", refuse)
+    monkeypatch.setattr(type(PARTICLE), "goal_kept", refuse)
+    after = engine.act_columns(_request(obs, method="aail_budget"))
+    np.testing.assert_array_equal(before.probs, after.probs)
+    np.testing.assert_array_equal(before.budget_spent, after.budget_spent)
