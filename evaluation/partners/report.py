@@ -10,14 +10,17 @@ episodes, and tests run over units (`evaluation.paper.pairs`), not over episodes
 |                  | (paired by start and random numbers): the failure a user meets          |
 | `regret_median`  | median over units of (SL ego − method ego) / |SL ego|                    |
 | `team_gain`      | mean over units of method team − SL team, its 95 % t interval, Wilcoxon |
-|                  | p (two-sided) and the paired TOST verdict within ±2 % of |SL team|      |
+|                  | p (two-sided); the paired TOST p within ±2 % of |SL team| (equivalent), |
+|                  | and its lower one-sided p (not below SL by more than 2 %: the verdict)  |
 | `help_kept`      | aligned pairs: method's team gain over SL's / the paper AAIL's gain     |
 | `sets_below`     | five agents: sets whose team return is below SL's                       |
 
 The bars (`BARS`) are the product's promise for its default blend: never strand the ego where
 SL would not; on non-aligned pairs a median regret of at most 5 % and a team return equivalent
 to or above SL's; on aligned pairs with room to help at least the paper AAIL's gain, above SL
-with p < 0.01; with five agents no set below SL.
+with p < 0.01; with five agents no set below SL. "Not below SL" is judged by the non-inferiority
+half of the paired TOST (H0: the mean gain is at most −2 % of |SL's team return|), not by a
+large p of a difference test; the full TOST p says whether the two are equivalent.
 """
 
 from __future__ import annotations
@@ -58,24 +61,27 @@ class Row:
     gain_high: float
     gain_p: float  # Wilcoxon, two-sided, over units
     tost_p: float  # paired TOST within ±TOST_MARGIN |SL team| (max of the two one-sided p's)
+    not_below_p: float  # its lower one-sided test: H0 mean gain <= -TOST_MARGIN |SL team|
     help_kept: float  # gain / the paper AAIL's gain (aligned); NaN elsewhere
     sets_below: int  # units whose team return is below SL's
 
 
-def tost_paired(a: np.ndarray, b: np.ndarray, margin: float) -> float:
-    """p of the paired two one-sided tests (t) that mean(a - b) lies within (-margin, margin):
-    the larger of the two one-sided p's; below α means equivalent at level α."""
+def tost_paired(a: np.ndarray, b: np.ndarray, margin: float) -> tuple[float, float]:
+    """The paired two one-sided t-tests that mean(a - b) lies within (-margin, margin): (the
+    TOST p, the larger of the two one-sided p's: below α means equivalent at level α; the lower
+    test's p alone, H0 mean <= -margin: below α means a is not below b by the margin)."""
     diff = np.asarray(a, dtype=np.float64) - np.asarray(b, dtype=np.float64)
     n = diff.size
     if n < 2:
-        return 1.0
+        return 1.0, 1.0
     se = float(diff.std(ddof=1) / math.sqrt(n))
     mean = float(diff.mean())
     if se == 0.0:
-        return 0.0 if abs(mean) < margin else 1.0
+        low = 0.0 if mean > -margin else 1.0
+        return (0.0 if abs(mean) < margin else 1.0), low
     p_low = float(sps.t.sf((mean + margin) / se, n - 1))  # H0: mean <= -margin
     p_high = float(sps.t.cdf((mean - margin) / se, n - 1))  # H0: mean >= +margin
-    return max(p_low, p_high)
+    return max(p_low, p_high), p_low
 
 
 def _interval(diff: np.ndarray) -> tuple[float, float]:
@@ -107,6 +113,7 @@ def rows_of(result: PartnersResult) -> list[Row]:
                 ego = np.array([mine[u].returns_EN[:, 0].mean() for u in units])
                 gain = team - sl_team
                 low, high = _interval(gain)
+                tost = tost_paired(team, sl_team, TOST_MARGIN * abs(sl_team.mean()))
                 stranded = sum(
                     int((sl[u].success_EN[:, 0] & ~mine[u].success_EN[:, 0]).sum()) for u in units
                 )
@@ -127,7 +134,8 @@ def rows_of(result: PartnersResult) -> list[Row]:
                         gain_low=low,
                         gain_high=high,
                         gain_p=wilcoxon_p(team, sl_team),
-                        tost_p=tost_paired(team, sl_team, TOST_MARGIN * abs(sl_team.mean())),
+                        tost_p=tost[0],
+                        not_below_p=tost[1],
                         help_kept=kept,
                         sets_below=int((team < sl_team).sum()),
                     )
@@ -156,15 +164,15 @@ def verdicts(rows: list[Row], method: str) -> list[Verdict]:
         )
         if "non_aligned" in mine:
             r = mine["non_aligned"]
-            ok = r.regret_median <= REGRET_BAR and (r.tost_p < 0.05 or r.gain_low > 0)
+            ok = r.regret_median <= REGRET_BAR and r.not_below_p < 0.05
             out.append(
                 Verdict(
                     ptype,
-                    "non-aligned: regret ≤ 5 %, team ≥ SL (TOST ±2 %)",
+                    "non-aligned: regret ≤ 5 %, team not below SL (−2 % margin)",
                     ok,
                     f"regret median {100 * r.regret_median:.1f} %, team − SL "
                     f"{r.team_gain:+.3f} [{r.gain_low:+.3f}, {r.gain_high:+.3f}], "
-                    f"TOST p = {r.tost_p:.2g}",
+                    f"non-inferiority p = {r.not_below_p:.2g} (TOST p = {r.tost_p:.2g})",
                 )
             )
         if "aligned" in mine and "aligned" in aail:
@@ -221,7 +229,9 @@ def to_markdown(
         f"at most {c.max_steps} steps. Partner types: `evaluation/partner_types.py`.",
         f"- Units are pairs (or sets): tests over their per-method means. Team gain: mean of "
         f"method − SL over units, 95 % t interval, Wilcoxon p; TOST: paired equivalence "
-        f"within ±{100 * TOST_MARGIN:.0f} % of |SL's team return| (p < 0.05: equivalent).",
+        f"within ±{100 * TOST_MARGIN:.0f} % of |SL's team return| (p < 0.05: equivalent); "
+        f"not below: its lower one-sided test (p < 0.05: not more than "
+        f"{100 * TOST_MARGIN:.0f} % below SL).",
         "",
         f"## Verdicts for {METHOD_LABELS.get(default, default)} (the server's default)",
         "",
@@ -239,15 +249,15 @@ def to_markdown(
             f"## {KIND_LABELS[kind]}",
             "",
             "| partner type | method | units | stranded | regret median | team | team − SL "
-            "[95 % CI] | Wilcoxon p | TOST p | help kept | units below SL |",
-            "|---|---|---|---|---|---|---|---|---|---|---|",
+            "[95 % CI] | Wilcoxon p | TOST p | not below p | help kept | units below SL |",
+            "|---|---|---|---|---|---|---|---|---|---|---|---|",
         ]
         for r in block:
             lines.append(
                 f"| {r.partner_type} | {METHOD_LABELS.get(r.method, r.method)} | {r.units} | "
                 f"{r.stranded} | {100 * r.regret_median:.1f} % | {r.team:.2f} | "
                 f"{_fmt(r.team_gain)} [{_fmt(r.gain_low)}, {_fmt(r.gain_high)}] | "
-                f"{r.gain_p:.2g} | {r.tost_p:.2g} | "
+                f"{r.gain_p:.2g} | {r.tost_p:.2g} | {r.not_below_p:.2g} | "
                 f"{_fmt(100 * r.help_kept, '.0f')}{'' if math.isnan(r.help_kept) else ' %'} | "
                 f"{r.sets_below} |"
             )

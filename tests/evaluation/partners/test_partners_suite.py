@@ -58,8 +58,11 @@ def test_tost_is_equivalent_only_within_the_margin() -> None:
     b = rng.normal(-10, 1, 200)
     close = b + rng.normal(0.0, 0.01, 200)
     far = b + 0.5 + rng.normal(0.0, 0.01, 200)
-    assert tost_paired(close, b, 0.2) < 0.001
-    assert tost_paired(far, b, 0.2) > 0.99
+    assert tost_paired(close, b, 0.2)[0] < 0.001
+    assert tost_paired(far, b, 0.2)[0] > 0.99  # not equivalent: far above ...
+    assert tost_paired(far, b, 0.2)[1] < 0.001  # ... so certainly not below
+    below = b - 0.5 + rng.normal(0.0, 0.01, 200)
+    assert tost_paired(below, b, 0.2)[1] > 0.99
     assert TOST_MARGIN == 0.02
 
 
