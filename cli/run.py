@@ -46,12 +46,23 @@ def run(
         str, typer.Option(help="Comma-separated partner goals (agents 1..N-1).")
     ] = "b3",
     method: Annotated[
-        str, typer.Option(help="Ego method: aail_bounded, aail, nail, sl or jl.")
+        str,
+        typer.Option(help="Ego method: aail_bounded, aail_budget, aail, nail, sl or jl."),
     ] = "aail_bounded",
     regret_bound: Annotated[
         float | None,
         typer.Option(
-            min=0.0, help="aail_bounded's ε (default: twice the task network's training α)."
+            min=0.0,
+            help="aail_bounded's and aail_budget's ε (default: 2 and 8 times the task "
+            "network's training α).",
+        ),
+    ] = None,
+    budget: Annotated[
+        float | None,
+        typer.Option(
+            min=0.0,
+            help="aail_budget's episode budget, a fraction of the ego's expected task value "
+            "at the start (default 0.01).",
         ),
     ] = None,
     infer: Annotated[
@@ -91,6 +102,7 @@ def run(
                 partner_goals=partner_goals,
                 method=method,
                 regret_bound=regret_bound,
+                budget=budget,
                 infer=infer,
                 episodes=episodes,
                 seed=seed,

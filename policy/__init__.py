@@ -8,6 +8,9 @@ No I/O and no state: every function maps arrays to arrays. The paper's equations
 |             | Jensen-Shannon distance (eq. 10), task weight (eq. 9)            |        |
 | `blend`     | SL / NAIL / AAIL blending of task and impact Q (eq. 8), goal     | numpy  |
 |             | beliefs mixed into one impact Q per partner                      |        |
+| `regret_bound` | AAIL-B's bound on the ego's one-step regret (eq. R1) and its  | numpy  |
+|             | goal-keeping rule (R4)                                           |        |
+| `regret_budget` | AAIL within an episode's regret budget (eqs. B1-B4)          | numpy  |
 | `belief`    | goal belief from observed actions: prior, Boltzmann likelihoods  | numpy  |
 |             | (eq. 2), update with forgetting and floor, blend distribution    |        |
 | `torch_ops` | soft value, Boltzmann policy and sampling in torch (trainer)     | torch  |

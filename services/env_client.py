@@ -103,6 +103,7 @@ def run_episodes(
     env: str = "particle",
     method: str = "aail_bounded",
     regret_bound: float | None = None,
+    budget: float | None = None,
     infer: bool = False,
     episodes: int = 20,
     seed: int = 0,
@@ -136,6 +137,7 @@ def run_episodes(
             greedy=greedy,
             alias=alias,
             regret_bound=regret_bound if i == 0 else None,
+            budget=budget if i == 0 else None,
         )
         for i in range(len(goals))
     ]

@@ -10,7 +10,8 @@ episodes, and tests run over units (`evaluation.paper.pairs`), not over episodes
 |                  | (paired by start and random numbers): the failure a user meets          |
 | `regret_median`  | median over units of (SL ego − method ego) / |SL ego|                    |
 | `team_gain`      | mean over units of method team − SL team, its 95 % t interval, Wilcoxon |
-|                  | p (two-sided); the paired TOST p within ±2 % of |SL team| (equivalent), |
+|                  | p (two-sided; Holm-adjusted over the methods of one partner type and    |
+|                  | class, the family); the paired TOST p within ±2 % of |SL team| (equivalent), |
 |                  | and its lower one-sided p (not below SL by more than 2 %: the verdict)  |
 | `help_kept`      | aligned pairs: method's team gain over SL's / the paper AAIL's gain     |
 | `sets_below`     | five agents: sets whose team return is below SL's                       |
@@ -27,18 +28,18 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy import stats as sps
 
 from evaluation.config import METHOD_LABELS
 from evaluation.partners.suite import PartnersResult
 from evaluation.rollout import CellResult
-from evaluation.stats import wilcoxon_p
+from evaluation.stats import holm, paired_ci, tost_paired, wilcoxon_p
 
+BLENDS = ("aail_bounded", "aail_budget")  # the blends judged by the bars, in this order
 TOST_MARGIN = 0.02  # equivalence margin for "not below SL": ±2 % of |SL's mean team return|
 REGRET_BAR = 0.05  # median own-return regret on non-aligned pairs
 HELP_P = 0.01  # aligned pairs with room to help: above SL at this level
@@ -60,35 +61,11 @@ class Row:
     gain_low: float  # 95 % t interval of the mean gain over units
     gain_high: float
     gain_p: float  # Wilcoxon, two-sided, over units
+    gain_p_holm: float  # Holm-adjusted within its family: one block's methods against SL
     tost_p: float  # paired TOST within ±TOST_MARGIN |SL team| (max of the two one-sided p's)
     not_below_p: float  # its lower one-sided test: H0 mean gain <= -TOST_MARGIN |SL team|
     help_kept: float  # gain / the paper AAIL's gain (aligned); NaN elsewhere
     sets_below: int  # units whose team return is below SL's
-
-
-def tost_paired(a: np.ndarray, b: np.ndarray, margin: float) -> tuple[float, float]:
-    """The paired two one-sided t-tests that mean(a - b) lies within (-margin, margin): (the
-    TOST p, the larger of the two one-sided p's: below α means equivalent at level α; the lower
-    test's p alone, H0 mean <= -margin: below α means a is not below b by the margin)."""
-    diff = np.asarray(a, dtype=np.float64) - np.asarray(b, dtype=np.float64)
-    n = diff.size
-    if n < 2:
-        return 1.0, 1.0
-    se = float(diff.std(ddof=1) / math.sqrt(n))
-    mean = float(diff.mean())
-    if se == 0.0:
-        low = 0.0 if mean > -margin else 1.0
-        return (0.0 if abs(mean) < margin else 1.0), low
-    p_low = float(sps.t.sf((mean + margin) / se, n - 1))  # H0: mean <= -margin
-    p_high = float(sps.t.cdf((mean - margin) / se, n - 1))  # H0: mean >= +margin
-    return max(p_low, p_high), p_low
-
-
-def _interval(diff: np.ndarray) -> tuple[float, float]:
-    if diff.size < 2:
-        return (float("nan"), float("nan"))
-    half = float(sps.t.ppf(0.975, diff.size - 1) * diff.std(ddof=1) / math.sqrt(diff.size))
-    return float(diff.mean()) - half, float(diff.mean()) + half
 
 
 def _by_unit(cells: list[CellResult], method: str) -> dict[str, CellResult]:
@@ -112,8 +89,8 @@ def rows_of(result: PartnersResult) -> list[Row]:
                 team = np.array([mine[u].team_E.mean() for u in units])
                 ego = np.array([mine[u].returns_EN[:, 0].mean() for u in units])
                 gain = team - sl_team
-                low, high = _interval(gain)
-                tost = tost_paired(team, sl_team, TOST_MARGIN * abs(sl_team.mean()))
+                interval = paired_ci(team, sl_team)
+                tost = tost_paired(team, sl_team, margin_fraction=TOST_MARGIN)
                 stranded = sum(
                     int((sl[u].success_EN[:, 0] & ~mine[u].success_EN[:, 0]).sum()) for u in units
                 )
@@ -131,16 +108,32 @@ def rows_of(result: PartnersResult) -> list[Row]:
                         regret_median=float(np.median((sl_ego - ego) / np.abs(sl_ego))),
                         team=float(team.mean()),
                         team_gain=float(gain.mean()),
-                        gain_low=low,
-                        gain_high=high,
+                        gain_low=interval.low,
+                        gain_high=interval.high,
                         gain_p=wilcoxon_p(team, sl_team),
-                        tost_p=tost[0],
-                        not_below_p=tost[1],
+                        gain_p_holm=float("nan"),  # set below, once the family is known
+                        tost_p=max(tost.p_lower, tost.p_upper),
+                        not_below_p=tost.p_lower,
                         help_kept=kept,
                         sets_below=int((team < sl_team).sum()),
                     )
                 )
-    return rows
+    return _holm_by_block(rows)
+
+
+def _holm_by_block(rows: list[Row]) -> list[Row]:
+    """Each (partner type, class) block's Wilcoxon p's against SL (SL itself left out) as one
+    family, Holm-adjusted."""
+    out = list(rows)
+    blocks: dict[tuple[str, str], list[int]] = {}
+    for i, r in enumerate(rows):
+        if r.method != "sl":
+            blocks.setdefault((r.partner_type, r.kind), []).append(i)
+    for members in blocks.values():
+        adjusted = holm([rows[i].gain_p for i in members])
+        for i, p in zip(members, adjusted, strict=True):
+            out[i] = replace(rows[i], gain_p_holm=p)
+    return out
 
 
 @dataclass(frozen=True)
@@ -177,14 +170,14 @@ def verdicts(rows: list[Row], method: str) -> list[Verdict]:
             )
         if "aligned" in mine and "aligned" in aail:
             r, a = mine["aligned"], aail["aligned"]
-            ok = r.team_gain >= a.team_gain and r.team_gain > 0 and r.gain_p < HELP_P
+            ok = r.team_gain >= a.team_gain and r.team_gain > 0 and r.gain_p_holm < HELP_P
             out.append(
                 Verdict(
                     ptype,
                     "aligned: gain ≥ AAIL's, > SL (p < 0.01)",
                     ok,
                     f"gain {r.team_gain:+.3f} vs AAIL {a.team_gain:+.3f} "
-                    f"({100 * r.help_kept:.0f} % kept), p = {r.gain_p:.2g}",
+                    f"({100 * r.help_kept:.0f} % kept), Holm p = {r.gain_p_holm:.2g}",
                 )
             )
         if "five_agents" in mine:
@@ -232,14 +225,21 @@ def to_markdown(
         f"within ±{100 * TOST_MARGIN:.0f} % of |SL's team return| (p < 0.05: equivalent); "
         f"not below: its lower one-sided test (p < 0.05: not more than "
         f"{100 * TOST_MARGIN:.0f} % below SL).",
+        "- What the numbers say, in words: [discussion.md](discussion.md) (hand-written).",
         "",
-        f"## Verdicts for {METHOD_LABELS.get(default, default)} (the server's default)",
-        "",
-        "| partner type | bar | met | measured |",
-        "|---|---|---|---|",
     ]
-    for v in verdicts(rows, default):
-        lines.append(f"| {v.partner_type} | {v.bar} | {'✔' if v.met else '✘'} | {v.detail} |")
+    judged = [default] + [m for m in BLENDS if m != default and m in c.methods]
+    for method in judged:
+        role = "the server's default" if method == default else "an option"
+        lines += [
+            f"## Verdicts for {METHOD_LABELS.get(method, method)} ({role})",
+            "",
+            "| partner type | bar | met | measured |",
+            "|---|---|---|---|",
+        ]
+        for v in verdicts(rows, method):
+            lines.append(f"| {v.partner_type} | {v.bar} | {'✔' if v.met else '✘'} | {v.detail} |")
+        lines.append("")
     for kind in ("aligned", "non_aligned", "five_agents"):
         block = [r for r in rows if r.kind == kind]
         if not block:
@@ -249,7 +249,7 @@ def to_markdown(
             f"## {KIND_LABELS[kind]}",
             "",
             "| partner type | method | units | stranded | regret median | team | team − SL "
-            "[95 % CI] | Wilcoxon p | TOST p | not below p | help kept | units below SL |",
+            "[95 % CI] | Wilcoxon p (Holm) | TOST p | not below p | help kept | units below SL |",
             "|---|---|---|---|---|---|---|---|---|---|---|---|",
         ]
         for r in block:
@@ -257,7 +257,8 @@ def to_markdown(
                 f"| {r.partner_type} | {METHOD_LABELS.get(r.method, r.method)} | {r.units} | "
                 f"{r.stranded} | {100 * r.regret_median:.1f} % | {r.team:.2f} | "
                 f"{_fmt(r.team_gain)} [{_fmt(r.gain_low)}, {_fmt(r.gain_high)}] | "
-                f"{r.gain_p:.2g} | {r.tost_p:.2g} | {r.not_below_p:.2g} | "
+                f"{r.gain_p:.2g} ({_fmt(r.gain_p_holm, '.2g')}) | {r.tost_p:.2g} | "
+                f"{r.not_below_p:.2g} | "
                 f"{_fmt(100 * r.help_kept, '.0f')}{'' if math.isnan(r.help_kept) else ' %'} | "
                 f"{r.sets_below} |"
             )
