@@ -26,10 +26,25 @@ from evaluation.base import EvalOptions, OptionError, Ui
 if TYPE_CHECKING:
     from evaluation.partners.suite import PartnersResult
 
-NOT_USED = ("episodes", "five_agent_episodes", "pairs", "timing_log", "run_dir", "replicates")
-NOT_USED += ("mixed_pairs", "regret_bound", "print_combos")
-SETTINGS = ("aligned_pairs", "non_aligned_pairs", "pair_episodes", "five_agent_sets")
-SETTINGS += ("set_episodes", "max_steps")
+NOT_USED: tuple[str, ...] = (
+    "episodes",
+    "five_agent_episodes",
+    "pairs",
+    "timing_log",
+    "run_dir",
+    "replicates",
+    "mixed_pairs",
+    "regret_bound",
+    "print_combos",
+)
+SETTINGS: tuple[str, ...] = (
+    "aligned_pairs",
+    "non_aligned_pairs",
+    "pair_episodes",
+    "five_agent_sets",
+    "set_episodes",
+    "max_steps",
+)
 
 
 @dataclass(frozen=True)

@@ -411,10 +411,14 @@ class Session:
                 alias=settings.alias,
                 versions=settings.versions,
             )
-        spent = total = None  # the episode's budget state, carried as a client of /v1/act would
+        # the episode's budget state, carried as a client of /v1/act would
+        spent_1: np.ndarray | None = None
+        budget_1: np.ndarray | None = None
         if self._budget is not None:
-            spent, total = np.array([self._budget[0]]), np.array([self._budget[1]])
-        ready = CheckedRequest(checked.runtime, obs_1D, n_agents, tuple(partners), spent, total)
+            spent_1, budget_1 = np.array([self._budget[0]]), np.array([self._budget[1]])
+        ready = CheckedRequest(
+            checked.runtime, obs_1D, n_agents, tuple(partners), spent_1, budget_1
+        )
         try:
             return self.engine.act_checked(request, ready)[0]
         except EngineError as err:

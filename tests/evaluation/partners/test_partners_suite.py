@@ -69,7 +69,7 @@ def test_rows_are_computed_from_the_cells() -> None:
             ok,
             ok,
             np.full(n, 10),
-            ok.all(axis=1),
+            np.asarray(ok.all(axis=1)),
             np.zeros((1, 2, 4)),
         )
 

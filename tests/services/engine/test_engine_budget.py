@@ -63,7 +63,8 @@ def test_first_step_mixes_task_and_aail_as_eqs_b1_b4_say(tiny_zoo_store) -> None
     cost, gain = want.cost_B, want.gain_B
     moved = np.abs(bounded.probs_BA - sl.probs).max(axis=1) > 1e-6  # where β matters at all
     ties = moved & (np.abs(gain - np.maximum(cost, 0.0)) < 1e-4)
-    clear = ~edge.any(axis=1) & ~ties
+    clear = np.asarray(~edge.any(axis=1) & ~ties)
+    assert budget.budget_spent is not None and budget.budget_total is not None
     assert clear.sum() > 200
     np.testing.assert_allclose(budget.probs[clear], want.probs_BA[clear], atol=2e-5)
     np.testing.assert_allclose(budget.budget_spent[clear], want.spent_B[clear], atol=2e-5)
