@@ -263,7 +263,7 @@ def test_status_stats_and_envs(tiny_zoo) -> None:
         "other1.vy",
     ]
     assert info.state_layout == ("x", "y", "vx", "vy")
-    assert info.methods == ("aail_bounded", "aail", "nail", "sl", "jl")
+    assert info.methods == ("aail_bounded", "aail_budget", "aail", "nail", "sl", "jl")
 
 
 @pytest.mark.parametrize(
