@@ -28,9 +28,12 @@ from live_serve import serving
 from pydantic import SecretStr
 from replica_cluster import Server
 
+from model_store.errors import StoreUnavailable
 from services.app import create_app
+from services.engine import InvalidRequest, ModelNotFound
+from services.engine.errors import ModelUnavailable
 from services.grpc_api.gen.inference import grpc_predict_v2_pb2 as pb
-from services.oip.rest import _protocol_error
+from services.oip.rest import _protocol_error, error_status
 from services.settings import Settings
 
 OBS = [0.1, 0.5, 0.0, 0.0, 0.7, 0.6, 0.0, 0.0]
@@ -556,3 +559,10 @@ def test_bad_grpc_input_is_invalid_argument_naming_the_field(server: Server) -> 
         assert info.value.code() == grpc.StatusCode.NOT_FOUND
         request.model_version = "1"
         assert call(request, timeout=10).model_version == "1"
+
+
+def test_error_statuses_follow_the_protocol() -> None:
+    assert error_status(InvalidRequest("inputs[observation]", "bad")) == 400
+    assert error_status(ModelNotFound("particle", "2", field="model_version")) == 404
+    assert error_status(ModelUnavailable(None, "cannot load")) == 503
+    assert error_status(StoreUnavailable("database is down")) == 503
