@@ -73,14 +73,29 @@ def _infer(server: Server, body: dict[str, Any], model: str = "particle") -> htt
     return httpx.post(f"{server.http_url}/v2/models/{model}/infer", json=body, timeout=10.0)
 
 
-@pytest.mark.parametrize("transport", ["http", "grpc"])
+@pytest.mark.parametrize("transport", ["http", "grpc", "http_aio", "grpc_aio"])
 def test_tritonclient_never_breaks_on_an_answer(
     triton: dict[str, dict[str, Any]], transport: str
 ) -> None:
     calls = triton[transport]
-    assert len(calls) >= 30
+    assert len(calls) >= (30 if transport in ("http", "grpc") else 11)
     crashes = {name: c["crash"] for name, c in calls.items() if "crash" in c}
     assert crashes == {}
+
+
+@pytest.mark.parametrize("transport", ["http_aio", "grpc_aio"])
+def test_tritonclient_asyncio_clients_answer_as_the_others(
+    triton: dict[str, dict[str, Any]], transport: str
+) -> None:
+    calls, sync = triton[transport], triton[transport.removesuffix("_aio")]
+    assert calls["infer"] == sync["infer"]
+    for name in ("live", "model_ready"):
+        assert calls[name] == {"ok": True}, name
+    for name in ("model_metadata", "infer_missing_version", "infer_missing_model"):
+        assert calls[name].get("error") == sync[name].get("error"), name
+    assert calls["infer_bad_goal"]["error"] == sync["infer_bad_goal"]["error"]
+    assert calls["load_model"]["error"] == sync["load_model"]["error"]
+    assert calls["model_config"]["ok"] == sync["model_config"]["ok"]
 
 
 @pytest.mark.parametrize("transport", ["http", "grpc"])

@@ -16,6 +16,7 @@ refuses a second definition: a real client never shares the server's process any
 
 from __future__ import annotations
 
+import asyncio
 import json
 import sys
 from collections.abc import Callable
@@ -23,7 +24,9 @@ from typing import Any
 
 import numpy as np
 import tritonclient.grpc as triton_grpc
+import tritonclient.grpc.aio as triton_grpc_aio
 import tritonclient.http as triton_http
+import tritonclient.http.aio as triton_http_aio
 from tritonclient.utils import InferenceServerException
 
 OUTPUTS = ("probabilities", "action", "greedy_action")
@@ -177,10 +180,54 @@ def grpc_calls(target: str, observation: list[float]) -> dict[str, Any]:
     }
 
 
+async def acall(fn: Callable[[], Any]) -> dict[str, Any]:
+    try:
+        value = await fn()
+    except InferenceServerException as err:
+        return {"error": err.status(), "message": str(err)}
+    except Exception as err:
+        return {"crash": f"{type(err).__name__}: {err}"}
+    return {"ok": value}
+
+
+async def aio_calls(module: Any, target: str, observation: list[float]) -> dict[str, Any]:
+    """The asyncio clients (`tritonclient.http.aio`, `tritonclient.grpc.aio`), defaults again."""
+    client = module.InferenceServerClient(target)
+    kwargs = {"as_json": True} if module is triton_grpc_aio else {}
+    sync_module = triton_grpc if module is triton_grpc_aio else triton_http
+
+    async def infer(model: str = "particle", version: str = "", goal: str = "a2") -> Any:
+        result = await client.infer(
+            model,
+            inputs(sync_module, observation, goal=goal),
+            model_version=version,
+            parameters={"seed": 7},
+        )
+        return outputs_of(result)
+
+    answers = {
+        "live": await acall(client.is_server_live),
+        "model_ready": await acall(lambda: client.is_model_ready("particle")),
+        "model_metadata": await acall(lambda: client.get_model_metadata("particle", **kwargs)),
+        "model_config": await acall(lambda: client.get_model_config("particle", **kwargs)),
+        "repository_index": await acall(lambda: client.get_model_repository_index(**kwargs)),
+        "statistics": await acall(lambda: client.get_inference_statistics(**kwargs)),
+        "infer": await acall(infer),
+        "infer_missing_version": await acall(lambda: infer(version=MISSING_VERSION)),
+        "infer_missing_model": await acall(lambda: infer(model="nowhere")),
+        "infer_bad_goal": await acall(lambda: infer(goal="zz")),
+        "load_model": await acall(lambda: client.load_model("particle")),
+    }
+    await client.close()
+    return answers
+
+
 if __name__ == "__main__":
     observation = json.loads(sys.argv[3])
     answers = {
         "http": http_calls(sys.argv[1], observation),
         "grpc": grpc_calls(sys.argv[2], observation),
+        "http_aio": asyncio.run(aio_calls(triton_http_aio, sys.argv[1], observation)),
+        "grpc_aio": asyncio.run(aio_calls(triton_grpc_aio, sys.argv[2], observation)),
     }
     print(json.dumps(answers, default=str))
