@@ -47,6 +47,8 @@ import numpy as np
 from envs.particle.batched import BatchedParticleWorld
 from envs.particle.goals import GOAL_IDS, N_GOALS, TARGET_BOXES_G4
 from envs.particle.scenarios import start_states
+from evaluation.partner_types import partner_probs as partner_type_probs
+from evaluation.partner_types import partner_type
 from policy.belief import (
     BeliefConfig,
     belief_cross_entropy,
@@ -57,6 +59,7 @@ from policy.belief import (
 )
 from policy.sampling import sample_actions
 from services.engine import ActRequest, InferenceEngine, PartnerSpec
+from services.engine.environments import env_runtime
 from services.sessions.messages import SessionSettings
 
 ProgressFn = Callable[[int, int], None]  # (step, total steps)
@@ -102,6 +105,8 @@ class AccuracyConfig:
     alias: str = "production"
     partner_alias: str = "partners"
     env: str = "particle"
+    # how the partner acts (`evaluation.partner_types`; its goal switches only by `switch_at`)
+    partner_type: str = "other_seed"
 
     def __post_init__(self) -> None:
         if self.episodes_per_goal < 1:
@@ -114,6 +119,8 @@ class AccuracyConfig:
             raise ValueError(f"switch_at: expected 1..{self.k_max - 1}, got {self.switch_at}")
         for config in self.beliefs:
             config.validate(N_GOALS)
+        if partner_type(self.partner_type).switches:
+            raise ValueError("partner_type: a goal switch is set by switch_at here")
 
     @property
     def episodes(self) -> int:
@@ -214,6 +221,44 @@ def partner_probs(
     return probs_BA
 
 
+def _partner_probs(
+    engine: InferenceEngine,
+    cfg: AccuracyConfig,
+    obs_BD: np.ndarray,
+    state_BN4: np.ndarray,
+    goals_B: np.ndarray,
+) -> np.ndarray:
+    """The partners' action distributions as `cfg.partner_type` acts, (B, A): its networks'
+    (`partner_probs`), or the type's own rule, one call per distinct goal."""
+    kind = partner_type(cfg.partner_type)
+    if kind.name == "other_seed" and cfg.partner_alias:  # the suite's historical path
+        return partner_probs(engine, cfg.env, obs_BD, goals_B, cfg.partner_alias)
+    alias = kind.alias(cfg.alias, cfg.partner_alias)
+
+    def act(request: ActRequest) -> np.ndarray:
+        return engine.act_columns(request).probs
+
+    probs_BA = np.zeros((obs_BD.shape[0], engine_actions(cfg.env)))
+    for goal in np.unique(goals_B).tolist():
+        rows = np.flatnonzero(goals_B == goal)
+        probs_BA[rows] = partner_type_probs(
+            kind,
+            alias,
+            act,
+            GOAL_IDS[goal],
+            obs_BD[rows],
+            state_BN4[rows],
+            np.ones(rows.size, dtype=np.int64),
+            probs_BA.shape[1],
+            cfg.env,
+        )
+    return probs_BA
+
+
+def engine_actions(env: str) -> int:
+    return env_runtime(env).domain.n_actions
+
+
 def ego_probs_with_belief(
     engine: InferenceEngine,
     env: str,
@@ -285,7 +330,7 @@ def run_accuracy(
         if cfg.switch_at is not None and t == cfg.switch_at:
             world.set_goals(np.stack([ego_goals_E, goals_EK[:, t]], axis=1))
         actions_E2 = np.zeros((n_eps, 2), dtype=np.int64)
-        p_probs = partner_probs(engine, cfg.env, obs_END[:, 1], goals_EK[:, t], cfg.partner_alias)
+        p_probs = _partner_probs(engine, cfg, obs_END[:, 1], world.state, goals_EK[:, t])
         actions_E2[:, 1] = sample_actions(p_probs, u_KE2[t, :, 1])
         for e in range(n_eps):
             probs = ego_probs_with_belief(

@@ -63,7 +63,8 @@ def _accuracy_section(results: dict[str, Any], out: Path) -> str:
     lines = [
         f"{acc['episodes']} episodes ({cfg['episodes_per_goal']} per true goal × 35 goals), "
         f"{cfg['k_max']} steps each, seed {cfg['seed']}, {acc['wall_s']:.0f} s. The first "
-        f"setting, the server's default ({default}; α: each task network's training α), drives "
+        f"setting, the server's default ({default}; α: twice each task network's training α, "
+        "`LIKELIHOOD_TEMPERING`), drives "
         f"the ego, which blends impact networks by {blend_text(cfg)}; the others are tracked on "
         "the same trajectories. Top-1 with its Wilson 95 % interval; top-3: the true goal among the three most likely; *up to nesting*: the top "
         "goal is the true goal or its target area contains, or lies inside, the true one (a "
@@ -96,7 +97,51 @@ def _accuracy_section(results: dict[str, Any], out: Path) -> str:
         "",
         "![goal switch](goal_switch.png)",
     ]
+    if results.get("partners"):
+        lines += ["", partners_section(results["partners"])]
     return "\n".join(lines)
+
+
+def partners_section(partners: dict[str, Any]) -> str:
+    """The default belief against every partner type, and the bar: top-3 within 5 points of the
+    accuracy against coexist's own networks, for the types that did not choose the tempering."""
+    own = partners.get("same")
+    rows = []
+    for name, p in partners.items():
+        gap = "" if own is None else f"{100 * (p['top3'] - own['top3']):+.1f}"
+        role = "calibration" if p["calibration"] else "scored"
+        verdict = (
+            ""
+            if p["calibration"] or own is None
+            else ("✔" if p["top3"] >= own["top3"] - 0.05 else "✘")
+        )
+        rows.append(
+            [name, role, str(p["episodes"]), f"{p['top1']:.3f}", f"{p['top3']:.3f}", gap, verdict]
+        )
+    k = next(iter(partners.values()))["k"]
+    return "\n".join(
+        [
+            f"### Partners who are not coexist (`evaluation/partner_types.py`), k = {k}",
+            "",
+            "The default belief when the partner acts as each type says (its goal fixed). The "
+            "likelihood's tempering (`LIKELIHOOD_TEMPERING` in `services/engine/goal_inference.py`) "
+            "was chosen on the calibration types; the bar (top-3 within 5 points of the accuracy "
+            "against coexist's own networks, `same`) is judged on the others.",
+            "",
+            table(
+                [
+                    "partner type",
+                    "role",
+                    "episodes",
+                    "top-1",
+                    "top-3",
+                    "top-3 − same (points)",
+                    "bar",
+                ],
+                rows,
+            ),
+        ]
+    )
 
 
 def _value_section(results: dict[str, Any], out: Path) -> str:

@@ -14,6 +14,10 @@
 |            | networks themselves (`partner_alias` = `alias`): what model mismatch    |                    |
 |            | costs                                                                   |                    |
 | switch     | the settings above, the partner changing its goal at k = 25             | `inference`        |
+| partners   | the default belief against every partner type that acts towards its goal | `inference`        |
+|            | (`evaluation.partner_types`): top-3 after `PARTNER_K` actions; the types |                    |
+|            | in `CALIBRATION_TYPES` chose the likelihood's tempering and are not      |                    |
+|            | scored by the bar                                                        |                    |
 | value      | SL, AAIL announced, AAIL inferred on the paper's scenarios and pairs    | `inference_value`  |
 
 `results.json` holds every number the report shows (the figures and README are drawn from it by
@@ -47,6 +51,10 @@ from policy.belief import BeliefConfig
 from services.engine import InferenceEngine
 
 ProgressFactory = Callable[[str, int], Callable[[int, int], None]]  # (label, total) -> callback
+# partner types for goal inference (an idle or switching partner shows no goal to infer)
+INFERENCE_PARTNER_TYPES = ("same", "other_seed", "eps_0.1", "eps_0.3", "hot", "scripted")
+CALIBRATION_TYPES = ("eps_0.3", "hot", "scripted")  # chose `LIKELIHOOD_TEMPERING`
+PARTNER_K = 30  # the bar: top-3 after 30 actions within 5 points of the own networks' ("same")
 REPORT_KS = (1, 5, 10, 20, 50)
 SUITE_BELIEFS = (
     BeliefConfig(),  # the server's default: drives the ego
@@ -67,6 +75,11 @@ class InferenceSuiteConfig:
     @property
     def switch(self) -> AccuracyConfig:
         return replace(self.accuracy, switch_at=self.switch_at)
+
+    def partner(self, name: str) -> AccuracyConfig:
+        """The default belief alone against partner type `name`."""
+        acc = self.accuracy
+        return replace(acc, partner_type=name, beliefs=acc.beliefs[:1])
 
     @property
     def matched(self) -> AccuracyConfig:
@@ -148,6 +161,18 @@ def accuracy_json(result: AccuracyResult) -> dict[str, Any]:
     }
 
 
+def partner_json(result: AccuracyResult) -> dict[str, Any]:
+    """One partner type's default belief: top-1 and top-3 after min(PARTNER_K, k_max) actions."""
+    k = min(PARTNER_K, result.config.k_max)
+    return {
+        "k": k,
+        "episodes": int(result.top1_CEK.shape[1]),
+        "top1": float(result.top1_CEK[0, :, k].mean()),
+        "top3": float(result.top3_CEK[0, :, k].mean()),
+        "calibration": result.config.partner_type in CALIBRATION_TYPES,
+    }
+
+
 def _comparison_json(c: Comparison) -> dict[str, Any]:
     return {
         "units": c.units,
@@ -211,6 +236,12 @@ def run_inference_suite(
         value_bars[label](t, active)
 
     value = run_value(engine, config.value, progress=value_progress)
+    partners = {}
+    for name in INFERENCE_PARTNER_TYPES:
+        result = run_accuracy(
+            engine, config.partner(name), progress=bar(f"partners: {name}", k_max)
+        )
+        partners[name] = partner_json(result)
     return {
         "generated": f"{datetime.now(UTC):%Y-%m-%d %H:%M} UTC",
         "command": command,
@@ -220,6 +251,7 @@ def run_inference_suite(
         "matched": accuracy_json(matched),
         "switch": accuracy_json(switch),
         "value": value_json(value),
+        "partners": partners,
     }
 
 

@@ -18,8 +18,12 @@ The belief itself (prior, forgetting, floor) is pure maths in `policy.belief`.
 |          | are known; `LikelihoodTable.pick` then gives the same numbers (a session   |
 |          | computes step t + 1's table right after answering step t)                  |
 
-α per goal: the request's `temperature`, else each task network's training α (lineage), else
-`DEFAULT_TEMPERATURE`: a partner is modelled as acting by its own task policy (eq. 2).
+α per goal: the request's `temperature`, else `LIKELIHOOD_TEMPERING` × each task network's
+training α (lineage; else `DEFAULT_TEMPERATURE`): a partner is modelled as acting by its own
+task policy (eq. 2), tempered. Why tempered: a person or another robot does not act as the
+ego's copy of its networks would (another training seed, noise, a hotter policy); at the
+networks' own α one unexpected action all but rules its true goal out. The factor was
+calibrated on partner types the report does not score (`reports/inference/partners.md`).
 
 Approximation for N > 2 agents: the partner's task network sees only its pair with the ego (the
 ego's observation does not hold the partner's views of the other agents in general), as the
@@ -60,7 +64,8 @@ from services.engine.model_cache import ModelCache
 from services.engine.networks import StackedGroup
 from services.engine.validation import check_alias, check_observations, check_versions
 
-ALPHA_MEMO_KEY = ("goal_inference", "alpha_G")  # the group's per-goal training α, memoised
+ALPHA_MEMO_KEY = ("goal_inference", "alpha_G")  # the group's per-goal tempered α, memoised
+LIKELIHOOD_TEMPERING = 2.0  # the default likelihood's α over each network's training α
 # whether a pass's rows are each what a pass of that row alone gives, bit for bit (then any
 # subset of a table's partners can be served): the compiled forward computes each row alone;
 # numpy's batched matmul may round a row differently with other rows
@@ -135,11 +140,13 @@ def _forward_all(group: StackedGroup, x_1PF: np.ndarray) -> np.ndarray:
 
 
 def _training_alphas(group: StackedGroup) -> tuple[np.ndarray, bool]:
-    """Each member's training α, (G, 1, 1) to divide (G, P, A) Q-values by goal, and whether
-    one is below `TINY_ALPHA`."""
+    """Each member's likelihood temperature (`LIKELIHOOD_TEMPERING` × its training α), (G, 1, 1)
+    to divide (G, P, A) Q-values by goal, and whether one is below `TINY_ALPHA`."""
     memo = group.memo.get(ALPHA_MEMO_KEY)
     if memo is None:
-        alpha_G = np.array([net.alpha or DEFAULT_TEMPERATURE for net in group.nets])
+        alpha_G = LIKELIHOOD_TEMPERING * np.array(
+            [net.alpha or DEFAULT_TEMPERATURE for net in group.nets]
+        )
         memo = (alpha_G[:, None, None], bool(alpha_G.min() < TINY_ALPHA))
         group.memo[ALPHA_MEMO_KEY] = memo  # immutable group: never stale
     alphas: tuple[np.ndarray, bool] = memo
@@ -332,7 +339,7 @@ def _q_values(
 
 
 def _alphas(group: StackedGroup, temperature: float | None) -> tuple[np.ndarray | float, bool]:
-    """The Boltzmann temperature per goal (the request's, else each network's training α) and
+    """The Boltzmann temperature per goal (the request's, else each network's tempered α) and
     whether one is below `TINY_ALPHA`."""
     if temperature is None:
         return _training_alphas(group)

@@ -42,6 +42,7 @@ from model_store.testing import qnet_spec, qnet_tensors
 from policy.belief import BeliefConfig
 from policy.sampling import sample_actions
 from services.engine import ActRequest, InferenceEngine
+from services.engine.goal_inference import LIKELIHOOD_TEMPERING
 from services.sessions.messages import Observed, SessionPartner, SessionSettings
 from services.sessions.session import Session
 
@@ -147,9 +148,10 @@ def test_reported_belief_is_the_bayes_posterior_of_the_recorded_actions(
                 log_post[g] += z[action] - np.log(np.exp(z - z.max()).sum()) - z.max()
         return log_post - (np.log(np.exp(log_post - log_post.max()).sum()) + log_post.max())
 
-    np.testing.assert_allclose(result.final_log_belief_CEG[1, 0], posterior(ALPHA), atol=1e-4)
+    tempered = LIKELIHOOD_TEMPERING * ALPHA  # the default likelihood's α
+    np.testing.assert_allclose(result.final_log_belief_CEG[1, 0], posterior(tempered), atol=1e-4)
     np.testing.assert_allclose(result.final_log_belief_CEG[2, 0], posterior(0.2), atol=1e-4)
-    assert not np.allclose(result.final_log_belief_CEG[0, 0], posterior(ALPHA), atol=1e-3)
+    assert not np.allclose(result.final_log_belief_CEG[0, 0], posterior(tempered), atol=1e-3)
     assert result.top1_CEK[:, :, 0].mean() == pytest.approx(1 / N_GOALS)  # ties: the first goal
     assert result.xent_CEK[:, :, 0] == pytest.approx(math.log(N_GOALS))
 
@@ -167,6 +169,22 @@ def test_belief_finds_the_goal_when_the_likelihood_nets_generate_the_behaviour(
     assert plain["cross_entropy"][12] < plain["cross_entropy"][0] - 1.0  # it falls
     lo, hi = default["accuracy_lo"][12], default["accuracy_hi"][12]
     assert lo <= default["accuracy"][12] <= hi
+
+
+def test_partner_types_drive_the_partner(engine: InferenceEngine) -> None:
+    """The partner type decides what the belief sees: on the same starts an idle partner (rests
+    every step) and a scripted one leave different beliefs; a switching type is refused (the
+    switch is `switch_at`'s), and so is an unknown one."""
+    idle = run_accuracy(engine, AccuracyConfig(episodes_per_goal=1, k_max=3, partner_type="idle"))
+    scripted = run_accuracy(
+        engine, AccuracyConfig(episodes_per_goal=1, k_max=3, partner_type="scripted")
+    )
+    assert idle.top1_CEK.shape == scripted.top1_CEK.shape
+    assert not np.array_equal(idle.xent_CEK, scripted.xent_CEK)
+    with pytest.raises(ValueError, match="partner_type"):
+        AccuracyConfig(partner_type="switching")
+    with pytest.raises(ValueError, match="partners: unknown partner type"):
+        AccuracyConfig(partner_type="robot")
 
 
 def test_switch_moves_every_partner_to_a_new_goal() -> None:
@@ -349,3 +367,19 @@ def test_every_timed_session_step_carries_the_partners_actions() -> None:
     act = json.loads(session_bench.act_bodies(obs_TD, ("b3", "c1"))[2])
     assert act["observation"] == pytest.approx(obs_TD[2].tolist(), abs=1e-6)
     assert act["partners"] == [{"index": 1, "goal": "b3"}, {"index": 2, "goal": "c1"}]
+
+
+def test_the_partners_table_judges_only_the_scored_types_against_same() -> None:
+    from evaluation.inference.report import partners_section
+
+    def row(top3: float, calibration: bool = False) -> dict[str, object]:
+        return {"k": 30, "episodes": 10, "top1": 0.5, "top3": top3, "calibration": calibration}
+
+    text = partners_section(
+        {"same": row(0.9), "other_seed": row(0.86), "eps_0.1": row(0.80), "hot": row(0.1, True)}
+    )
+    lines = {line.split(" | ")[0].strip("| "): line for line in text.splitlines() if "|" in line}
+    assert lines["other_seed"].rstrip(" |").endswith("✔")  # 4 points below: within 5
+    assert lines["eps_0.1"].rstrip(" |").endswith("✘")  # 10 points below
+    assert "calibration" in lines["hot"] and "✔" not in lines["hot"] and "✘" not in lines["hot"]
+    assert "| -10.0 |" in lines["eps_0.1"]

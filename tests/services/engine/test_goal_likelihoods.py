@@ -4,7 +4,8 @@ the errors naming their field, recover_partner_actions, and a wiring smoke test 
 
 The store holds a random-weight task network for every particle goal (G = 35, MLP 8-16-5, the
 hidden layer scaled up so the policies depend on the state). Training α: 0.05, except goal 1 (none:
-the engine's default 0.02) and goal 2 (0.2). Goal 0 also has a version 2 under `latest` only.
+the engine's default 0.02) and goal 2 (0.2); the likelihood's default temperature is
+`LIKELIHOOD_TEMPERING` times these. Goal 0 also has a version 2 under `latest` only.
 """
 
 from __future__ import annotations
@@ -99,7 +100,8 @@ class Naive:
             mv = store.resolve(f"{name}/{pinned}" if pinned else f"{name}@production")
             spec = QNetSpec.from_json(mv.spec)
             self.nets.append(qnet_from_safetensors(spec, store.load_weights(mv.name, mv.version)))
-            self.alphas.append(mv.lineage.config.get("alpha", DEFAULT_TEMPERATURE))
+            training = mv.lineage.config.get("alpha", DEFAULT_TEMPERATURE)
+            self.alphas.append(goal_inference.LIKELIHOOD_TEMPERING * training)
 
     def q(self, g: int, view: np.ndarray) -> np.ndarray:
         with torch.no_grad():
@@ -155,8 +157,11 @@ def test_training_alpha_per_goal_and_the_temperature_override(
     engine: InferenceEngine, store: SqlModelStore
 ) -> None:
     naive = Naive(store)
-    assert naive.alphas[0] == 0.05 and naive.alphas[1] == DEFAULT_TEMPERATURE
-    assert naive.alphas[2] == 0.2
+    tempering = goal_inference.LIKELIHOOD_TEMPERING
+    assert tempering > 1  # tempered: partners are not the ego's copy of their networks
+    assert naive.alphas[0] == tempering * 0.05
+    assert naive.alphas[1] == tempering * DEFAULT_TEMPERATURE
+    assert naive.alphas[2] == tempering * 0.2
     obs = _obs(np.random.default_rng(1), 2)
     got = engine.goal_log_likelihoods("particle", obs, [1], [2])
     np.testing.assert_allclose(got, naive.log_likelihoods(obs, [1], [2]), atol=ATOL)
