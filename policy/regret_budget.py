@@ -48,8 +48,6 @@ networks claim a gain above the ego's cost (κ = 1, even κ = 2) on most non-ali
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 __all__ = [
@@ -58,33 +56,12 @@ __all__ = [
     "DEFAULT_GAIN_RATIO",
     "BudgetStep",
     "budget_rows",
-    "check_budget_fraction",
-    "check_gain_ratio",
     "initial_budget",
 ]
 
 DEFAULT_BUDGET_FRACTION = 0.01  # k: measured in reports/paper/blend_choice.md
 DEFAULT_GAIN_RATIO = 1.0  # κ: the team must gain more than the ego pays
 BUDGET_EPSILON_PER_ALPHA = 8.0  # R1's ε at every step, in units of the task network's α
-
-
-def check_budget_fraction(value: object, field: str = "budget") -> float:
-    """`value` as a float if it is a finite k >= 0; ValueError naming `field` otherwise."""
-    return _non_negative(value, field)
-
-
-def check_gain_ratio(value: object, field: str = "gain_ratio") -> float:
-    """`value` as a float if it is a finite κ >= 0; ValueError naming `field` otherwise."""
-    return _non_negative(value, field)
-
-
-def _non_negative(value: object, field: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ValueError(f"{field}: expected a number >= 0, got {value!r}")
-    number = float(value)
-    if not math.isfinite(number) or number < 0.0:
-        raise ValueError(f"{field}: expected a finite number >= 0, got {value!r}")
-    return number
 
 
 def initial_budget(
