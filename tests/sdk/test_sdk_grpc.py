@@ -185,3 +185,58 @@ def test_async_client_matches_the_sync_client(live: LiveServer, client: GrpcCoex
     with client.episode("particle", "a2", partners={1: "b3"}, seed=7) as episode:
         assert steps == [episode.act(obs) for obs in obs_TD]
     assert field == "partners[0].index"
+
+
+def test_aail_budget_state_round_trips_over_grpc(
+    live: LiveServer, client: GrpcCoexistClient
+) -> None:
+    """The episode's budget comes back with each act and, sent back, gives the engine's answer
+    for the carried state; a batch carries one budget per row; an episode stream carries it
+    itself and agrees with the stateless calls."""
+    rng = np.random.default_rng(3)
+    observations = [rng.uniform(0, 1, 8) for _ in range(6)]
+    state = None
+    stream = client.episode("particle", "a2", partners={1: "b3"}, method="aail_budget", seed=5)
+    try:
+        for t, obs in enumerate(observations):
+            a = client.act(
+                "particle",
+                "a2",
+                obs,
+                partners={1: "b3"},
+                method="aail_budget",
+                seed=5 + t,
+                budget_state=state,
+            )
+            spent = None if state is None else [state.spent]
+            total = None if state is None else [state.total]
+            expected = engine_act(
+                live,
+                obs,
+                (PartnerSpec(1, goal="b3"),),
+                method="aail_budget",
+                seed=5 + t,
+                budget_spent=spent,
+                budget_total=total,
+            )[0]
+            assert a.budget is not None
+            assert a.budget.spent == pytest.approx(expected.budget_spent)
+            assert a.budget.total == pytest.approx(expected.budget_total)
+            assert a.probs == pytest.approx(expected.probs)
+            step = stream.act(obs)
+            assert step.budget == a.budget and step.probs == pytest.approx(a.probs)
+            state = a.budget
+    finally:
+        stream.close()
+    columns = client.act_batch_columns(
+        "particle",
+        "a2",
+        np.array(observations[:2]),
+        partners={1: "b3"},
+        method="aail_budget",
+        budget_spent=[0.0, 0.5],
+        budget_total=[1.0, 0.5],
+    )
+    assert columns.budget_total is not None and columns.budget_spent is not None
+    assert columns.budget_total.tolist() == [1.0, 0.5]
+    assert columns.budget_spent[1] == pytest.approx(0.5)  # nothing left to spend
