@@ -61,6 +61,7 @@ __all__ = [
     "Tost",
     "cohens_dz",
     "compare_cells",
+    "fmt_p",
     "holm",
     "mcnemar_p",
     "mean_se",
@@ -252,15 +253,16 @@ class Tost:
 
     def describe(self, p_lower: float | None = None) -> str:
         """The test in words; `p_lower` replaces the raw H0⁻ p (e.g. by its Holm-adjusted value)."""
-        holm_note = "" if p_lower is None else f" (Holm-adjusted {_fmt_p(p_lower)})"
+        holm_note = "" if p_lower is None else f" (Holm-adjusted {fmt_p(p_lower)})"
         return (
             f"TOST margin ±{self.margin:.2f} ({self.margin_fraction:.0%} of |{self.reference:.2f}|): "
-            f"Δ = {self.diff}, {1 - 2 * self.alpha:.0%} CI {self.ci}, p⁻ = {_fmt_p(self.p_lower)}"
-            f"{holm_note}, p⁺ = {_fmt_p(self.p_upper)}, n = {self.n}"
+            f"Δ = {self.diff}, {1 - 2 * self.alpha:.0%} CI {self.ci}, p⁻ = {fmt_p(self.p_lower)}"
+            f"{holm_note}, p⁺ = {fmt_p(self.p_upper)}, n = {self.n}"
         )
 
 
-def _fmt_p(p: float) -> str:
+def fmt_p(p: float) -> str:
+    """A p-value as the reports print it: two significant digits, scientific below 0.001."""
     return f"{p:.2g}" if p >= 1e-3 else f"{p:.1e}"
 
 

@@ -53,7 +53,7 @@ from envs.cooking import (
 )
 from evaluation.backend import Answer, EngineBackend, ModelRecord, PolicyBackend
 from evaluation.config import METHOD_LABELS
-from evaluation.stats import MeanSE, mcnemar_p, mean_se
+from evaluation.stats import MeanSE, holm, mcnemar_p, mean_se, paired_ci, rank_biserial
 from model_store.store import ModelStore
 from services.engine import ActRequest, InferenceEngine, PartnerSpec
 
@@ -133,14 +133,20 @@ class CookingResults:
         ]
         if compared:
             lines.append("")
+        # the kitchen's comparisons with SL, both cooks, are one family for Holm's correction
+        keys = [(m, agent) for m in compared for agent in (0, 1)]
+        adjusted = dict(zip(keys, holm([self.mcnemar(a, m) for m, a in keys]), strict=True))
         for m in compared:
-            left = self.completion(m, 0).mean - self.completion("sl", 0).mean
-            right = self.completion(m, 1).mean - self.completion("sl", 1).mean
-            lines.append(
-                f"{METHOD_LABELS[m]} - SL: left cook {left:+.2f} (McNemar p = "
-                f"{self.mcnemar(0, m):.3g}), right cook {right:+.2f} (McNemar p = "
-                f"{self.mcnemar(1, m):.3g})."
-            )
+            shown = []
+            for agent, cook in ((0, "left"), (1, "right")):
+                x = self.served_MEN[self.methods.index(m), :, agent].astype(float)
+                y = self.served_MEN[self.methods.index("sl"), :, agent].astype(float)
+                shown.append(
+                    f"{cook} cook {float(np.mean(x - y)):+.2f}, 95 % CI {paired_ci(x, y)}, "
+                    f"r = {rank_biserial(x, y):+.2f} (McNemar p = {self.mcnemar(agent, m):.3g}, "
+                    f"Holm p = {adjusted[(m, agent)]:.3g})"
+                )
+            lines.append(f"{METHOD_LABELS[m]} - SL: " + "; ".join(shown) + ".")
         if compared:
             lines.append(f"Paper (AAIL - SL): {PAPER_FIG9}.")
         if self.models:

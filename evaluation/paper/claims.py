@@ -4,16 +4,21 @@ The thresholds were fixed before any result was seen and are the same for the ha
 scenarios and the pair sample; a claim is *reproduced* when all its checks pass, *not
 reproduced* when none does, *partly* otherwise. One check was tightened after the first full
 run: "AAIL ≈ NAIL" first asked only for p >= 0.01, which 17 aligned pairs passed with NAIL 35
-points worse than AAIL (no power, not similarity); it now also asks the difference to be no
-larger than AAIL's own difference from SL. Tightening can only turn a pass into a fail.
+points worse than AAIL (no power, not similarity). A large p is absence of evidence, not
+evidence of similarity, so the check is now an equivalence test: paired TOST on team return with
+a margin of 2 % of NAIL's mean (`evaluation.stats.tost_paired`), both one-sided p's printed.
+
+Every p a check reads is Holm-adjusted within its family: the scenario's tests table, every
+comparison of `SCENARIO_COMPARISONS` on every measure (`scenario_family`), the same numbers the
+report's table prints beside their 95 % t intervals and rank-biserial effect sizes.
 
 | claim | check                                                                  | threshold            |
 |-------|------------------------------------------------------------------------|----------------------|
-| 1     | AAIL team return > SL's (paired Wilcoxon)                              | p < 0.01             |
+| 1     | AAIL team return > SL's (paired Wilcoxon, Holm-adjusted)               | p < 0.01             |
 | 1     | NAIL team return > SL's                                                | p < 0.01             |
-| 1     | AAIL ≈ NAIL on team return (the paper: p ~ 0.16): not significantly     | p >= 0.01 and        |
-|       | different, and the difference no larger than AAIL's difference from SL  | abs(A-N) <= abs(A-SL)|
-| 2     | NAIL ends inside its own target far less often than AAIL               | gap >= 0.25, p < 0.01|
+| 1     | AAIL ≈ NAIL on team return (the paper: p ~ 0.16): equivalent by paired | both p's < 0.05,     |
+|       | TOST within 2 % of NAIL's mean team return                             | margin 2 %           |
+| 2     | NAIL ends inside its own target far less often than AAIL (McNemar)     | gap >= 0.25, p < 0.01|
 | 2     | AAIL's own-return regret vs SL is small: (SL - AAIL) / abs(SL ego)     | <= 0.25, and < NAIL's|
 | 2     | AAIL still reaches its target (ends inside it)                         | rate >= 0.9          |
 | 3     | five agents: AAIL team return > SL's (the paper: p = 0.048)            | p < 0.05             |
@@ -29,9 +34,12 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
+import numpy as np
+
+from evaluation.config import METHOD_LABELS
 from evaluation.paper.scaling import KindTraining, networks_needed
 from evaluation.rollout import CellResult
-from evaluation.stats import compare_cells
+from evaluation.stats import PairedTest, compare_cells, fmt_p, tost_paired, with_holm
 
 ALPHA_STRONG = 0.01
 ALPHA_FIVE = 0.05
@@ -39,6 +47,19 @@ SUCCESS_GAP = 0.25
 MAX_REGRET = 0.25
 MIN_SUCCESS = 0.9
 N_GOALS = 35
+EQUIVALENCE_MARGIN = 0.02  # TOST margin, a fraction of the reference's mean
+ALPHA_EQUIVALENCE = 0.05
+
+# The scenario tables' comparisons: the paper's AAIL against every other method, then the
+# server's default and NAIL against SL (each claim's test is one of these).
+SCENARIO_COMPARISONS: tuple[tuple[str, str], ...] = (
+    ("aail", "sl"),
+    ("aail", "nail"),
+    ("aail", "aail_bounded"),
+    ("aail", "jl"),
+    ("aail_bounded", "sl"),
+    ("nail", "sl"),
+)
 
 
 @dataclass(frozen=True)
@@ -65,27 +86,49 @@ class Claim:
         return "not reproduced" if passed == 0 else "partly reproduced"
 
 
-def _p(p: float) -> str:
-    return f"p = {p:.2g}"
+def scenario_family(cells: Mapping[str, CellResult]) -> list[PairedTest]:
+    """Every comparison of `SCENARIO_COMPARISONS` whose methods both ran, on every measure of
+    `compare_cells`, Holm-adjusted together: one scenario table, one family."""
+    tests = [
+        t
+        for method, other in SCENARIO_COMPARISONS
+        if method in cells and other in cells
+        for t in compare_cells(cells[method], cells[other])
+    ]
+    return with_holm(tests)
 
 
-def _team_gain(cells: Mapping[str, CellResult], method: str, alpha: float) -> Check:
-    test = next(t for t in compare_cells(cells[method], cells["sl"]) if t.measure == "team return")
+def find_test(tests: Sequence[PairedTest], method: str, other: str, measure: str) -> PairedTest:
+    return next(t for t in tests if (t.method, t.other, t.measure) == (method, other, measure))
+
+
+def describe(t: PairedTest) -> str:
+    """`method − other = mean ± SE, 95 % CI [..], r = .. (p = .., Holm p = .., n = ..)`."""
+    holm = "" if t.p_holm is None else f", Holm p = {fmt_p(t.p_holm)}"
+    return (
+        f"{METHOD_LABELS.get(t.method, t.method)} − {METHOD_LABELS.get(t.other, t.other)} = "
+        f"{t.diff}, 95 % CI {t.ci}, r = {t.effect:+.2f} (p = {fmt_p(t.p)}{holm}, n = {t.n})"
+    )
+
+
+def _adjusted(t: PairedTest) -> float:
+    return t.p if t.p_holm is None else t.p_holm
+
+
+def _team_gain(family: Sequence[PairedTest], method: str, alpha: float) -> Check:
+    test = find_test(family, method, "sl", "team return")
     label = method.upper()
     return Check(
-        f"{label} team return > SL (p < {alpha:g})",
-        test.diff.mean > 0 and test.p < alpha,
-        f"{label} − SL = {test.diff} ({_p(test.p)}, n = {test.n})",
+        f"{label} team return > SL (Holm-adjusted p < {alpha:g})",
+        test.diff.mean > 0 and _adjusted(test) < alpha,
+        describe(test),
     )
 
 
 def claim_aligned(cells: Mapping[str, CellResult]) -> Claim:
-    checks = [_team_gain(cells, "aail", ALPHA_STRONG), _team_gain(cells, "nail", ALPHA_STRONG)]
-    test = next(
-        t for t in compare_cells(cells["aail"], cells["nail"]) if t.measure == "team return"
-    )
-    gain = next(t for t in compare_cells(cells["aail"], cells["sl"]) if t.measure == "team return")
-    checks.append(_similar(test.diff.mean, test.p, gain.diff.mean, f"AAIL − NAIL = {test.diff}"))
+    family = scenario_family(cells)
+    checks = [_team_gain(family, "aail", ALPHA_STRONG), _team_gain(family, "nail", ALPHA_STRONG)]
+    checks.append(_similar(cells["aail"].team_E, cells["nail"].team_E))
     paper = "AAIL and NAIL beat SL on team return (p < 2e-19); AAIL ≈ NAIL (p ~ 0.16)"
     return Claim("1", "goal-aligned: blending helps the team", paper, tuple(checks))
 
@@ -95,7 +138,11 @@ def _regret(sl_ego: float, ego: float) -> float:
 
 
 def _non_aligned_checks(
-    success: Mapping[str, float], ego: Mapping[str, float], success_p: float, unit: str
+    success: Mapping[str, float],
+    ego: Mapping[str, float],
+    success_p: float,
+    unit: str,
+    success_test: str,
 ) -> tuple[Check, ...]:
     gap = success["aail"] - success["nail"]
     regret_aail = _regret(ego["sl"], ego["aail"])
@@ -103,10 +150,10 @@ def _non_aligned_checks(
     return (
         Check(
             f"NAIL ends in its own target far less often than AAIL (gap >= {SUCCESS_GAP:g}, "
-            f"p < {ALPHA_STRONG:g})",
+            f"Holm-adjusted p < {ALPHA_STRONG:g})",
             gap >= SUCCESS_GAP and success_p < ALPHA_STRONG,
             f"success AAIL {success['aail']:.2f}, NAIL {success['nail']:.2f}, SL "
-            f"{success['sl']:.2f} ({_p(success_p)}, per {unit})",
+            f"{success['sl']:.2f} (per {unit}; {success_test})",
         ),
         Check(
             f"AAIL's own-return regret vs SL is small (<= {MAX_REGRET:.0%} and below NAIL's)",
@@ -125,27 +172,30 @@ def _non_aligned_checks(
 def claim_non_aligned(cells: Mapping[str, CellResult]) -> Claim:
     success = {m: float(c.success_EN[:, 0].mean()) for m, c in cells.items()}
     ego = {m: float(c.returns_EN[:, 0].mean()) for m, c in cells.items()}
-    test = next(
-        t for t in compare_cells(cells["aail"], cells["nail"]) if t.measure == "ego success"
-    )
+    test = find_test(scenario_family(cells), "aail", "nail", "ego success")
     paper = "only NAIL fails to reach its target; AAIL finishes, slightly behind SL and JL"
-    checks = _non_aligned_checks(success, ego, test.p, "episode, McNemar")
+    checks = _non_aligned_checks(success, ego, _adjusted(test), "episode, McNemar", describe(test))
     return Claim("2", "non-aligned: action alignment keeps the own task", paper, checks)
 
 
 def claim_five(cells: Mapping[str, CellResult]) -> Claim:
     paper = "AAIL beats SL on team return (p = 0.048)"
-    return Claim(
-        "3", "five agents: AAIL scales beyond two", paper, (_team_gain(cells, "aail", ALPHA_FIVE),)
+    check = _team_gain(scenario_family(cells), "aail", ALPHA_FIVE)
+    return Claim("3", "five agents: AAIL scales beyond two", paper, (check,))
+
+
+SIMILAR = (
+    f"AAIL ≈ NAIL on team return (paired TOST, margin {EQUIVALENCE_MARGIN:.0%} of NAIL's mean, "
+    f"both p < {ALPHA_EQUIVALENCE:g})"
+)
+
+
+def _similar(aail_team: np.ndarray, nail_team: np.ndarray) -> Check:
+    tost = tost_paired(
+        aail_team, nail_team, margin_fraction=EQUIVALENCE_MARGIN, alpha=ALPHA_EQUIVALENCE
     )
-
-
-SIMILAR = f"AAIL ≈ NAIL on team return (p >= {ALPHA_STRONG:g}, abs(A − N) <= abs(A − SL))"
-
-
-def _similar(diff: float, p: float, gain_over_sl: float, shown: str) -> Check:
-    passed = p >= ALPHA_STRONG and abs(diff) <= abs(gain_over_sl)
-    return Check(SIMILAR, passed, f"{shown} ({_p(p)}); AAIL − SL = {gain_over_sl:.2f}")
+    verdict = "equivalent" if tost.equivalent else "not equivalent"
+    return Check(SIMILAR, tost.equivalent, f"AAIL − NAIL: {tost.describe()}: {verdict}")
 
 
 def claim_scaling(costs: Sequence[KindTraining], agents: Sequence[int] = (2, 3, 4, 5)) -> Claim:

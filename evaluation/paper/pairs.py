@@ -6,6 +6,10 @@ replicates that drew it), and the tests run over pairs (Wilcoxon signed-rank of 
 per-pair mean against another's), separately for each strict class (`envs.particle.scenarios`).
 JL is compared only on the pairs that have a joint network.
 
+Each class is one family of tests for Holm's correction (`class_family`): every comparison of
+`CLASS_COMPARISONS` on every measure of `FAMILY_MEASURES` that ran in it, the tests its table
+prints; the targets (`evaluation.targets`) read their p from the same family.
+
 | measure       | per unit and method                                               |
 |---------------|-------------------------------------------------------------------|
 | `ego`         | mean ego return                                                   |
@@ -33,7 +37,18 @@ import numpy as np
 
 from evaluation.config import PAPER_METHODS, Scenario
 from evaluation.rollout import CellResult
-from evaluation.stats import MeanSE, mean_se, paired_diff, wilcoxon_p
+from evaluation.stats import (
+    Interval,
+    MeanSE,
+    Tost,
+    mean_se,
+    paired_ci,
+    paired_diff,
+    rank_biserial,
+    tost_paired,
+    wilcoxon_p,
+    with_holm,
+)
 
 MEASURES: tuple[str, ...] = ("ego", "others", "team", "ego_success", "stuck", "never", "length")
 TEAM_TOLERANCE = 0.02  # "at least SL's within 2 %": team >= SL - 0.02 |SL|
@@ -111,8 +126,11 @@ class UnitTest:
     other: str
     n_units: int
     diff: MeanSE  # mean over units of (method - other)
-    p: float
+    p: float  # Wilcoxon signed-rank over units
     better: float  # share of units where `method` is better (higher; for length, stuck: lower)
+    ci: Interval  # 95 % t interval of the mean difference over units
+    effect: float  # matched-pairs rank-biserial correlation over units
+    p_holm: float | None = None  # Holm-adjusted within its class (`class_family`)
 
 
 @dataclass(frozen=True)
@@ -143,6 +161,11 @@ class UnitGroup:
     def test(self, method: str, other: str, measure: str) -> UnitTest | None:
         return unit_test(self.units, method, other, measure)
 
+    def tost(self, method: str, other: str, measure: str, margin_fraction: float) -> Tost | None:
+        """Paired TOST over the units both methods ran, `other` the reference."""
+        a, b = _unit_values(self.units, method, other, measure)
+        return tost_paired(a, b, margin_fraction=margin_fraction) if a.size else None
+
     def worst(self, method: str, k: int = 8) -> list[Unit]:
         """The units where `method` strands the ego most often, then with the largest regret."""
         having = [u for u in self.units if method in u.by_method and "sl" in u.by_method]
@@ -153,15 +176,66 @@ class UnitGroup:
 LOWER_IS_BETTER = ("length", "stuck", "never")
 
 
-def unit_test(units: Sequence[Unit], method: str, other: str, measure: str) -> UnitTest | None:
+def _unit_values(
+    units: Sequence[Unit], method: str, other: str, measure: str
+) -> tuple[np.ndarray, np.ndarray]:
     both = [u for u in units if method in u.by_method and other in u.by_method]
-    if not both:
-        return None
     a = np.array([u.by_method[method][measure] for u in both])
     b = np.array([u.by_method[other][measure] for u in both])
+    return a, b
+
+
+def unit_test(units: Sequence[Unit], method: str, other: str, measure: str) -> UnitTest | None:
+    a, b = _unit_values(units, method, other, measure)
+    if not a.size:
+        return None
     better = a < b if measure in LOWER_IS_BETTER else a > b
     return UnitTest(
-        measure, method, other, len(both), paired_diff(a, b), wilcoxon_p(a, b), float(better.mean())
+        measure,
+        method,
+        other,
+        int(a.size),
+        paired_diff(a, b),
+        wilcoxon_p(a, b),
+        float(better.mean()),
+        paired_ci(a, b),
+        rank_biserial(a, b),
+    )
+
+
+# The comparisons each class's table prints and tests (the server's default blend first).
+CLASS_COMPARISONS: tuple[tuple[str, str], ...] = (
+    ("aail_bounded", "sl"),
+    ("aail", "sl"),
+    ("aail_bounded", "aail"),
+    ("aail_bounded", "nail"),
+    ("aail_bounded", "jl"),
+)
+FAMILY_MEASURES: tuple[str, ...] = ("team", "ego", "others")
+
+
+def class_family(
+    group: UnitGroup,
+    comparisons: Sequence[tuple[str, str]] = CLASS_COMPARISONS,
+    measures: Sequence[str] = FAMILY_MEASURES,
+) -> list[UnitTest]:
+    """One class's family: every comparison on every measure that ran in it, Holm-adjusted
+    together (comparison by comparison, measures in the given order)."""
+    tests = [
+        t
+        for method, other in comparisons
+        for measure in measures
+        if (t := group.test(method, other, measure)) is not None
+    ]
+    return with_holm(tests)
+
+
+def family_test(
+    family: Sequence[UnitTest], method: str, other: str, measure: str
+) -> UnitTest | None:
+    """The test of (method − other) on `measure` in a family, if it ran."""
+    return next(
+        (t for t in family if (t.method, t.other, t.measure) == (method, other, measure)), None
     )
 
 

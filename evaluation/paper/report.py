@@ -31,14 +31,16 @@ from evaluation.cooking.report import COOKING_HEADING, cooking_section
 from evaluation.inference.report import paper_section
 from evaluation.paper import plots
 from evaluation.paper.claims import (
+    EQUIVALENCE_MARGIN,
     Claim,
     claim_aligned,
     claim_five,
     claim_non_aligned,
     claim_scaling,
+    scenario_family,
 )
 from evaluation.paper.directions import box_centre
-from evaluation.paper.pairs import UnitGroup, pair_groups, replicate_rows
+from evaluation.paper.pairs import UnitGroup, class_family, pair_groups, replicate_rows
 from evaluation.paper.suite import SuiteResult, results_json
 from evaluation.paper.tables import (
     fmt_ms,
@@ -55,8 +57,8 @@ from evaluation.paper.tables import (
     unit_tests_table,
     worst_units_table,
 )
-from evaluation.stats import compare_cells, summarise_cell
-from evaluation.targets import Target, targets_of
+from evaluation.stats import CI_LEVEL, summarise_cell
+from evaluation.targets import TEAM_MARGIN, Target, targets_of
 from policy.regret_bound import DEFAULT_EPSILON_PER_ALPHA
 
 DISCUSSION = "discussion.md"
@@ -185,23 +187,40 @@ def _setup(result: SuiteResult, command: str) -> str:
             f"replicate, {len(sets)} goal sets × {cfg.set_episodes} episodes; JL where a joint "
             f"network was trained ({with_jl} of them). AAIL-B's regret bound ε: {bound}. The "
             "pairs and sets of every replicate are in `results.json`.",
+            _statistics_note(),
             "",
             table(["scenario", "ego", "partners", "class", "episodes", "start seed", "JL"], rows),
         ]
     )
 
 
+def _statistics_note() -> str:
+    return (
+        f"- Statistics (`evaluation.stats`): beside every p, the mean paired difference ± SE, its "
+        f"{CI_LEVEL:.0%} Student t interval and the matched-pairs rank-biserial correlation r "
+        "(−1..1, over the same non-zero differences the Wilcoxon test ranks; for success, "
+        "(b − c) / (b + c) over McNemar's discordant pairs). p's are two-sided; *p (Holm)* is "
+        "Holm's step-down adjustment within its family: each scenario's table of paired tests, "
+        "each pair class's table of tests over pairs, and T1's non-inferiority tests over the "
+        "methods judged; every verdict reads the adjusted p. Claims of *not worse* or *the same* "
+        "are paired TOST equivalence tests (two one-sided t tests), never a large p: team "
+        f"return not below SL's with a margin of {TEAM_MARGIN:.0%} of SL's mean (T1), AAIL ≈ "
+        f"NAIL with a margin of {EQUIVALENCE_MARGIN:.0%} of NAIL's mean (claim 1); both "
+        "one-sided p's are printed (p⁻: worse by the margin or more; p⁺: better by it or more)."
+    )
+
+
 def _scenario_section(result: SuiteResult, name: str, figure: str) -> str:
     cells = result.cells[name]
     summaries = [summarise_cell(cells[m]) for m in cells]
-    tests = [t for m in cells if m != "aail" for t in compare_cells(cells["aail"], cells[m])]
-    if "aail_bounded" in cells:
-        tests += compare_cells(cells["aail_bounded"], cells["sl"])
     ranked = sorted(summaries, key=lambda s: -s.team.mean)
     lines = [
         summary_table(summaries),
         "",
-        tests_table(tests),
+        "Paired tests over the episodes (Δ = first − second; this table is one family for Holm's "
+        "correction):",
+        "",
+        tests_table(scenario_family(cells)),
         "",
         "Ranking by team return: "
         + " > ".join(f"{label(s.method)} ({fmt_ms(s.team)})" for s in ranked)
@@ -215,15 +234,6 @@ def _scenario_section(result: SuiteResult, name: str, figure: str) -> str:
     return "\n".join(lines)
 
 
-COMPARISONS = (
-    ("aail_bounded", "sl"),
-    ("aail", "sl"),
-    ("aail_bounded", "aail"),
-    ("aail_bounded", "nail"),
-    ("aail_bounded", "jl"),
-)
-
-
 def _group_section(group: UnitGroup, heading: str) -> list[str]:
     return [
         heading,
@@ -232,7 +242,9 @@ def _group_section(group: UnitGroup, heading: str) -> list[str]:
         "",
         unit_rows_table(group),
         "",
-        unit_tests_table(group, COMPARISONS),
+        "Paired tests over pairs (this table is one family for Holm's correction):",
+        "",
+        unit_tests_table(class_family(group)),
         "",
         "Where AAIL-B and AAIL strand the ego most often (then the largest own-return regret):",
         "",

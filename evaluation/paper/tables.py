@@ -3,10 +3,11 @@
 | function            | rows                                                              |
 |---------------------|-------------------------------------------------------------------|
 | `summary_table`     | one per method: returns ± SE, success rates, length               |
-| `tests_table`       | AAIL against each other method: paired mean difference ± SE and p |
+| `tests_table`       | one row per comparison and measure: paired mean difference ± SE,  |
+|                     | 95 % t interval, rank-biserial r, p and Holm-adjusted p           |
 | `unit_rows_table`   | a pair class: per method mean ± SE over pairs, stuck episodes,    |
 |                     | regret vs SL, share of pairs with team return at least SL's       |
-| `unit_tests_table`  | paired differences over pairs (Wilcoxon), with win shares         |
+| `unit_tests_table`  | a class's family of tests over pairs (Wilcoxon; interval, r, Holm)|
 | `worst_units_table` | the pairs where a method strands the ego most often               |
 | `replicate_table`   | success and stuck episodes per replicate (seed)                   |
 | `targets_table`     | the targets of `evaluation.targets` and their numbers             |
@@ -22,19 +23,15 @@ from typing import Any
 
 from evaluation.backend import ModelRecord
 from evaluation.config import METHOD_LABELS
-from evaluation.paper.pairs import ReplicateRow, UnitGroup
+from evaluation.paper.pairs import ReplicateRow, UnitGroup, UnitTest
 from evaluation.paper.scaling import KindTraining, networks_needed
-from evaluation.stats import MeanSE, MethodSummary, PairedTest
+from evaluation.stats import MeanSE, MethodSummary, PairedTest, fmt_p
 
 
 def table(header: Sequence[str], rows: Iterable[Sequence[str]]) -> str:
     lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
     lines += ["| " + " | ".join(row) + " |" for row in rows]
     return "\n".join(lines)
-
-
-def fmt_p(p: float) -> str:
-    return f"{p:.2g}" if p >= 1e-3 else f"{p:.1e}"
 
 
 def fmt_ms(value: MeanSE, digits: int = 2) -> str:
@@ -74,29 +71,48 @@ def summary_table(summaries: Sequence[MethodSummary]) -> str:
     return table(header, rows)
 
 
+TEST_NAMES = {"wilcoxon": "Wilcoxon", "mcnemar": "McNemar"}
+TESTS_HEADER = (
+    "paired difference",
+    "measure",
+    "test",
+    "n",
+    "mean ± SE",
+    "95 % CI (t)",
+    "r (rank-biserial)",
+    "p",
+    "p (Holm)",
+)
+
+
 def tests_table(tests: Sequence[PairedTest]) -> str:
-    """Rows: one per compared pair (method, other), in the order given; columns: measures
-    (Δ = method − other, mean ± SE, p). A cell is keyed by the whole pair, so two comparisons
-    that share `other` (AAIL − SL and AAIL-B − SL) keep their own rows."""
-    measures = list(dict.fromkeys(t.measure for t in tests))
-    pairs = list(dict.fromkeys((t.method, t.other) for t in tests))
-    cell: dict[tuple[str, str, str], PairedTest] = {}
+    """One row per compared pair and measure, in the order given (Δ = method − other): mean ± SE,
+    the 95 % t interval, the rank-biserial effect size, p and its Holm-adjusted value within the
+    given tests (their family). Each row is keyed by the whole (method, other, measure), so two
+    comparisons that share `other` (AAIL − SL and AAIL-B − SL) keep their own rows."""
+    seen: set[tuple[str, str, str]] = set()
+    rows = []
     for t in tests:
         key = (t.method, t.other, t.measure)
-        if key in cell:
+        if key in seen:
             raise ValueError(
                 f"tests_table: {label(t.method)} − {label(t.other)} on {t.measure} twice"
             )
-        cell[key] = t
-    rows = []
-    for method, other in pairs:
-        row = [f"{label(method)} − {label(other)}"]
-        for m in measures:
-            found = cell.get((method, other, m))
-            row.append("-" if found is None else f"{fmt_ms(found.diff)} (p = {fmt_p(found.p)})")
-        rows.append(row)
-    names = [f"{m} ({'McNemar' if m == 'ego success' else 'Wilcoxon'})" for m in measures]
-    return table(["paired difference", *names], rows)
+        seen.add(key)
+        rows.append(
+            [
+                f"{label(t.method)} − {label(t.other)}",
+                t.measure,
+                TEST_NAMES.get(t.test, t.test),
+                str(t.n),
+                fmt_ms(t.diff),
+                str(t.ci),
+                f"{t.effect:+.2f}",
+                fmt_p(t.p),
+                "-" if t.p_holm is None else fmt_p(t.p_holm),
+            ]
+        )
+    return table(TESTS_HEADER, rows)
 
 
 def unit_rows_table(group: UnitGroup) -> str:
@@ -133,32 +149,36 @@ def unit_rows_table(group: UnitGroup) -> str:
     return table(header, rows)
 
 
-def unit_tests_table(group: UnitGroup, comparisons: Sequence[tuple[str, str]]) -> str:
-    rows = []
-    for method, other in comparisons:
-        for measure in ("team", "ego", "others"):
-            t = group.test(method, other, measure)
-            if t is None:
-                continue
-            rows.append(
-                [
-                    f"{label(method)} − {label(other)}",
-                    measure,
-                    str(t.n_units),
-                    fmt_ms(t.diff),
-                    fmt_p(t.p),
-                    f"{t.better:.0%}",
-                ]
-            )
-    header = [
-        "paired difference",
-        "measure",
-        "pairs",
-        "mean ± SE over pairs",
-        "p (Wilcoxon)",
-        "first higher in",
+UNIT_TESTS_HEADER = (
+    "paired difference",
+    "measure",
+    "pairs",
+    "mean ± SE over pairs",
+    "95 % CI (t)",
+    "r (rank-biserial)",
+    "p (Wilcoxon)",
+    "p (Holm)",
+    "first higher in",
+)
+
+
+def unit_tests_table(family: Sequence[UnitTest]) -> str:
+    """One row per test of a class's family (`evaluation.paper.pairs.class_family`)."""
+    rows = [
+        [
+            f"{label(t.method)} − {label(t.other)}",
+            t.measure,
+            str(t.n_units),
+            fmt_ms(t.diff),
+            str(t.ci),
+            f"{t.effect:+.2f}",
+            fmt_p(t.p),
+            "-" if t.p_holm is None else fmt_p(t.p_holm),
+            f"{t.better:.0%}",
+        ]
+        for t in family
     ]
-    return table(header, rows)
+    return table(UNIT_TESTS_HEADER, rows)
 
 
 def worst_units_table(group: UnitGroup, methods: Sequence[str], k: int = 8) -> str:

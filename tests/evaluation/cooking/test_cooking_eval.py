@@ -108,3 +108,30 @@ def test_bad_arguments_are_refused(store: SqlModelStore) -> None:
     empty = CookingResults(("aail",), 0, 5, "x", zeros > 0, zeros, zeros)
     with pytest.raises(ValueError, match="no recorded episode"):
         save_cooking_gif(empty, "unused.gif")
+
+
+def test_comparison_lines_show_interval_effect_and_holm_p() -> None:
+    """Known outcomes, 10 episodes: AAIL serves the right cook's dish in 8 where SL serves it
+    in none; its own dish in 9 of SL's 10."""
+    served = np.zeros((2, 10, 2), dtype=bool)
+    served[0, :9, 0] = True  # AAIL, left cook: 9 of 10
+    served[1, :, 0] = True  # SL, left cook: 10 of 10
+    served[0, :8, 1] = True  # AAIL, right cook: 8 of 10; SL: 0
+    results = CookingResults(
+        methods=("aail", "sl"),
+        seed=0,
+        max_steps=5,
+        right_cook="scripted",
+        served_MEN=served,
+        steps_MEN=np.where(served, 3, -1),
+        returns_MEN=served * 20.0,
+    )
+    [line] = [s for s in results.to_markdown().splitlines() if s.startswith("AAIL - SL:")]
+    # left: differences 0 × 9, -1 once: mean -0.10, se 0.10, t_{0.975, 9} = 2.262157;
+    # r = -1 (the one discordant pair favours SL); McNemar p = 1 (1 discordant pair)
+    # right: 8 discordant pairs, all for AAIL: p = 2 / 2^8 = 0.0078125; Holm over the two: × 2
+    left = "left cook -0.10, 95 % CI [-0.33, 0.13], r = -1.00 (McNemar p = 1, Holm p = 1)"
+    right = (
+        "right cook +0.80, 95 % CI [0.50, 1.10], r = +1.00 (McNemar p = 0.00781, Holm p = 0.0156)"
+    )
+    assert line == f"AAIL - SL: {left}; {right}."

@@ -13,10 +13,12 @@ from evaluation.paper.claims import (
     claim_five,
     claim_non_aligned,
     claim_scaling,
+    scenario_family,
 )
 from evaluation.paper.pairs import pair_groups, unit_test, units_of
 from evaluation.paper.scaling import KindTraining
 from evaluation.rollout import CellResult
+from evaluation.stats import fmt_p, holm
 from evaluation.targets import targets_of
 
 
@@ -125,8 +127,37 @@ def test_similarity_needs_more_than_a_missing_p_value() -> None:
     # 5 episodes: NAIL 30 worse than AAIL is not significant (exact p = 0.0625), yet not similar
     cells = scenario_cells(ALIGNED, {"sl": 0.0, "nail": -30.0, "aail": 1.0}, n=5)
     similar = claim_aligned(cells).checks[2]
+    family = {(t.method, t.other, t.measure): t for t in scenario_family(cells)}
+    assert family[("aail", "nail", "team return")].p == pytest.approx(0.0625)
     assert not similar.passed
-    assert "p = 0.062" in similar.detail and "AAIL − SL = 0.99" in similar.detail
+    # the TOST: margin 2 % of NAIL's mean team return (-69.96), AAIL better by 31: p⁺ = 1
+    assert "margin ±1.40 (2% of |-69.96|)" in similar.detail and "p⁺ = 1," in similar.detail
+    assert similar.detail.endswith(": not equivalent")
+    # close means without the evidence are not similar either: 3 noisy episodes
+    noisy = {
+        m: cell(ALIGNED, m, [-20.0] * 3, [-20.0 + g for g in gains])
+        for m, gains in (
+            ("sl", [0.0, 0.0, 0.0]),
+            ("nail", [0.0, 0.0, 0.0]),
+            ("aail", [3.0, -3.5, 0.4]),
+        )
+    }
+    assert not claim_aligned(noisy).checks[2].passed
+
+
+def test_claim_checks_read_holm_adjusted_p_and_show_interval_and_effect() -> None:
+    cells = scenario_cells(ALIGNED, {"sl": 0.0, "nail": 3.0, "aail": 3.0})
+    family = scenario_family(cells)
+    # sl, nail, aail ran: AAIL − SL, AAIL − NAIL, NAIL − SL on 5 measures each
+    assert len(family) == 15
+    assert [t.p_holm for t in family] == pytest.approx(holm([t.p for t in family]))
+    gain = next(
+        t for t in family if (t.method, t.other, t.measure) == ("aail", "sl", "team return")
+    )
+    check = claim_aligned(cells).checks[0]
+    assert "Holm-adjusted" in check.text
+    assert f"95 % CI {gain.ci}" in check.detail and f"r = {gain.effect:+.2f}" in check.detail
+    assert f"Holm p = {fmt_p(gain.p_holm or 0)}" in check.detail
 
 
 def test_claim_non_aligned_thresholds() -> None:
@@ -220,3 +251,39 @@ def test_claim_scaling_counts_and_costs() -> None:
     # AAIL 35 * (16000 + 16000) = 1,120,000; JL 1225 * 16000 = 19,600,000 transitions
     assert claim.checks[1].passed
     assert "1,120,000 vs JL 19,600,000 env transitions" in claim.checks[1].detail
+
+
+def test_not_below_sl_needs_evidence_not_a_large_p() -> None:
+    """T1's "team return not below SL's" is a TOST: noisy pairs whose mean difference is inside
+    the margin but whose interval is not do not pass, though the old rule (p >= 0.05) did."""
+    pairs = [
+        Scenario(f"pair:{ego}+{partner}", ego, (partner,), 2, k)
+        for k, (ego, partner) in enumerate(NON_ALIGNED)
+    ]
+    pairs = [s for s in pairs if s.pair_class == "non_aligned"]
+    noise = np.random.default_rng(7).normal(0.0, 3.0, len(pairs))
+    noise -= noise.mean()  # a mean difference of 0 over the pairs, far from significant
+    results = []
+    for k, s in enumerate(pairs):
+        results += [
+            cell(s, "sl", [-10.0] * 2, [-5.0] * 2),
+            cell(s, "aail_bounded", [-10.0] * 2, [-5.0 + noise[k]] * 2),
+            cell(s, "aail", [-10.0] * 2, [-4.9] * 2),  # +0.1 in every pair: shown not worse
+        ]
+    groups = pair_groups(results)
+    team = groups["non_aligned"].test("aail_bounded", "sl", "team")
+    # the old rule (mean >= 0 or p >= 0.05) would have called this "not below"
+    assert team is not None and team.p >= 0.05 and abs(team.diff.mean) < 0.3
+    targets = {(t.key, t.method): t for t in targets_of(groups, ("aail_bounded", "aail"))}
+    noisy = targets[("T1", "aail_bounded")].checks[3]
+    assert noisy.text.startswith("team return not below SL's (TOST, margin 2% of SL's")
+    assert not noisy.passed and noisy.detail.endswith(": not shown")
+    # the margin: 2 % of SL's mean team return, -15 per pair
+    assert "margin ±0.30 (2% of |-15.00|)" in noisy.detail
+    # Holm over the two methods judged: the raw p⁻ is adjusted, and printed beside the raw one
+    tosts = [groups["non_aligned"].tost(m, "sl", "team", 0.02) for m in ("aail_bounded", "aail")]
+    raw = [t.p_lower for t in tosts if t is not None]
+    assert len(raw) == 2 and raw[1] == 0.0  # +0.1 in every pair
+    assert f"p⁻ = {fmt_p(raw[0])} (Holm-adjusted {fmt_p(holm(raw)[0])})" in noisy.detail
+    shown = targets[("T1", "aail")].checks[3]
+    assert shown.passed and shown.detail.endswith(": not worse")

@@ -25,6 +25,7 @@ from evaluation.rollout import Cell, run_cells
 from model_store.sql import SqlModelStore
 from services.engine import ActRequest, InferenceEngine, PartnerSpec
 from services.rest import install_error_handlers, router
+from tests.evaluation.paper.test_eval_report import check_report_against_results
 
 
 @pytest.mark.slow
@@ -55,7 +56,11 @@ def test_fast_suite_writes_every_section(tmp_path: Path) -> None:
     ):
         assert (out / f"{png}.png").stat().st_size > 1000, png
         assert f"({png}.png)" in report
-    cells = json.loads((out / "results.json").read_text())["cells"]
+    results = json.loads((out / "results.json").read_text())
+    # every scenario table and every pair class's table of tests, against the episodes
+    assert check_report_against_results(report, results) >= 6
+    assert "p (Holm)" in report and "95 % CI (t)" in report and "TOST margin" in report
+    cells = results["cells"]
     for scenario in ("aligned", "non_aligned", "five_agents"):
         for method in ("sl", "nail", "aail", "jl"):
             assert len(cells[f"{scenario}/{method}"]["returns"]) == (4 if "five" in scenario else 6)
