@@ -203,13 +203,16 @@ def unit_test(units: Sequence[Unit], method: str, other: str, measure: str) -> U
     )
 
 
-# The comparisons each class's table prints and tests (the server's default blend first).
+# The comparisons each class's table prints and tests, those whose methods both ran.
 CLASS_COMPARISONS: tuple[tuple[str, str], ...] = (
     ("aail_bounded", "sl"),
     ("aail", "sl"),
     ("aail_bounded", "aail"),
     ("aail_bounded", "nail"),
     ("aail_bounded", "jl"),
+    ("aail_budget", "sl"),
+    ("aail_budget", "aail"),
+    ("aail_budget", "aail_bounded"),
 )
 FAMILY_MEASURES: tuple[str, ...] = ("team", "ego", "others")
 

@@ -37,8 +37,10 @@ SCENARIO_PAIRS = [
     ("aail", "sl"),
     ("aail", "nail"),
     ("aail", "aail_bounded"),
+    ("aail", "aail_budget"),
     ("aail", "jl"),
     ("aail_bounded", "sl"),
+    ("aail_budget", "sl"),
     ("nail", "sl"),
 ]
 
@@ -275,7 +277,14 @@ def check_report_against_results(report_text: str, data: Mapping[str, Any]) -> i
 
 def synthetic_cell(scenario: Scenario, method: str, rng: np.random.Generator) -> CellResult:
     n, agents = scenario.episodes, scenario.n_agents
-    shift = {"sl": 0.0, "nail": 2.0, "aail": 1.0, "aail_bounded": 0.5, "jl": -0.5}[method]
+    shift = {
+        "sl": 0.0,
+        "nail": 2.0,
+        "aail": 1.0,
+        "aail_bounded": 0.5,
+        "aail_budget": 0.8,
+        "jl": -0.5,
+    }[method]
     returns = -10.0 + rng.normal(0.0, 1.0, (n, agents))
     returns[:, 1:] += shift
     returns[:, 0] -= shift / 4
@@ -297,7 +306,7 @@ def synthetic_cell(scenario: Scenario, method: str, rng: np.random.Generator) ->
 def synthetic_result() -> SuiteResult:
     rng = np.random.default_rng(11)
     config = SuiteConfig(replicates=1)
-    methods = ("sl", "nail", "aail", "aail_bounded", "jl")
+    methods = ("sl", "nail", "aail", "aail_bounded", "aail_budget", "jl")
     paper = [
         Scenario("aligned", "c", ("c4",), 30, 1),
         Scenario("non_aligned", "a2", ("b3",), 30, 2),
