@@ -201,6 +201,10 @@ def promote(
     """Point an alias (default: production) at a version, atomically."""
     with _store(store_url, server) as store:
         before = store.get_model(name).aliases.get(alias)
+        if server is None:  # a server checks it itself (`services.engine.admission`)
+            from services.engine.admission import refuse_unservable_version
+
+            refuse_unservable_version(store, name, version, alias)
         store.set_alias(name, alias, version)
     moved = f"from {before} " if before is not None else ""
     _console().print(f"{name}@{alias}: moved {moved}to version {version}")
@@ -304,6 +308,10 @@ def import_(
                 description=meta.get("description", ""),
                 tags=meta.get("tags"),
             )
+        if server is None:  # a server checks it itself (`services.engine.admission`)
+            from services.engine.admission import refuse_unservable_upload
+
+            refuse_unservable_upload(spec, weights)
         mv = store.register_version(
             target,
             spec=spec,

@@ -12,7 +12,10 @@ Tensors, for k = 0..K with K = len(hidden) (the last layer has no activation):
 | `layers.k.weight` | (out_k, in_k), torch convention|
 | `layers.k.bias`   | (out_k,)                       |
 
-with in_0 = obs_dim, out_k = hidden[k] and out_K = n_actions. `hidden` may be empty (a linear Q).
+with in_0 = obs_dim, out_k = hidden[k] and out_K = n_actions. `hidden` may be empty (a linear Q),
+and holds at most `MAX_LAYERS - 1` widths: the serving forward (`policy/_row_forward.c`) keeps
+per-layer state on the stack for at most `MAX_LAYERS` layers, so a deeper network could be
+stored but never served.
 
 | name                    | what                                                         |
 |-------------------------|--------------------------------------------------------------|
@@ -52,6 +55,7 @@ __all__ = [
 Activation = Literal["relu", "tanh"]
 DType = Literal["float32", "float16", "bfloat16"]
 ACTIVATIONS: tuple[str, ...] = ("relu", "tanh")
+MAX_LAYERS = 16  # linear layers the serving forward evaluates (`MAX_LAYERS` of _row_forward.c)
 TORCH_DTYPES: dict[str, torch.dtype] = {
     "float32": torch.float32,
     "float16": torch.float16,
@@ -81,6 +85,11 @@ class QNetSpec:
         _positive_int(self.n_actions, "n_actions")
         if not isinstance(self.hidden, tuple):
             raise ValueError(f"hidden: expected a tuple of positive integers, got {self.hidden!r}")
+        if len(self.hidden) > MAX_LAYERS - 1:
+            raise ValueError(
+                f"hidden: at most {MAX_LAYERS - 1} hidden layers (the serving forward evaluates "
+                f"at most {MAX_LAYERS} layers), got {len(self.hidden)}"
+            )
         for k, width in enumerate(self.hidden):
             _positive_int(width, f"hidden[{k}]")
         if self.activation not in ACTIVATIONS:

@@ -106,7 +106,7 @@ from services.engine.messages import (
     ModelUsed,
 )
 from services.engine.model_cache import ModelCache
-from services.engine.networks import MemberQ, StackedGroup, forward_group
+from services.engine.networks import MemberQ, StackedGroup, forward_group, overflow_error
 from services.engine.validation import CheckedPartner, CheckedRequest, check_request
 
 log = logging.getLogger(__name__)
@@ -220,10 +220,8 @@ class InferenceEngine:
                 domain.blend_normalisation == "standardise",
                 epsilon_B,
             )
-        except FloatingPointError:  # float32 outputs overflowed on huge (finite) observations
-            raise InvalidRequest(
-                "observations", "values so large that the Q-values overflow"
-            ) from None
+        except FloatingPointError:  # float32 outputs overflowed: on huge observations, or ...
+            raise overflow_error(group, checked.obs_BD, "observations") from None
         partner_weights_BP = blended.partner_weights_BP
         if blend_method == "sl":  # no impact network was evaluated: every partner weighs 0
             partner_weights_BP = np.zeros((batch, len(checked.partners)))

@@ -61,7 +61,7 @@ from services.engine.environments import EnvRuntime, env_runtime
 from services.engine.errors import EngineError, InvalidRequest
 from services.engine.messages import DEFAULT_TEMPERATURE, Member
 from services.engine.model_cache import ModelCache
-from services.engine.networks import StackedGroup
+from services.engine.networks import StackedGroup, overflow_error
 from services.engine.validation import check_alias, check_observations, check_versions
 
 ALPHA_MEMO_KEY = ("goal_inference", "alpha_G")  # the group's per-goal tempered α, memoised
@@ -333,8 +333,8 @@ def _q_values(
     else:
         with np.errstate(over="ignore", invalid="ignore"):  # huge inputs: refused just below
             q_GPA = _forward_all(group, x_1PF)
-    if not np.isfinite(q_GPA).all():
-        raise InvalidRequest("observation", "values so large that the Q-values overflow")
+    if not np.isfinite(q_GPA).all():  # a huge observation's fault, or a network's
+        raise overflow_error(group, obs_D, "observation")
     return q_GPA
 
 

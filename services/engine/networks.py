@@ -8,6 +8,8 @@
 | `StackedGroup`  | the networks one request needs, stacked per architecture                  |
 | `forward_group` | member inputs (rows_j, D) -> member Q-values (rows_j, A)                  |
 | `MemberQ`       | its answer: a sequence of them; many members' rows at once (`rows_from`)  |
+| `probe_net`     | the engine's own forward on probe inputs: finite Q-values, or refused     |
+| `check_servable`| `probe_net` of an upload (spec + weights), before the store registers it  |
 
 A group is split into *partitions* of members with the same spec, whose weights are stacked
 once, (G, in, out) per layer. `forward_group` evaluates the members of a partition that have
@@ -20,6 +22,16 @@ rows, fuses bias and activation, and outruns numpy's BLAS on these narrow layers
 count: `docs/performance.md`); without it numpy's matmul runs, stacked up to `STACK_MAX_ROWS`
 rows per member and member by member beyond (a 2-D product per member reaches BLAS speed,
 numpy's batched 3-D matmul does not).
+
+Finite weights can still make a network that cannot be served: weights near float32's maximum
+overflow the first layer's output to inf on any ordinary observation, so every act would fail.
+`load_net` therefore runs every network it loads through `forward_group` (the very path of a
+request) on `PROBE_ROWS` fixed observations spanning [-PROBE_SCALE, PROBE_SCALE] in each
+coordinate, and refuses it (`UnservableNetwork`, a ValueError) unless every Q-value is finite:
+such a version fails to load, so hot reload keeps the last good one. The registry runs the same
+probe before it registers an upload or moves an alias (`check_servable`). An observation within
+the probed range whose Q-values still overflow is the network's fault, not the client's
+(`within_probe_range`).
 """
 
 from __future__ import annotations
@@ -37,11 +49,14 @@ from model_store.store import ModelStore
 from policy.qnet import QNetSpec, stack_numpy, tensors_from_safetensors
 from policy.row_forward import COMPILED as ROW_FORWARD
 from policy.row_forward import numpy_row_forward, row_forward
+from services.engine.errors import EngineError, InvalidRequest, ModelUnavailable
 
 K = TypeVar("K", bound=Hashable)
 V = TypeVar("V")
 
 STACK_MAX_ROWS = 64  # members with more input rows than this are evaluated one by one
+PROBE_ROWS = 16  # probe observations per network (`probe_inputs`)
+PROBE_SCALE = 100.0  # they span [-PROBE_SCALE, PROBE_SCALE]: far beyond any env's observations
 
 
 class LruCache(Generic[K, V]):
@@ -112,20 +127,85 @@ class LoadedNet:
     row_layers: tuple[tuple[np.ndarray, np.ndarray], ...] = field(default=(), repr=False)
 
 
+class UnservableNetwork(ValueError):
+    """The engine's own forward cannot turn a network's probe inputs into finite Q-values."""
+
+
 def load_net(store: ModelStore, version: ModelVersion) -> LoadedNet:
-    """Load and parse one version. Store errors propagate; a bad spec or file is a ValueError."""
+    """Load, parse and probe one version. Store errors propagate; a bad spec or file is a
+    ValueError, a network the engine cannot serve an `UnservableNetwork` (module docstring)."""
     spec = QNetSpec.from_json(version.spec)
     data = store.load_weights(version.name, version.version)  # re-computes and checks the sha256
-    tensors = tensors_from_safetensors(spec, data)
-    return LoadedNet(
-        version.name,
-        version.version,
-        version.sha256,
-        spec,
-        tensors,
-        training_alpha(version),
-        _row_layers_of(tensors, spec),
+    net = _net_of(
+        version.name, version.version, version.sha256, spec, data, training_alpha(version)
     )
+    probe_net(net)
+    return net
+
+
+def _net_of(
+    name: str, version: int, sha256: str, spec: QNetSpec, data: bytes, alpha: float | None
+) -> LoadedNet:
+    tensors = tensors_from_safetensors(spec, data)
+    return LoadedNet(name, version, sha256, spec, tensors, alpha, _row_layers_of(tensors, spec))
+
+
+def probe_inputs(obs_dim: int) -> np.ndarray:
+    """The probe observations (PROBE_ROWS, obs_dim) float32: zeros, ±1, ±PROBE_SCALE in every
+    coordinate, and fixed pseudo-random rows within ±PROBE_SCALE (the same on every call)."""
+    corners = np.array([0.0, 1.0, -1.0, PROBE_SCALE, -PROBE_SCALE])[:, None] * np.ones(obs_dim)
+    rng = np.random.default_rng(0)
+    scattered = rng.uniform(-PROBE_SCALE, PROBE_SCALE, (PROBE_ROWS - len(corners), obs_dim))
+    return np.concatenate([corners, scattered]).astype(np.float32)
+
+
+def within_probe_range(obs: np.ndarray) -> bool:
+    """Whether every value of `obs` lies where `probe_net` checked the networks: an overflow
+    there is the network's fault, not the observation's."""
+    return bool(np.all(np.abs(np.asarray(obs, dtype=np.float64)) <= PROBE_SCALE))
+
+
+def overflow_error(group: StackedGroup, obs: np.ndarray, field: str) -> EngineError:
+    """The error for Q-values that overflowed on `obs` (the request's `field`): the client's,
+    naming the field, when the observation lies beyond the probed range; otherwise the
+    networks' (`ModelUnavailable`), since every network was probed on such observations."""
+    if not within_probe_range(obs):
+        return InvalidRequest(field, "values so large that the Q-values overflow")
+    refs = ", ".join(f"{net.name}/{net.version}" for net in group.nets)
+    return ModelUnavailable(
+        group.nets[0].name if group.nets else None,
+        f"the networks ({refs}) give Q-values that overflow on this observation, which lies "
+        f"within ±{PROBE_SCALE:g} where they were checked: a network is at fault, not the input",
+    )
+
+
+def probe_net(net: LoadedNet) -> None:
+    """`forward_group` (a request's path: stacking, the compiled forward where there is one) of
+    `net` alone on `probe_inputs`; `UnservableNetwork` saying why unless every Q-value is
+    finite."""
+    x_RD = probe_inputs(net.spec.obs_dim)
+    try:
+        with np.errstate(over="ignore", invalid="ignore"):  # the numpy forward warns on inf
+            q_RA = forward_group(build_group([net]), [x_RD])[0]
+    except ValueError as exc:  # the forward refuses the network itself (its layers, shapes)
+        raise UnservableNetwork(f"the engine's forward cannot evaluate it ({exc})") from None
+    bad_R = ~np.isfinite(q_RA).all(axis=1)
+    if bad_R.any():
+        first = int(np.argmax(bad_R))
+        largest = max(float(np.abs(t).max()) for t in net.tensors.values())
+        raise UnservableNetwork(
+            f"its Q-values overflow float32 on {int(bad_R.sum())} of {len(bad_R)} probe "
+            f"observations within ±{PROBE_SCALE:g} (probe {first}: "
+            f"{np.array2string(x_RD[first][:4], precision=3)}...), so it could not answer any "
+            f"request; the largest weight magnitude is {largest:.3g}"
+        )
+
+
+def check_servable(spec_json: Any, weights: bytes) -> None:
+    """`probe_net` of an artifact not yet stored: a ValueError (`UnservableNetwork` when it
+    parses but the engine cannot serve it) naming why. The store checks the parts' form."""
+    spec = QNetSpec.from_json(spec_json)
+    probe_net(_net_of("upload", 0, "", spec, weights, None))
 
 
 def _row_layers_of(

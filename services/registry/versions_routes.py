@@ -11,6 +11,12 @@ size cap and refused with 413 as soon as it is over the limit. An `Idempotency-K
 the upload safe to retry when its answer was lost: a key the model already has answers the
 version it registered (201, the same body; aliases untouched), a key reused for other weights
 or another spec is a 409 (`ModelStore.register_version`).
+
+The registry holds only networks the engine can serve: an upload is run through the engine's own
+forward on probe inputs first (`services.engine.admission`) and refused with 422
+naming `weights` when its Q-values overflow; an alias is moved only to a version that loads and
+passes the same probe (409 otherwise, the alias stays where it was), so `production` never points
+at a network that would fail every request.
 """
 
 from __future__ import annotations
@@ -26,6 +32,7 @@ from model_store.entities import Lineage
 from model_store.errors import ArtifactTooLarge, InvalidArtifact
 from model_store.naming import MAX_VERSION
 from services.deps import ReadAuth, SettingsDep, StoreDep, WriteAuth
+from services.engine.admission import refuse_unservable_upload, refuse_unservable_version
 from services.registry.errors import ERROR_RESPONSES, ApiError
 from services.registry.multipart import Part, boundary_of, parse_form_data
 from services.registry.schemas import AliasOut, AliasSet, VersionOut
@@ -136,6 +143,7 @@ async def upload_version(
             f"weights: {len(weights)} bytes is over the limit of {settings.max_artifact_bytes}",
             field="weights",
         )
+    await run_in_threadpool(refuse_unservable_upload, spec, weights)
     version = await run_in_threadpool(
         store.register_version,
         name,
@@ -202,14 +210,16 @@ def archive_version(name: str, version: VersionNumber, store: StoreDep, _: Write
     f"{MODEL}/versions/{{version}}", status_code=status.HTTP_204_NO_CONTENT, tags=["versions"]
 )
 def delete_version(name: str, version: VersionNumber, store: StoreDep, _: WriteAuth) -> Response:
-    """Delete a version and its data; aliases pointing at it are removed."""
+    """Delete a version and its data; refused with 409 while an alias points at it (move or
+    delete the alias first), as archiving is."""
     store.delete_version(name, version)
     return Response(status_code=status.HTTP_204_NO_CONTENT)
 
 
 @router.put(f"{MODEL}/aliases/{{alias}}", response_model=AliasOut, tags=["aliases"])
 def set_alias(name: str, alias: str, body: AliasSet, store: StoreDep, _: WriteAuth) -> AliasOut:
-    """Create or move an alias (atomically) to a ready version."""
+    """Create or move an alias (atomically) to a ready version the engine can serve."""
+    refuse_unservable_version(store, name, body.version, alias)
     store.set_alias(name, alias, body.version)
     return AliasOut(name=name, alias=alias, version=body.version)
 

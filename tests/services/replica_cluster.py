@@ -180,11 +180,11 @@ def wait_ready(server: Server, timeout: float = 60.0) -> None:
 
 
 @contextmanager
-def running(servers: Sequence[Server]) -> Iterator[Sequence[Server]]:
-    """Wait for every server to be ready; stop them all afterwards."""
+def running(servers: Sequence[Server], timeout: float = 60.0) -> Iterator[Sequence[Server]]:
+    """Wait for every server to be ready (each within `timeout`); stop them all afterwards."""
     try:
         for server in servers:
-            wait_ready(server)
+            wait_ready(server, timeout)
         yield servers
     finally:
         for server in servers:
