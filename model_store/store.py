@@ -21,8 +21,9 @@ Semantics fixed here, for every backend:
 - Archiving keeps a version's data (it can still be resolved by number and loaded) but is refused
   while an alias points at it (`Conflict` listing the aliases): silently dropping `production`
   would take a model out of service. Aliases may not be pointed at an archived version.
-- Deleting a version removes its data and the aliases that point at it (each removal is an
-  `alias_deleted` event); deleting a model removes everything it owns.
+- Deleting a version removes its data, and is refused like archiving while an alias points at it
+  (`Conflict` listing the aliases; `latest` included: move it first); deleting a model removes
+  everything it owns.
 - `change_token()` is a short opaque string that changes with every committed write (it is the
   newest event id plus the store's identity); `events(since_id)` lists the changes in commit order.
 """

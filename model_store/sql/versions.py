@@ -232,9 +232,13 @@ class VersionOps:
         with self._session(write=True) as session:
             model = q.find_model(session, name)
             row = q.find_version(session, model, version)
-            for alias in q.aliases_of(model, row):
-                q.drop_alias(session, model, alias)
-            session.flush()
+            pointing = sorted(a.alias for a in q.aliases_of(model, row))
+            if pointing:  # deleting it would silently stop serving whatever uses the alias
+                raise Conflict(
+                    f"{name}/{version} is the target of alias(es) {', '.join(pointing)}: "
+                    "move or delete them before deleting",
+                    field="version",
+                )
             session.delete(row)
             model.updated_at = now()
             q.emit(session, "version_deleted", name, version=version)

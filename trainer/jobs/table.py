@@ -26,22 +26,28 @@ Cancelling goes through the row too, so it works whichever server process answer
 owns the subprocess sees it at its next poll, stops the process and calls `finish_cancelled`. A
 `cancelling` row whose runner died is finished by `recover` as `cancelled`, never requeued, so a
 restarted server does not resume a job somebody cancelled.
+
+Database failures (a read-only or full disk, a dropped database or table, a server that went
+away) leave every method as `StoreUnavailable`, as the model store's do, so the jobs API answers
+them with 503 like the registry, never with a driver's error.
 """
 
 from __future__ import annotations
 
 import uuid
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta
 from enum import StrEnum
 from typing import Any
 
 from sqlalchemy import Engine, or_, select, update
+from sqlalchemy.exc import DBAPIError
 from sqlalchemy.orm import Session, sessionmaker
 
-from model_store.errors import Conflict, NotFound, brief
-from model_store.sql.engine import BEGIN_MODE_OPTION, create_store_engine
+from model_store.errors import Conflict, NotFound, StoreUnavailable, brief
+from model_store.sql.engine import BEGIN_MODE_OPTION, create_store_engine, redact_url
 from model_store.sql.migrate import ensure_schema
 from model_store.sql.orm import TrainingJobRow
 from trainer.jobs.spec import JobSpec
@@ -106,14 +112,38 @@ class JobTable:
 
     def __init__(self, url: str, *, max_attempts: int = 3, stale_after_s: float = 30.0) -> None:
         self.engine: Engine = create_store_engine(url)
-        ensure_schema(self.engine)
+        self._where = f"job table in {redact_url(url)} unavailable"
+        with self._unavailable():
+            ensure_schema(self.engine)
         self.max_attempts, self.stale_after_s = max_attempts, stale_after_s
         writer = self.engine.execution_options(**{BEGIN_MODE_OPTION: "IMMEDIATE"})
-        self._read = sessionmaker(self.engine, expire_on_commit=False)
-        self._write = sessionmaker(writer, expire_on_commit=False)
+        self._readers = sessionmaker(self.engine, expire_on_commit=False)
+        self._writers = sessionmaker(writer, expire_on_commit=False)
 
     def close(self) -> None:
         self.engine.dispose()
+
+    @contextmanager
+    def _unavailable(self) -> Iterator[None]:
+        """Database errors as `StoreUnavailable` (module docstring)."""
+        try:
+            yield
+        except DBAPIError as exc:  # the driver's first line says why (never the URL's password)
+            text = str(exc.orig if exc.orig is not None else exc).strip()
+            why = text.splitlines()[0][:300] if text else type(exc).__name__
+            raise StoreUnavailable(f"{self._where}: {why}") from exc
+
+    @contextmanager
+    def _read(self) -> Iterator[Session]:
+        """One read transaction."""
+        with self._unavailable(), self._readers() as session, session.begin():
+            yield session
+
+    @contextmanager
+    def _write(self) -> Iterator[Session]:
+        """One write transaction (`BEGIN IMMEDIATE` on SQLite)."""
+        with self._unavailable(), self._writers() as session, session.begin():
+            yield session
 
     def submit(self, spec: JobSpec, run_root: str) -> Job:
         job_id = uuid.uuid4().hex
@@ -127,13 +157,13 @@ class JobTable:
             run_dir=f"{run_root}/{job_id}",
             log_tail="",
         )
-        with self._write() as s, s.begin():
+        with self._write() as s:
             s.add(row)
         return self.get(job_id)
 
     def get(self, job_id: str) -> Job:
         _check_id(job_id)
-        with self._read() as s, s.begin():
+        with self._read() as s:
             row = s.get(TrainingJobRow, job_id)
             if row is None:
                 raise NotFound(f"job {brief(job_id)} not found")
@@ -141,22 +171,22 @@ class JobTable:
 
     def has_unfinished(self) -> bool:
         query = select(TrainingJobRow.id).where(TrainingJobRow.status.in_(UNFINISHED)).limit(1)
-        with self._read() as s, s.begin():
+        with self._read() as s:
             return s.scalar(query) is not None
 
     def list_jobs(self, limit: int = 100) -> list[Job]:
         query = select(TrainingJobRow).order_by(TrainingJobRow.created_at.desc()).limit(limit)
-        with self._read() as s, s.begin():
+        with self._read() as s:
             return [_job(r) for r in s.scalars(query)]
 
     def claim_next(self) -> Job | None:
         """Mark the oldest queued job running (attempts + 1) and return it; None if none."""
         oldest = select(TrainingJobRow.id).where(TrainingJobRow.status == JobStatus.queued.value)
-        with self._read() as s, s.begin():  # a read first: an empty queue takes no write lock
+        with self._read() as s:  # a read first: an empty queue takes no write lock
             job_id = s.scalar(oldest.order_by(TrainingJobRow.created_at).limit(1))
         if job_id is None:
             return None
-        with self._write() as s, s.begin():
+        with self._write() as s:
             now = _now()
             claimed = _set(
                 s,
@@ -173,13 +203,13 @@ class JobTable:
     def heartbeat(self, job_id: str, attempt: int | None = None) -> bool:
         """Renew the lease of a running job; False when it is no longer running (as `attempt`,
         when given): cancelled meanwhile, or recovered and claimed again."""
-        with self._write() as s, s.begin():
+        with self._write() as s:
             return _set(s, job_id, JobStatus.running, attempt, heartbeat_at=_now())
 
     def status(self, job_id: str) -> JobStatus:
         """The row's status alone (what the runner polls while a job runs)."""
         _check_id(job_id)
-        with self._read() as s, s.begin():
+        with self._read() as s:
             status = s.scalar(select(TrainingJobRow.status).where(TrainingJobRow.id == job_id))
         if status is None:
             raise NotFound(f"job {brief(job_id)} not found", field="id")
@@ -191,7 +221,7 @@ class JobTable:
         """The subprocess exited by itself. A cancel that came too late to stop it loses: the
         row records what the process did."""
         status = JobStatus.succeeded if exit_code == 0 else JobStatus.failed
-        with self._write() as s, s.begin():
+        with self._write() as s:
             for expected in (JobStatus.running, JobStatus.cancelling):
                 if _set(
                     s,
@@ -211,7 +241,7 @@ class JobTable:
         Asking again while it is `cancelling` changes nothing; a finished job is a `Conflict`.
         """
         _check_id(job_id)
-        with self._write() as s, s.begin():
+        with self._write() as s:
             row = s.get(TrainingJobRow, job_id)
             if row is None:
                 raise NotFound(f"job {brief(job_id)} not found", field="id")
@@ -232,7 +262,7 @@ class JobTable:
         self, job_id: str, exit_code: int | None, log_tail: str, attempt: int | None = None
     ) -> None:
         """The runner stopped a `cancelling` job's subprocess (exit code: -signal on POSIX)."""
-        with self._write() as s, s.begin():
+        with self._write() as s:
             _set(
                 s,
                 job_id,
@@ -246,7 +276,7 @@ class JobTable:
 
     def release(self, job_id: str, attempt: int | None = None) -> None:
         """This process stops while the job runs: leave it for the next one (stale at once)."""
-        with self._write() as s, s.begin():
+        with self._write() as s:
             _set(s, job_id, JobStatus.running, attempt, heartbeat_at=None)
 
     def recover(self, on_cancelled: Callable[[str], object] | None = None) -> list[str]:
@@ -259,11 +289,11 @@ class JobTable:
             TrainingJobRow.status.in_(owned),
             or_(TrainingJobRow.heartbeat_at.is_(None), TrainingJobRow.heartbeat_at < stale),
         )
-        with self._read() as s, s.begin():
+        with self._read() as s:
             if s.scalar(dead.limit(1)) is None:
                 return []
         requeued, cancelled = [], []
-        with self._write() as s, s.begin():
+        with self._write() as s:
             for row in s.scalars(dead):
                 if row.status == JobStatus.cancelling.value:
                     row.status, row.finished_at = JobStatus.cancelled.value, _now()
