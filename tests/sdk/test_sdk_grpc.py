@@ -208,8 +208,8 @@ def test_aail_budget_state_round_trips_over_grpc(
                 seed=5 + t,
                 budget_state=state,
             )
-            spent = None if state is None else [state.spent]
-            total = None if state is None else [state.total]
+            spent: list[float] | None = None if state is None else [state.spent]
+            total: list[float] | None = None if state is None else [state.total]
             expected = engine_act(
                 live,
                 obs,
