@@ -87,3 +87,26 @@ def test_rows_are_computed_from_the_cells() -> None:
     assert rows["aail"].regret_median == pytest.approx(0.1)
     assert rows["aail"].team_gain == pytest.approx(-0.5)
     assert rows["aail"].sets_below == 1
+
+
+def test_the_spread_table_puts_each_zoo_in_its_column_and_refuses_other_configs() -> None:
+    from evaluation.partners.spread import spread_markdown
+
+    def run(gain: float, seed: int = 1) -> dict[str, object]:
+        row = {"partner_type": "idle", "kind": "non_aligned", "stranded": 1, "help_kept": 0.5}
+        config = {"seed": seed, "aligned_pairs": 1, "non_aligned_pairs": 1}
+        config |= {"pair_episodes": 2, "five_agent_sets": 0}
+        return {
+            "config": config,
+            "rows": [
+                {**row, "method": "sl", "team_gain": 0.0},
+                {**row, "method": "aail_bounded", "team_gain": gain},
+            ],
+        }
+
+    text = spread_markdown([run(0.5), run(-0.25)], ["zoo0", "zoo10"])
+    line = next(line for line in text.splitlines() if "AAIL-B" in line)
+    assert "| +0.500 | -0.250 | -0.250 | +0.500 | 2 |" in line
+    assert "| SL |" not in text  # SL is the reference, not a row
+    with pytest.raises(ValueError, match=r"config\.seed"):
+        spread_markdown([run(0.5), run(0.5, seed=2)], ["a", "b"])
