@@ -366,3 +366,13 @@ def test_report_files_checked(tmp_path: Path) -> None:
     back = cells["non_aligned"]["aail"]
     np.testing.assert_allclose(back.returns_EN, original.returns_EN.round(4))
     np.testing.assert_array_equal(back.success_EN, original.success_EN)
+
+
+@pytest.mark.slow
+def test_the_committed_report_matches_its_committed_results() -> None:
+    """reports/paper/REPORT.md as shipped: every scenario and pair-class table of tests against
+    the reports/paper/results.json it was generated from."""
+    root = Path(__file__).resolve().parents[3] / "reports" / "paper"
+    data = json.loads((root / "results.json").read_text())
+    checked = check_report_against_results((root / "REPORT.md").read_text(), data)
+    assert checked >= 10
