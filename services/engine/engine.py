@@ -200,14 +200,14 @@ class InferenceEngine:
             flat_BA = np.broadcast_to(q_task_BA.mean(axis=1, keepdims=True), q_task_BA.shape)
             q_task_BA = np.where(finished_B[:, None], flat_BA, q_task_BA)
         if method in ("nail", "aail", "aail_bounded", "aail_budget"):
-            blend_method: BlendMethod = "aail" if method == "aail_budget" else method
+            # aail_budget: AAIL bounded by R1 at every step, then the budget (B1-B4)
+            blend_method: BlendMethod = "aail_bounded" if method == "aail_budget" else method
             q_impact_BPA = _impact_q(checked, q_members, layout)
         else:  # sl, jl: the task/joint network alone
             blend_method = "sl"
             q_impact_BPA = np.zeros((batch, 0, n_actions))
         temperature = request.temperature or group.nets[0].alpha or DEFAULT_TEMPERATURE
-        if method == "aail_budget":  # R1 at every step (no oracle), then the budget (B1-B4)
-            blend_method = "aail_bounded"
+        if method == "aail_budget":  # R1's ε at every step: no oracle sets it to 0
             epsilon_B = np.full(batch, budget_epsilon(request, group))
         # every partner slot is used, one temperature for all rows
         try:
