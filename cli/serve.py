@@ -89,6 +89,11 @@ def serve(
         timeout_graceful_shutdown=settings.shutdown_grace_s,  # in-flight requests finish
         ssl_certfile=settings.tls_cert_file,  # HTTPS when COEXIST_TLS_* are set
         ssl_keyfile=settings.tls_key_file,
+        # X-Forwarded-For names the client only when a configured proxy sent it: uvicorn's
+        # default believes any process on 127.0.0.1, so one local client could pose as many
+        # and step past its per-client bounds (docs/security.md)
+        proxy_headers=bool(settings.forwarded_allow_ips.strip()),
+        forwarded_allow_ips=settings.forwarded_allow_ips.strip() or None,
     )
 
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import sys
 from dataclasses import dataclass
 from typing import Any
 
@@ -74,6 +75,8 @@ def check_lineage(lineage: Lineage) -> Lineage:
     """JSON-safe config/metrics (no NaN/inf), parents as 'name/version' refs."""
     if not isinstance(lineage, Lineage):
         raise InvalidArtifact("lineage: expected a Lineage", field="lineage")
+    if isinstance(lineage.metrics, dict) and "training_curve" in lineage.metrics:
+        check_training_curve(lineage.metrics["training_curve"])  # first: it names the entry
     for key in ("config", "metrics"):
         value = getattr(lineage, key)
         try:
@@ -90,3 +93,37 @@ def check_lineage(lineage: Lineage) -> Lineage:
                 f"{field}: expected 'name/version', got {brief(parent)}", field=field
             )
     return lineage
+
+
+def check_training_curve(curve: Any) -> None:
+    """`metrics.training_curve` (what the console draws): an object of equally long lists of
+    finite numbers (`steps`, `mean_return`, `loss`, ...); `steps` whole numbers >= 0.
+    InvalidArtifact naming the first bad entry: a string or NaN there would be drawn as NaN."""
+    field = "lineage.metrics.training_curve"
+    if not isinstance(curve, dict):
+        raise InvalidArtifact(f"{field}: expected an object of lists of numbers", field=field)
+    lengths = set()
+    for key, values in curve.items():
+        plain = isinstance(key, str) and key.isidentifier() and len(key) <= 40
+        where = f"{field}.{key if plain else brief(key, 40)}"
+        if not isinstance(values, list):
+            raise InvalidArtifact(f"{where}: expected a list of numbers", field=where)
+        lengths.add(len(values))
+        for i, value in enumerate(values):
+            number = isinstance(value, int | float) and not isinstance(value, bool)
+            finite = number and abs(value) <= sys.float_info.max  # NaN fails it too
+            if not finite or (key == "steps" and not _step(value)):
+                expected = "a whole number >= 0" if key == "steps" else "a finite number"
+                raise InvalidArtifact(
+                    f"{where}[{i}]: expected {expected}, got {brief(value)}", field=f"{where}[{i}]"
+                )
+    if len(lengths) > 1:
+        raise InvalidArtifact(
+            f"{field}: its lists differ in length ({sorted(lengths)}): one value per point",
+            field=field,
+        )
+
+
+def _step(value: float) -> bool:
+    whole = isinstance(value, int) or value.is_integer()  # no float(): an int may be huge
+    return whole and value >= 0

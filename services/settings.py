@@ -44,9 +44,14 @@ by the test suite and by Ray.
 | `COEXIST_SESSION_TTL_S`       | 300                | server        | a REST session idle this long is forgotten        |
 | `COEXIST_MAX_SESSIONS`        | 1000               | server        | live REST sessions per server process             |
 | `COEXIST_MAX_SESSIONS_PER_CLIENT` | 100            | server        | live REST sessions one client (by address) may    |
-|                               |                    |               | hold; behind a proxy set uvicorn's                |
-|                               |                    |               | `FORWARDED_ALLOW_IPS` to it, else every client    |
-|                               |                    |               | shares the proxy's address                        |
+|                               |                    |               | hold; behind a proxy set `FORWARDED_ALLOW_IPS` to |
+|                               |                    |               | it, else every client shares the proxy's address  |
+| `COEXIST_FORWARDED_ALLOW_IPS` | unset (none)       | `serve`       | proxies whose `X-Forwarded-For` and               |
+|                               |                    |               | `X-Forwarded-Proto` are believed (comma-separated |
+|                               |                    |               | addresses or networks, `*` for any); unset: the   |
+|                               |                    |               | client is the connection's address, whatever a    |
+|                               |                    |               | header says (uvicorn's own default, which         |
+|                               |                    |               | believes 127.0.0.1, is not used)                  |
 | `COEXIST_SESSION_PREFETCH`    | true               | server        | after a session step's answer is sent, score the  |
 |                               |                    |               | next step's evidence ahead (REST and `Episode`;   |
 |                               |                    |               | `services.sessions.session`, "Scoring ahead")     |
@@ -125,6 +130,7 @@ class Settings(BaseSettings):
     session_ttl_s: float = Field(default=300.0, gt=0, le=86400)
     max_sessions: int = Field(default=1000, ge=1)
     max_sessions_per_client: int = Field(default=100, ge=1)
+    forwarded_allow_ips: str = ""  # trusted proxies (comma-separated); "": none
     session_prefetch: bool = True
     workers: int = Field(default=1, ge=1)
     log_format: Literal["json", "text"] = "text"

@@ -37,6 +37,8 @@ from services.engine.errors import EngineError
 from services.sessions.errors import SessionLimitReached
 
 Step = TypeVar("Step")
+OPEN_STREAMS = "open Episode streams"
+REMEDY = "close finished Episode streams (end the request stream) or retry when one closes"
 
 
 class EpisodeIdle(EngineError):
@@ -89,8 +91,10 @@ class EpisodeSlots:
         with self._freed:
             if not self._freed.wait_for(lambda: self._free_for(client), self.wait_s):
                 if sum(self._open.values()) >= self.total:
-                    raise SessionLimitReached(self.total)
-                raise SessionLimitReached(self.per_client, per_client=True)
+                    raise SessionLimitReached(self.total, what=OPEN_STREAMS, remedy=REMEDY)
+                raise SessionLimitReached(
+                    self.per_client, per_client=True, what=OPEN_STREAMS, remedy=REMEDY
+                )
             self._open[client] += 1
         try:
             yield

@@ -39,13 +39,22 @@ class SessionLimitReached(SessionError):
 
     code = "too_many_sessions"
 
-    def __init__(self, limit: int, retry_after_s: float = 0.0, *, per_client: bool = False) -> None:
+    # what a REST client can do about it; a gRPC `Episode` client is told its own remedy
+    REST_REMEDY = (
+        "delete finished sessions (DELETE /v1/sessions/{id}) or retry after idle ones expire"
+    )
+
+    def __init__(
+        self,
+        limit: int,
+        retry_after_s: float = 0.0,
+        *,
+        per_client: bool = False,
+        what: str = "live sessions",
+        remedy: str = REST_REMEDY,
+    ) -> None:
         holder = "this client holds its" if per_client else "the server holds its"
-        super().__init__(
-            None,
-            f"{holder} maximum of {limit} live sessions; delete finished sessions "
-            "(DELETE /v1/sessions/{id}) or retry after idle ones expire",
-        )
+        super().__init__(None, f"{holder} maximum of {limit} {what}; {remedy}")
         self.limit, self.retry_after_s, self.per_client = limit, retry_after_s, per_client
 
 

@@ -53,7 +53,8 @@ def test_a_client_holds_at_most_its_own_bound(tiny_zoo_store: SqlModelStore) -> 
             OpenEpisode(live.stub)
         err: Any = caught.value
         assert err.code() == grpc.StatusCode.RESOURCE_EXHAUSTED, err.details()
-        assert "this client holds its maximum of 2" in err.details()
+        assert "this client holds its maximum of 2 open Episode streams" in err.details()
+        assert "/v1/" not in err.details()  # a gRPC client is told a gRPC remedy, not a route
         assert live.stub.Act(pb.ActRequest(env="particle", ego_goal="a2", observation=OBS))
         held.pop().close()
         held.append(OpenEpisode(live.stub))  # a slot came free

@@ -245,3 +245,28 @@ def test_settings_come_from_the_environment(monkeypatch, tmp_path: Path) -> None
 def test_huge_version_number_is_a_4xx_not_a_500(client) -> None:
     response = client.get("/v1/registry/models/particle/task/a3/-/versions/99999999999999999999999")
     _error(response, 422)
+
+
+@pytest.mark.parametrize(
+    ("curve", "field"),
+    [
+        ({"steps": [0, 10], "mean_return": [1.0, "NaN"]}, "mean_return[1]"),
+        ({"steps": [0, 10], "mean_return": [1.0, None]}, "mean_return[1]"),
+        ({"steps": [0, 10], "loss": [0.5, {"x": 1}]}, "loss[1]"),
+        ({"steps": [0, "ten"], "loss": [0.5, 0.4]}, "steps[1]"),
+        ({"steps": [0, 10], "loss": [0.5]}, None),
+        ("not a curve", None),
+    ],
+)
+def test_a_training_curve_of_anything_but_finite_numbers_is_refused(
+    client: TestClient, curve: object, field: str | None
+) -> None:
+    """The console draws `metrics.training_curve`: a string or NaN there would be drawn as NaN."""
+    lineage = json.dumps({"metrics": {"training_curve": curve}})
+    answer = _upload(client, lineage=(None, lineage))
+    expected = "lineage.metrics.training_curve" + (f".{field}" if field else "")
+    _error(answer, 422, expected)
+    nan = '{"metrics": {"training_curve": {"steps": [0], "loss": [NaN]}}}'  # Python's JSON
+    _error(_upload(client, lineage=(None, nan)), 422, "lineage.metrics.training_curve.loss[0]")
+    good = json.dumps({"metrics": {"training_curve": {"steps": [0, 10], "loss": [0.5, 0.25]}}})
+    assert _upload(client, lineage=(None, good)).status_code == 201
