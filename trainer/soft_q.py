@@ -5,12 +5,8 @@ matmul evaluates all of them and one Adam step updates all of them. Adam is elem
 stacked Adam is exactly G separate Adams; the loss is the *sum* of the G per-network losses, so
 each network receives exactly its own gradient.
 
-The gradient of eq. 4 is written out by hand (`_backward`) instead of taken by autograd: the
-loss reads one Q-value per sample, so the output layer's gradient is a scatter of the TD errors,
-and each hidden layer costs two batched matmuls (weights, inputs) and one ReLU mask. Autograd
-took the same matmuls plus a transposed copy of every activation, a bias expansion and its graph
-bookkeeping, which at these sizes (G x 128 samples x 128 units) cost as much as the matmuls.
-`tests/trainer/test_trainer_soft_q.py` checks the hand-written gradient against autograd's.
+The gradient of eq. 4 is autograd's through `StackedQNet.forward`;
+`tests/trainer/test_trainer_soft_q.py` checks it, member by member, against one `QNetwork`'s.
 """
 
 from __future__ import annotations
@@ -85,59 +81,18 @@ class StackedSoftQ:
         self.n_updates += 1
         return stats
 
-    @torch.no_grad()
     def set_gradients(self, batch: Batch) -> UpdateStats:
         """Set every online parameter's `.grad` to the gradient of Σ_g J_Q(θ_g) (eq. 4) on
         `batch`, without stepping; returns the per-network loss and mean predicted Q."""
-        target_GB = soft_q_target(
-            batch.rew_GB, self.target(batch.next_obs_GBD), self.gamma, self.alpha
-        )
-        acts = _forward_keep(self.online, batch.obs_GBD)
-        act_GB1 = batch.act_GB.unsqueeze(-1)
-        q_GB = acts[-1].gather(2, act_GB1).squeeze(-1)
-        err_GB = q_GB - target_GB
-        loss_G = 0.5 * err_GB.square().mean(dim=1)  # eq. 4, per network
-        # dJ/dQ(s, a): (Q - target) / B at the action taken, zero at the others
-        dq_GBA = torch.zeros_like(acts[-1])
-        dq_GBA.scatter_(2, act_GB1, (err_GB / err_GB.shape[1]).unsqueeze(-1))
-        _backward(self.online, acts, dq_GBA)
-        return UpdateStats(loss_G=loss_G, q_mean_G=q_GB.mean(dim=1))
+        with torch.no_grad():
+            next_q_GBA = self.target(batch.next_obs_GBD)
+            target_GB = soft_q_target(batch.rew_GB, next_q_GBA, self.gamma, self.alpha)
+        q_GB = self.online(batch.obs_GBD).gather(2, batch.act_GB.unsqueeze(-1)).squeeze(-1)
+        loss_G = 0.5 * (q_GB - target_GB).square().mean(dim=1)  # eq. 4, per network
+        self.optimizer.zero_grad(set_to_none=True)
+        loss_G.sum().backward()  # a sum: each network's gradient is its own loss's alone
+        return UpdateStats(loss_G=loss_G.detach(), q_mean_G=q_GB.detach().mean(dim=1))
 
     def sync_target(self) -> None:
         """Hard copy θ̄ ← θ (Algorithm 1)."""
         self.target.load_state_dict(self.online.state_dict())
-
-
-def _forward_keep(net: StackedQNet, x_GBD: torch.Tensor) -> list[torch.Tensor]:
-    """The stacked forward of `net`, keeping every layer's input: [x, h_1, ..., h_K, q].
-
-    x_GBD: (G, B, obs_dim); h_k: (G, B, hidden[k-1]) after the activation; q: (G, B, A)."""
-    if net.spec.activation != "relu":
-        raise ValueError(
-            f"activation: the hand-written update supports relu, got {net.spec.activation!r}"
-        )
-    acts = [x_GBD.to(net.spec.torch_dtype)]
-    last = len(net.weights) - 1
-    for k, (w, b) in enumerate(zip(net.weights, net.biases, strict=True)):
-        h = torch.baddbmm(b.unsqueeze(1), acts[-1], w.transpose(1, 2))
-        if k < last:
-            h.relu_()
-        acts.append(h)
-    return acts
-
-
-def _backward(net: StackedQNet, acts: list[torch.Tensor], grad_GBO: torch.Tensor) -> None:
-    """Set `.grad` of every weight and bias of `net` from dJ/d(output), layer by layer.
-
-    For layer k with input h (G, B, in) and output gradient d (G, B, out): dW = dᵀ h
-    (G, out, in), db = Σ_B d, and the input's gradient d W masked where h = relu(.) was 0."""
-    for k in range(len(net.weights) - 1, -1, -1):
-        w, b, h_in = net.weights[k], net.biases[k], acts[k]
-        if w.shape[1] <= w.shape[2]:  # dW = dᵀ h, (G, out, in)
-            w.grad = torch.bmm(grad_GBO.transpose(1, 2), h_in)
-        else:  # the same as (hᵀ d)ᵀ: BLAS is several times faster with the wide side last
-            w.grad = torch.bmm(h_in.transpose(1, 2), grad_GBO).transpose(1, 2).contiguous()
-        b.grad = grad_GBO.sum(dim=1)
-        if k > 0:
-            # relu's gradient in one fused pass (a boolean mask and masked_fill took 10x longer)
-            grad_GBO = torch.ops.aten.threshold_backward(torch.bmm(grad_GBO, w), h_in, 0.0)
