@@ -46,7 +46,7 @@ def coexist_app(tmp: str) -> Any:
     from services.app import create_app
     from services.settings import Settings
 
-    store = open_store(f"sqlite:///{tmp}/models.db")
+    store = open_store(f"sqlite:///{tmp}/models.db", create=True)
     return create_app(Settings(dev_mode=True, grpc_enabled=False, data_dir=Path(tmp)), store)
 
 

@@ -102,7 +102,7 @@ def build_store(url: str) -> None:
     spec = QNetSpec(obs_dim=8, n_actions=5, hidden=(128, 128))
     names = [(task_model_name("particle", EGO), "task", EGO)]
     names += [(impact_model_name("particle", g), "impact", g) for g in PARTNERS]
-    with open_store(url) as store:
+    with open_store(url, create=True) as store:
         for seed, (name, kind, goal) in enumerate(names):
             torch.manual_seed(seed)
             store.create_model(

@@ -23,7 +23,7 @@ def build_store(url: str) -> str:
 
     hidden = TaskConfig().hidden
     spec = qnet_spec(obs_dim=8, n_actions=5, hidden=hidden)
-    with open_store(url) as store:
+    with open_store(url, create=True) as store:
         for g, goal in enumerate(GOAL_IDS):
             for k, (kind, name) in enumerate(
                 (

@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 from rich import box
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 if TYPE_CHECKING:
@@ -42,6 +43,7 @@ STATUS_STYLE = {
     "cancelling": "magenta",
     "succeeded": "green",
     "failed": "red",
+    "gate_failed": "red",
     "interrupted": "red",
     "cancelled": "yellow",
 }
@@ -69,7 +71,9 @@ def _console(*, stderr: bool = False) -> Console:
 
 
 def _fail(message: str, code: int = 1) -> typer.Exit:
-    _console(stderr=True).print(f"[red]error:[/red] {message}", highlight=False, markup=True)
+    _console(stderr=True).print(
+        f"[red]error:[/red] {escape(message)}", highlight=False, markup=True
+    )
     return typer.Exit(code)
 
 
@@ -82,6 +86,8 @@ def _client(server: str, token: str | None) -> Iterator[JobsClient]:
     try:
         with JobsClient(server, token=token) as client:
             yield client
+    except ValueError as err:  # an address that cannot be one (coexist_client.address)
+        raise _fail(str(err), 2) from None
     except InvalidArgument as err:
         raise _fail(str(err), 2) from None  # names the field
     except CoexistError as err:

@@ -6,6 +6,8 @@ happen inside the command functions so that `coexist --help` answers at once.
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import typer
 
 from cli import demo, evaluate, jobs, models, run, serve, train
@@ -19,8 +21,23 @@ app = typer.Typer(
 )
 
 
+def _print_version(asked: bool) -> None:
+    if asked:
+        from services.version import VERSION  # the VERSION file, as installed
+
+        typer.echo(f"coexist {VERSION}")
+        raise typer.Exit()
+
+
 @app.callback()
-def main() -> None:
+def main(
+    version: Annotated[
+        bool,
+        typer.Option(
+            "--version", callback=_print_version, is_eager=True, help="Print the version and exit."
+        ),
+    ] = False,
+) -> None:
     """coexist: train, store and serve AAIL task and impact networks."""
 
 

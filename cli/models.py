@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 if TYPE_CHECKING:
@@ -66,9 +67,13 @@ Server = Annotated[
 
 
 @contextmanager
-def _store(url: str | None, server: str | None = None) -> Iterator[SqlModelStore]:
+def _store(
+    url: str | None, server: str | None = None, *, create: bool = False
+) -> Iterator[SqlModelStore]:
     """Open the store (or, with `server`, the server's registry behind the same methods);
-    domain errors become a one-line message and an exit code."""
+    domain errors become a one-line message and an exit code. Only `create` (the commands that
+    write a first model or the schema) makes a SQLite file that does not exist: a mistyped path
+    is an error naming it, not an empty store."""
     from coexist_client import CoexistError
     from coexist_client import InvalidArgument as RemoteInvalid
 
@@ -86,18 +91,18 @@ def _store(url: str | None, server: str | None = None) -> Iterator[SqlModelStore
             finally:
                 remote.close()
         else:
-            with open_store(url) as store:
+            with open_store(url, create=create) as store:
                 yield store
-    except (InvalidArgument, RemoteInvalid) as exc:
-        _console(stderr=True).print(f"[red]error:[/red] {exc}", highlight=False)
+    except (InvalidArgument, RemoteInvalid, ValueError) as exc:  # ValueError: a bad --server
+        _console(stderr=True).print(f"[red]error:[/red] {escape(str(exc))}", highlight=False)
         raise typer.Exit(2) from None
     except (ModelStoreError, CoexistError) as exc:
-        _console(stderr=True).print(f"[red]error:[/red] {exc}", highlight=False)
+        _console(stderr=True).print(f"[red]error:[/red] {escape(str(exc))}", highlight=False)
         raise typer.Exit(1) from None
 
 
 def _fail(message: str, code: int = 2) -> typer.Exit:
-    _console(stderr=True).print(f"[red]error:[/red] {message}", highlight=False)
+    _console(stderr=True).print(f"[red]error:[/red] {escape(message)}", highlight=False)
     return typer.Exit(code)
 
 
@@ -290,7 +295,7 @@ def import_(
     target = name or meta.get("name")
     if not target:
         raise _fail("--name: required (the directory has no model.json)")
-    with _store(store_url, server) as store:
+    with _store(store_url, server, create=True) as store:  # importing into a new store
         try:
             store.get_model(target)
         except (NotFound, RemoteNotFound):
@@ -325,5 +330,5 @@ def import_(
 @app.command()
 def migrate(store_url: StoreUrl = None) -> None:
     """Create or upgrade the store's database schema to this version of coexist."""
-    with _store(store_url) as store:
+    with _store(store_url, create=True) as store:
         _console().print(f"{store!r}: schema at {store.schema_revision}")

@@ -23,22 +23,23 @@ import typer
 
 
 def _client(server: str, transport: str | None) -> Any:
+    """A client for `server`, parsed as the SDK parses it (`coexist_client.address`): the
+    scheme decides, `--transport` a bare `host:port` (REST without it)."""
     from coexist_client import Client
 
-    use_grpc = transport == "grpc" or (transport is None and server.startswith("grpc://"))
-    if use_grpc:
-        target = server.removeprefix("grpc://").removeprefix("http://").removeprefix("https://")
-        return Client(target, protocol="grpc")
-    if server.startswith("grpc://"):
-        raise typer.BadParameter(
-            "a grpc:// URL needs --transport grpc (or none)", param_hint="--server"
-        )
-    return Client(server, protocol="http")
+    try:
+        return Client(server, protocol=transport)  # type: ignore[arg-type]  # checked by run
+    except ValueError as err:
+        raise typer.BadParameter(str(err), param_hint="--server") from None
 
 
 def run(
     server: Annotated[
-        str, typer.Option(help="Server URL: http://host:port (REST) or grpc://host:port.")
+        str,
+        typer.Option(
+            help="Server: http(s)://host:port (REST), grpc(s)://host:port, or host:port "
+            "(REST, or --transport grpc)."
+        ),
     ] = "http://127.0.0.1:8000",
     env: Annotated[str, typer.Option(help="Environment: particle or cooking.")] = "particle",
     ego: Annotated[str, typer.Option(help="The ego agent's goal (agent 0).")] = "a2",
@@ -81,6 +82,7 @@ def run(
     """Run episodes where the ego acts through the server and partners follow their task policy."""
     from coexist_client import CoexistError
     from rich.console import Console
+    from rich.markup import escape
     from rich.progress import Progress
     from rich.table import Table
 
@@ -113,7 +115,7 @@ def run(
                 on_episode=lambda _: progress.advance(task),
             )
     except (CoexistError, ValueError) as err:
-        console.print(f"[red]error:[/red] {err}")
+        console.print(f"[red]error:[/red] {escape(str(err))}")
         raise typer.Exit(1) from None
     finally:
         client.close()

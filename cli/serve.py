@@ -33,6 +33,14 @@ def serve(
             "belongs in COEXIST_STORE_URL: every user of the machine sees a command line.",
         ),
     ] = None,
+    create_store: Annotated[
+        bool,
+        typer.Option(
+            envvar="COEXIST_CREATE_STORE",
+            help="Create a --store-url SQLite file that does not exist (the default file in "
+            "the data dir is always created); without it such a path is an error.",
+        ),
+    ] = False,
     bootstrap: Annotated[
         bool, typer.Option(help="Train the particle zoo first if the store has none.")
     ] = True,
@@ -52,9 +60,12 @@ def serve(
     os.environ["COEXIST_WORKERS"] = str(workers)  # the app refuses REST sessions with > 1
     if store_url:
         os.environ["COEXIST_STORE_URL"] = store_url
+    os.environ["COEXIST_CREATE_STORE"] = "true" if create_store else "false"
 
     import uvicorn
 
+    from model_store.errors import InvalidArgument
+    from model_store.sql.engine import check_store_exists, create_store_engine, sqlite_file
     from services.logging import log_config
     from services.settings import InsecureSettings, Settings
 
@@ -62,6 +73,15 @@ def serve(
     try:
         settings.check_secure()
     except InsecureSettings as err:
+        typer.echo(f"error: {err}", err=True)
+        raise typer.Exit(2) from None
+    try:  # a mistyped path or a missing driver, named before anything starts
+        url = settings.resolved_store_url()
+        if sqlite_file(url) is None:
+            create_store_engine(url).dispose()  # imports the driver; connects nowhere yet
+        elif not settings.creates_store:
+            check_store_exists(url)
+    except InvalidArgument as err:
         typer.echo(f"error: {err}", err=True)
         raise typer.Exit(2) from None
     if bootstrap:
@@ -112,7 +132,7 @@ def _bootstrap(store_url: str, data_dir: Path, steps: int | None) -> None:
     from trainer.zoo import RunState, goals_without, run_impacts, run_tasks
 
     console = Console()
-    with open_store(store_url) as store:
+    with open_store(store_url, create=True) as store:  # serve checked the path first
         tasks = goals_without(store, "particle", "task", GOAL_IDS, "latest")
         impacts = goals_without(store, "particle", "impact", GOAL_IDS, "latest")
         if not tasks and not impacts:

@@ -172,7 +172,7 @@ def _session(
     from trainer.zoo import RunState
     from trainer.zoo import fingerprint as make_fingerprint
 
-    store = open_store(store_url)
+    store = open_store(store_url, create=True)  # training writes: a new store is asked for
     try:
         run = RunState.open(run_dir, make_fingerprint(**fingerprint), resume)
     except ValueError as err:
@@ -222,6 +222,39 @@ def _on_ray(
         address=address,
         progress=progress,
     )
+
+
+def _exit_if_a_gate_failed(batches: list[Any]) -> None:
+    """Exit with `GATE_FAILED_EXIT_CODE` when a network's last gate (after the retries, which
+    come later in `batches`) failed, printing that gate's figures: a run whose networks are
+    registered but not fit to serve must not look like a success (a job ends `gate_failed`)."""
+    from trainer.jobs.spec import GATE_FAILED_EXIT_CODE
+
+    last: dict[tuple[str, tuple[str, ...]], Any] = {}
+    for batch in batches:
+        for g, goals in enumerate(batch.goals):
+            gate = batch.gates[g] if batch.gates else None
+            if gate is not None:
+                last[(batch.kind, tuple(goals))] = gate
+    failed = [(key, gate) for key, gate in last.items() if not gate.passed]
+    if not failed:
+        return
+    for (kind, goals), gate in failed:
+        figures = ", ".join(
+            f"{name}={_figure(value)}"
+            for name, value in gate.metrics().items()
+            if name not in ("goal", "passed")
+        )
+        typer.echo(f"gate failed: {kind} {'+'.join(goals)}: {figures}")
+    typer.echo(
+        f"{len(failed)} network(s) failed their gate: registered as 'latest' only, not served "
+        f"(exit code {GATE_FAILED_EXIT_CODE})"
+    )
+    raise typer.Exit(GATE_FAILED_EXIT_CODE)
+
+
+def _figure(value: Any) -> str:
+    return f"{value:.4g}" if isinstance(value, float) else str(value)
 
 
 def _print_gates(env: str, batches: list[Any]) -> None:
@@ -308,6 +341,7 @@ def task(
             )
     print_summary(batches)
     _print_gates(env, batches)
+    _exit_if_a_gate_failed(batches)
     write_curves(batches, run_dir)
 
 
@@ -362,6 +396,7 @@ def impact(
             )
     print_summary(batches)
     _print_gates(env, batches)
+    _exit_if_a_gate_failed(batches)
     write_curves(batches, run_dir)
 
 
@@ -406,6 +441,7 @@ def joint(
             )
     print_summary(batches)
     _print_gates(env, batches)
+    _exit_if_a_gate_failed(batches)
     write_curves(batches, run_dir)
 
 
@@ -468,4 +504,5 @@ def zoo(
                 batches += run_joint(store, combo_ids, joint_cfg, **common)
     print_summary(batches)
     _print_gates(env, batches)
+    _exit_if_a_gate_failed(batches)
     write_curves(batches, run_dir)

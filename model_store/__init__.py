@@ -11,7 +11,7 @@ Layers (ORM rows never leave `model_store.sql`):
 
 Typical use:
 
-    store = open_store()
+    store = open_store(create=True)  # a reader passes no `create`: a missing file is an error
     store.create_model(task_model_name("particle", "a3"), env="particle", kind="task",
                        goals=["a3"], obs_dim=8, n_actions=5, exist_ok=True)
     mv = store.register_version("particle/task/a3", spec=spec, weights=blob, lineage=lineage)

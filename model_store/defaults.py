@@ -36,10 +36,15 @@ def open_store(
     *,
     max_artifact_bytes: int = DEFAULT_MAX_ARTIFACT_BYTES,
     auto_migrate: bool = True,
+    create: bool = False,
 ) -> SqlModelStore:
-    """Open (and on first use create) the store at `url` or at `default_store_url()`."""
+    """Open the store at `url` or at `default_store_url()`. A SQLite file that does not exist
+    is an error naming the path (`InvalidArgument`, field `store_url`) unless `create`: commands
+    that write models (`coexist train`, `coexist models import`) and `coexist serve` on its own
+    default data directory ask for it, readers never do."""
     return SqlModelStore(
         url or default_store_url(),
         max_artifact_bytes=max_artifact_bytes,
         auto_migrate=auto_migrate,
+        create=create,
     )

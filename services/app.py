@@ -39,6 +39,9 @@ from model_store.store import ModelStore
 from services.auth import TOKEN_OK_SCOPE_KEY, TokenGate
 from services.console import install as install_console
 from services.console import is_public as console_is_public
+from services.docs_page import DOCS_PATH
+from services.docs_page import install as install_docs_page
+from services.docs_page import is_public as docs_is_public
 from services.engine import InferenceEngine
 from services.jobs_api import router as jobs_router
 from services.logging import RequestIdMiddleware
@@ -47,6 +50,7 @@ from services.metrics import (
     GrpcMetrics,
     HttpMetrics,
     SessionCollector,
+    register_process_metrics,
     request_registry,
     scrape_registry,
 )
@@ -92,7 +96,9 @@ def create_app(
         grpc_server: Any = None
         if app.state.store is None:
             owned_store = open_store(
-                settings.resolved_store_url(), max_artifact_bytes=settings.max_artifact_bytes
+                settings.resolved_store_url(),
+                max_artifact_bytes=settings.max_artifact_bytes,
+                create=settings.creates_store,
             )
             app.state.store = owned_store
         if app.state.engine is None:
@@ -125,7 +131,8 @@ def create_app(
                 session_prefetch=settings.session_prefetch,
                 ready=lambda: _readiness(app.state.engine)[0],
                 reuse_port=True,  # uvicorn workers of one server share the gRPC port
-                tokens=settings.accepted_tokens() if settings.reads_need_token else None,
+                tokens=settings.accepted_tokens(),
+                tokens_required=settings.reads_need_token,
                 tls=settings.tls_pair(),
                 max_episodes=settings.max_episodes,
                 episodes_per_client=settings.max_episodes_per_client,
@@ -159,6 +166,8 @@ def create_app(
         summary="Policy server for multi-agent coexistence (AAIL) and its model registry.",
         version=VERSION,
         lifespan=lifespan,
+        docs_url=None,  # services.docs_page serves /docs from local assets
+        redoc_url=None,
         **_without_fastapi_telemetry(),
     )
     app.state.settings = settings
@@ -174,6 +183,7 @@ def create_app(
     registry = CollectorRegistry()
     registry.register(EngineCollector(lambda: app.state.engine))
     registry.register(SessionCollector(lambda: getattr(app.state, "sessions", None)))
+    register_process_metrics(registry)
     http_metrics = HttpMetrics(request_registry(registry))
     app.state.grpc_metrics = GrpcMetrics(request_registry(registry))
     scraped = scrape_registry(registry)  # every worker's requests with `--workers N`
@@ -185,10 +195,13 @@ def create_app(
         max_bytes=settings.max_body_bytes,
         upload_max_bytes=settings.max_artifact_bytes + FORM_OVERHEAD_BYTES,
     )
-    if settings.reads_need_token:  # no gate at all (no per-request work) when reads are open
-        app.add_middleware(
-            TokenGate, accepted=settings.accepted_tokens(), is_public=console_is_public
-        )
+    # with reads open the gate still refuses a wrong token (services.auth)
+    app.add_middleware(
+        TokenGate,
+        accepted=settings.accepted_tokens(),
+        is_public=lambda path: console_is_public(path) or docs_is_public(path),
+        required=settings.reads_need_token,
+    )
     # outermost: the id is set before anything logs, and an error no handler took is answered
     # here (with the id; Starlette's last-resort handler would close the connection); the same
     # layer counts the request and times it for /metrics
@@ -224,6 +237,7 @@ def create_app(
 
     for router in [*ROUTERS, *routers]:
         app.include_router(router)
+    install_docs_page(app)
     _docs_after_the_api(app)
     install_console(app)  # last: every other route is matched before a console route is tried
     return app
@@ -233,7 +247,7 @@ def _docs_after_the_api(app: FastAPI) -> None:
     """Move FastAPI's documentation routes (`/openapi.json`, `/docs`, `/redoc`), which it adds
     first, behind the probes and the APIs: routes are matched in order, and every request tried
     these four before its own."""
-    docs_paths = {app.openapi_url, app.docs_url, app.redoc_url, app.swagger_ui_oauth2_redirect_url}
+    docs_paths = {app.openapi_url, DOCS_PATH, app.swagger_ui_oauth2_redirect_url}
     routes = app.router.routes
     docs = [route for route in routes if getattr(route, "path", None) in docs_paths]
     routes[:] = [route for route in routes if route not in docs] + docs

@@ -14,9 +14,11 @@ Reads need a token when `COEXIST_REQUIRE_READ_TOKEN` is set or `COEXIST_READ_TOK
 | every gRPC method, reflection included            | UNAUTHENTICATED  | PERMISSION_DENIED   |
 | `grpc.health.v1.Health` (probes)                  | open             | open                |
 
-Writes (registry and job routes) still need the admin token itself (`services.deps`). The gate
-and the interceptor are installed only when reads need a token: with the setting off, requests
-pay nothing. Tokens are compared in constant time (`hmac.compare_digest`), against every
+Writes (registry and job routes) still need the admin token itself (`services.deps`). With reads
+open the gate and the interceptor still look at a token that is sent: a request without one
+passes, a request with a wrong one is refused (403 / PERMISSION_DENIED) rather than served as if
+the mistake did not matter (a client configured for another server learns it at its first
+read, not at its first write). Tokens are compared in constant time (`hmac.compare_digest`), against every
 accepted token (no early exit), so timing tells nothing about a guess.
 """
 
@@ -53,9 +55,14 @@ def bearer(value: str | bytes | None) -> str | None:
     return token.strip() or None
 
 
-def judge(token: str | None, accepted: tuple[str, ...]) -> tuple[int, str, str] | None:
-    """None when `token` is accepted, else (HTTP status, code, message)."""
+def judge(
+    token: str | None, accepted: tuple[str, ...], *, required: bool = True
+) -> tuple[int, str, str] | None:
+    """None when `token` is accepted, else (HTTP status, code, message). `required=False`
+    (reads open): no token passes, a wrong one is still refused."""
     if token is None:
+        if not required:
+            return None
         return 401, "unauthorized", "this server needs 'Authorization: Bearer <token>'"
     if not token_matches(token, *accepted):
         return 403, "forbidden", "the bearer token is not valid for this server"
@@ -71,10 +78,13 @@ class TokenGate:
         *,
         accepted: tuple[str, ...],
         is_public: Callable[[str], bool] = lambda path: False,
+        required: bool = True,
     ) -> None:
         """`is_public`: paths open whatever the tokens besides `/healthz` (the web console's page
-        and its static files, which hold no data: a browser loads them without a token)."""
+        and its static files, which hold no data: a browser loads them without a token).
+        `required=False`: reads are open, only a wrong token is refused."""
         self.app, self.accepted, self.is_public = app, accepted, is_public
+        self.required = required
 
     async def __call__(self, scope: dict[str, Any], receive: Any, send: Any) -> None:
         path = scope.get("path", "")
@@ -86,7 +96,7 @@ class TokenGate:
             if name == b"authorization":
                 token = bearer(value)
                 break
-        refused = judge(token, self.accepted)
+        refused = judge(token, self.accepted, required=self.required)
         if scope["path"] == READY_PATH:  # open, but only the token sees the details
             scope[TOKEN_OK_SCOPE_KEY] = refused is None
             await self.app(scope, receive, send)
@@ -111,8 +121,8 @@ async def _refuse(send: Any, status: int, code: str, message: str) -> None:
 class TokenInterceptor(grpc.ServerInterceptor):
     """gRPC server interceptor: the gRPC rows of the module docstring's table."""
 
-    def __init__(self, accepted: tuple[str, ...]) -> None:
-        self.accepted = accepted
+    def __init__(self, accepted: tuple[str, ...], *, required: bool = True) -> None:
+        self.accepted, self.required = accepted, required
 
     def intercept_service(
         self,
@@ -124,7 +134,7 @@ class TokenInterceptor(grpc.ServerInterceptor):
             return handler
         metadata = handler_call_details.invocation_metadata or ()
         token = next((bearer(v) for k, v in metadata if k == "authorization"), None)
-        refused = judge(token, self.accepted)
+        refused = judge(token, self.accepted, required=self.required)
         if refused is None:
             return handler
         status, _, message = refused

@@ -145,7 +145,7 @@ def new_request_id() -> str:
 
 
 # `record(route, method, status, seconds)`: what the middleware tells the metrics once a
-# response starts (`services.metrics.HttpMetrics.record`)
+# response's last byte is sent (`services.metrics.HttpMetrics.record`)
 Recorder = Callable[[str, str, int, float], None]
 
 
@@ -181,8 +181,19 @@ class RequestIdMiddleware:
         request_id = _request_id_from(scope)
         token = request_id_var.set(request_id)
         id_header = (_HEADER_KEY, request_id.encode())
-        status, started = 500, False  # unless a response starts
+        status, started, recorded = 500, False, False  # unless a response starts
         record = self.record
+
+        def record_once() -> None:
+            nonlocal recorded
+            if record is not None and not recorded:
+                recorded = True
+                record(
+                    route_template(scope) or "unmatched",
+                    scope["method"],
+                    status,
+                    time.perf_counter() - start,
+                )
 
         async def send_with_id(message: dict[str, Any]) -> None:
             nonlocal status, started
@@ -192,14 +203,11 @@ class RequestIdMiddleware:
                 if any(h[0] == _HEADER_KEY for h in headers):  # the app's own id gives way
                     headers = [h for h in headers if h[0] != _HEADER_KEY]
                 message = {**message, "headers": [*headers, id_header]}
-                if record is not None:  # latency to the response start, as before
-                    record(
-                        route_template(scope) or "unmatched",
-                        scope["method"],
-                        status,
-                        time.perf_counter() - start,
-                    )
             await send(message)
+            # latency to the last byte: a streamed episode counts its whole length, not the
+            # time its first frame took
+            if message["type"] == "http.response.body" and not message.get("more_body", False):
+                record_once()
 
         span = None if self.tracer is None else self.tracer.http_span(scope, request_id)
         try:
@@ -211,6 +219,8 @@ class RequestIdMiddleware:
                 raise
             await self.on_error(exc)(scope, receive, send_with_id)
         finally:
+            if started:
+                record_once()  # a response cut off before its last byte still counts
             if span is not None:
                 span.end(route_template(scope), status)
             _log_access(scope, status, time.perf_counter() - start)

@@ -3,15 +3,17 @@
 | metric | type | labels | what |
 |---|---|---|---|
 | `coexist_http_requests_total` | counter | route, method, status | requests answered |
-| `coexist_http_request_seconds` | histogram | route | latency, from the first byte in to the response start |
+| `coexist_http_request_seconds` | histogram | route | latency, from the first byte in to the response's last byte out (a stream's whole length), 50 µs to 60 s |
 | `coexist_engine_*_total` | counter | | engine counters (rows, errors, cache hits/misses, loads, reloads ...) |
 | `coexist_engine_models_loaded` | gauge | | networks in the weights cache |
+| `coexist_store_reachable` | gauge | | 1 while the model store answers, else 0 (what `/readyz` checks) |
 | `coexist_model_version_served` | gauge | model (name@alias) | the version each alias resolves to now |
 | `coexist_sessions_live` | gauge | | goal-inference sessions held (expired ones purged first) |
 | `coexist_sessions_max` | gauge | | the limit (`COEXIST_MAX_SESSIONS`) |
 
 | `coexist_grpc_requests_total` | counter | method, code | gRPC calls answered (`/coexist.v1.PolicyService/Act`, `OK`) |
-| `coexist_grpc_request_seconds` | histogram | method | latency, from the handler's start to its end |
+| `coexist_grpc_request_seconds` | histogram | method | latency, from the handler's start to its end (a stream's last answer) |
+| `process_*` | gauge, counter | | this process: CPU seconds, resident and virtual memory, open and maximum file descriptors, start time (prometheus_client's process collector, Linux) |
 
 The engine's counters are read when Prometheus scrapes (a collector), so the request path pays
 nothing for them.
@@ -32,16 +34,36 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
-from prometheus_client import CollectorRegistry, Counter, Histogram
+from prometheus_client import CollectorRegistry, Counter, Histogram, ProcessCollector
 from prometheus_client.core import CounterMetricFamily, GaugeMetricFamily, Metric
 from prometheus_client.registry import Collector
 
 from services.engine import InferenceEngine
 from services.sessions import SessionStore
 
-# Latency buckets from 50 µs to 1 s: single acts take well under a millisecond.
 MULTIPROC_ENV = "PROMETHEUS_MULTIPROC_DIR"
-LATENCY_BUCKETS = (5e-5, 1e-4, 2e-4, 5e-4, 1e-3, 2e-3, 5e-3, 1e-2, 2.5e-2, 0.1, 0.25, 1.0)
+# Latency buckets from 50 µs to 60 s: single acts take well under a millisecond, while a streamed
+# episode (timed to its last byte), an upload or a whole gRPC `Episode` stream takes seconds to
+# tens of seconds; beyond the last bucket only `+Inf` would tell.
+LATENCY_BUCKETS = (
+    5e-5,
+    1e-4,
+    2e-4,
+    5e-4,
+    1e-3,
+    2e-3,
+    5e-3,
+    1e-2,
+    2.5e-2,
+    0.1,
+    0.25,
+    1.0,
+    2.5,
+    5.0,
+    10.0,
+    30.0,
+    60.0,
+)
 
 
 def multiprocess_dir() -> str | None:
@@ -108,6 +130,11 @@ class EngineCollector(Collector):
             counter.add_metric([], value)
             yield counter
         status = engine.status()
+        reachable = GaugeMetricFamily(
+            "coexist_store_reachable", "1 while the model store answers, else 0 (as /readyz)"
+        )
+        reachable.add_metric([], 1.0 if status.store_reachable else 0.0)
+        yield reachable
         loaded = GaugeMetricFamily("coexist_engine_models_loaded", "networks in the weights cache")
         loaded.add_metric([], status.models_loaded)
         yield loaded
@@ -208,3 +235,10 @@ class GrpcMetrics:
                 self._children[method, code] = children
         children[0].inc()
         children[1].observe(seconds)
+
+
+def register_process_metrics(registry: CollectorRegistry) -> None:
+    """CPU, memory and open file descriptors of this process (`process_*`, read from /proc at
+    scrape time: nothing per request). In multiprocess mode each worker's are its own: the
+    process that answers the scrape."""
+    ProcessCollector(registry=registry)

@@ -8,12 +8,18 @@ by the test suite and by Ray.
 |-------------------------------|--------------------|---------------|---------------------------------------------------|
 | `COEXIST_STORE_URL`           | SQLite in data dir | server, CLI   | model store URL (`sqlite:///…`, `postgresql://…`) |
 | `COEXIST_DATA_DIR`            | `.coexist`         | server, CLI   | where the SQLite file (and bootstrap run) lives   |
+| `COEXIST_CREATE_STORE`        | false              | server        | a `STORE_URL` SQLite file that does not exist is  |
+|                               |                    |               | created (`serve --create-store`); otherwise the   |
+|                               |                    |               | server refuses to start, naming the path (the     |
+|                               |                    |               | default file in `DATA_DIR` is always created)     |
 | `COEXIST_ADMIN_TOKEN`         | `dev-token`        | server, CLI   | bearer token for registry and job writes (the     |
 |                               |                    |               | `coexist jobs` CLI sends it); unless `DEV_MODE`,  |
 |                               |                    |               | refused at its default and when weak (under 16    |
 |                               |                    |               | characters, whitespace, under 8 distinct ones;    |
 |                               |                    |               | the read token too)                               |
-| `COEXIST_READ_TOKEN`          | unset              | server        | bearer token for reads (inference included)       |
+| `COEXIST_READ_TOKEN`          | unset              | server        | bearer token for reads (inference included); with |
+|                               |                    |               | reads open a request without a token is served    |
+|                               |                    |               | and one with a wrong token refused (403)          |
 | `COEXIST_REQUIRE_READ_TOKEN`  | false              | server        | every route but `/healthz` (and gRPC health)      |
 |                               |                    |               | needs the read or admin token (`services.auth`)   |
 | `COEXIST_DEV_MODE`            | false              | server        | allow the default admin token (and weak tokens)   |
@@ -108,6 +114,7 @@ class Settings(BaseSettings):
 
     store_url: str | None = Field(default=None, description="model store URL (None: SQLite file)")
     data_dir: Path = Field(default=Path(".coexist"), description="data directory")
+    create_store: bool = False
     admin_token: SecretStr = Field(default=SecretStr(DEFAULT_ADMIN_TOKEN))
     read_token: SecretStr | None = None
     require_read_token: bool = False
@@ -160,6 +167,12 @@ class Settings(BaseSettings):
             return self.store_url
         self.data_dir.mkdir(parents=True, exist_ok=True)
         return f"sqlite:///{self.data_dir / 'models.db'}"
+
+    @property
+    def creates_store(self) -> bool:
+        """Whether a SQLite store file that does not exist may be created: the default one in
+        the data directory always, a `store_url` one only with `create_store`."""
+        return self.create_store or not self.store_url
 
     @property
     def reads_need_token(self) -> bool:

@@ -43,17 +43,21 @@ import functools
 
 import numpy as np
 
+# the motion itself lives in the SDK (`coexist_client.particle`): a client that plays the particle
+# world with the SDK alone moves its particles with the very same code
+# (`X as X`: re-exported for the env, trainer and evaluation modules that import them from here)
+from coexist_client.particle import ACCELERATION as ACCELERATION
+from coexist_client.particle import ACTION_DIRECTIONS_A2 as ACTION_DIRECTIONS_A2
+from coexist_client.particle import ACTION_MEANINGS as ACTION_MEANINGS
+from coexist_client.particle import DAMPING as DAMPING
+from coexist_client.particle import DT as DT
+from coexist_client.particle import MAX_SPEED as MAX_SPEED
+from coexist_client.particle import STATE_DIM as STATE_DIM
+from coexist_client.particle import integrate as integrate
+
 from envs.particle.goals import INFLUENCE_BOXES_G4, N_GOALS, TARGET_BOXES_G4
 
-DT = 0.1
-DAMPING = 0.25
-ACCELERATION = 2.0
-MAX_SPEED = 0.5
-
-ACTION_MEANINGS: tuple[str, ...] = ("rest", "up", "down", "left", "right")
-ACTION_DIRECTIONS_A2 = np.array([[0, 0], [0, 1], [0, -1], [-1, 0], [1, 0]], dtype=np.float64)
 N_ACTIONS = len(ACTION_MEANINGS)
-STATE_DIM = 4
 
 
 def _check_state(state_BN4: np.ndarray) -> None:
@@ -77,19 +81,6 @@ def step_state(state_BN4: np.ndarray, actions_BN: np.ndarray) -> np.ndarray:
     _check_state(state_BN4)
     _check_per_agent("actions", actions_BN, state_BN4, N_ACTIONS)
     return integrate(state_BN4, ACTION_DIRECTIONS_A2[actions_BN])
-
-
-def integrate(state_X4: np.ndarray, direction_X2: np.ndarray) -> np.ndarray:
-    """`step_state`'s arithmetic without its checks: float64 states (..., 4) pushed along unit
-    directions (..., 2) (zeros: rest); leading shapes broadcast."""
-    vel = state_X4[..., 2:] * (1.0 - DAMPING) + direction_X2 * (ACCELERATION * DT)
-    speed = np.sqrt(np.sum(vel * vel, axis=-1, keepdims=True))
-    vel = vel * np.minimum(1.0, MAX_SPEED / np.maximum(speed, 1e-12))
-    pos = state_X4[..., :2] + vel * DT
-    outside = (pos < 0.0) | (pos > 1.0)
-    pos = np.clip(pos, 0.0, 1.0)
-    vel = np.where(outside, 0.0, vel)  # a position can only leave through the wall it moves into
-    return np.concatenate([pos, vel], axis=-1)
 
 
 def box_distance(points_X2: np.ndarray, boxes_X4: np.ndarray) -> np.ndarray:

@@ -17,6 +17,10 @@ session opens the file afresh: a database file whose directory disappeared is an
 instead of a ghost connection to an unlinked file, and forked processes share no connections.
 After the file exists it is opened with `mode=rw`, so SQLite never silently creates a new, empty
 database in its place.
+
+Mistakes are named, not swallowed: with `create=False` a SQLite file that does not exist is an
+`InvalidArgument` naming the path (a mistyped path would otherwise become an empty store that
+answers "0 models"), and a PostgreSQL URL without its driver names the extra to install.
 """
 
 from __future__ import annotations
@@ -81,19 +85,52 @@ def is_sqlite(url: URL) -> bool:
     return url.get_backend_name() == "sqlite"
 
 
-def create_store_engine(url: str | URL) -> Engine:
-    """An engine for `url`, configured as described in the module docstring."""
+POSTGRES_EXTRA_HINT = "pip install 'coexist[postgres]'"
+NEW_STORE_HINT = "`coexist serve --create-store` or `coexist train` make a new one"
+
+
+def create_store_engine(url: str | URL, *, create: bool = True) -> Engine:
+    """An engine for `url`, configured as described in the module docstring; `create=False`:
+    a SQLite file that does not exist is an error instead of a new, empty store."""
     parsed = normalise_url(url)
     if is_sqlite(parsed):
-        return _sqlite_engine(parsed)
-    return create_engine(
-        parsed,
-        pool_pre_ping=True,
-        connect_args={"connect_timeout": PG_CONNECT_TIMEOUT_S},
-    )
+        return _sqlite_engine(parsed, create=create)
+    try:
+        return create_engine(
+            parsed,
+            pool_pre_ping=True,
+            connect_args={"connect_timeout": PG_CONNECT_TIMEOUT_S},
+        )
+    except ImportError as exc:  # the dialect imports its driver here
+        raise InvalidArgument(
+            f"store_url: the PostgreSQL driver ({exc.name or 'psycopg'}) is not installed: "
+            f"{POSTGRES_EXTRA_HINT}",
+            field="store_url",
+        ) from None
 
 
-def _sqlite_engine(url: URL) -> Engine:
+def sqlite_file(url: str | URL) -> Path | None:
+    """The absolute path of a SQLite store URL's file, None for other backends (and for an
+    in-memory URL, which `create_store_engine` refuses)."""
+    parsed = normalise_url(url)
+    if not is_sqlite(parsed) or not parsed.database or parsed.database == ":memory:":
+        return None
+    return Path(parsed.database).expanduser().absolute()
+
+
+def check_store_exists(url: str | URL) -> None:
+    """Raise `InvalidArgument` (field `store_url`) when `url` is a SQLite file that does not
+    exist: what opening it with `create=False` would say, before anything else starts."""
+    file = sqlite_file(url)
+    if file is not None and not file.is_file():
+        raise InvalidArgument(
+            f"store_url: no SQLite database at {str(file)!r} (the file does not exist: check "
+            f"the path; {NEW_STORE_HINT})",
+            field="store_url",
+        )
+
+
+def _sqlite_engine(url: URL, *, create: bool) -> Engine:
     path = url.database
     if not path or path == ":memory:":
         raise InvalidArgument(
@@ -102,6 +139,8 @@ def _sqlite_engine(url: URL) -> Engine:
             field="store_url",
         )
     file = Path(path).expanduser().absolute()
+    if not create:
+        check_store_exists(url)
     _create_sqlite_file(file)
     uri = f"file:{quote(str(file))}?mode=rw"
 

@@ -142,8 +142,8 @@ class EventRow(Base):
 
 
 class TrainingJobRow(Base):
-    """A training job of `trainer.jobs` (status: queued|running|succeeded|failed|interrupted|
-    cancelling|cancelled)."""
+    """A training job of `trainer.jobs` (status: queued|running|succeeded|failed|gate_failed|
+    interrupted|cancelling|cancelled)."""
 
     __tablename__ = "training_jobs"
 

@@ -58,14 +58,17 @@ class SqlModelStore(VersionOps, ModelStore):
         *,
         max_artifact_bytes: int = DEFAULT_MAX_ARTIFACT_BYTES,
         auto_migrate: bool = True,
+        create: bool = True,
     ) -> None:
+        """`create=False`: a SQLite file that does not exist is an `InvalidArgument` naming the
+        path, not a new empty store (`open_store`, the commands' entry, asks for that)."""
         if max_artifact_bytes < 1:
             raise InvalidArgument(
                 "max_artifact_bytes: must be positive", field="max_artifact_bytes"
             )
         self.url = normalise_url(url)
         self.max_artifact_bytes = max_artifact_bytes
-        self._engine = create_store_engine(self.url)
+        self._engine = create_store_engine(self.url, create=create)
         try:
             self.schema_revision = ensure_schema(self._engine, auto_migrate=auto_migrate)
         except DBAPIError as exc:

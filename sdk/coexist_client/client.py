@@ -15,8 +15,9 @@
 | `session(...)`          | `POST /v1/sessions`      | `Episode`       | `Session`        |
 | `episode(...)`          | `POST /v1/act` per step  | `Episode`       | `Session`        |
 
-The transport follows the URL: `http://` or `https://` speak REST, `grpc://`, `grpcs://` or a
-bare `host:port` gRPC (`protocol=` overrides). Options: `timeout` (seconds per request),
+The transport follows the address (`coexist_client.address`, the parser the `coexist` command
+line uses too): `http://` or `https://` speak REST, `grpc://`, `grpcs://` or `unix:/path` gRPC,
+and a bare `host:port` the `protocol=` given, REST without one. Options: `timeout` (seconds per request),
 `token` (a bearer token on every request and call), `retry` (`Retry`: attempts and backoff on
 connection errors, HTTP 503 and gRPC UNAVAILABLE); HTTP: `headers`, `verify` (a CA file or
 False), `transport` (an httpx transport); gRPC: `tls`, `root_certificates`, `options` (channel
@@ -31,8 +32,9 @@ from __future__ import annotations
 import inspect
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Any, Concatenate, Literal, ParamSpec, TypeVar, Unpack
+from typing import Any, Concatenate, ParamSpec, TypeVar, Unpack
 
+from coexist_client.address import Protocol, parse_address
 from coexist_client.bodies import Settings, act_batch_body, act_body, session_body, shows_settings
 from coexist_client.calls import act_exchange, columns_exchange, envs_exchange, health_exchange
 from coexist_client.exchange import (
@@ -54,12 +56,12 @@ DEFAULT_URL = "http://127.0.0.1:8000"
 P = ParamSpec("P")
 T = TypeVar("T")
 DEFAULT_TARGET = "127.0.0.1:50051"
-Protocol = Literal["http", "grpc"]
 
 
-def protocol_of(url: str) -> Protocol:
-    """`http` for an http(s):// URL, `grpc` for grpc(s):// or a bare `host:port`."""
-    return "http" if url.startswith(("http://", "https://")) else "grpc"
+def protocol_of(url: str, protocol: Protocol | None = None) -> Protocol:
+    """The protocol of address `url` (`coexist_client.address`): its scheme's, else
+    `protocol`, else REST; a `ValueError` for an address that cannot be one."""
+    return parse_address(url, protocol).protocol
 
 
 class ClientCore(Core):
@@ -79,9 +81,10 @@ class ClientCore(Core):
         options: list[tuple[str, Any]] | None = None,
         aio: bool = False,
     ) -> None:
-        if (protocol or protocol_of(url)) == "http":
+        address = parse_address(url, protocol)
+        if address.protocol == "http":
             self.transport: HttpTransport | GrpcTransport = HttpTransport(
-                url,
+                address.target,
                 aio=aio,
                 timeout=timeout,
                 token=token,

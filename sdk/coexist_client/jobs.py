@@ -36,7 +36,7 @@ from coexist_client.transport import Http, HttpTransport
 DEFAULT_URL = "http://127.0.0.1:8000"
 
 # A job in one of these has ended: no runner touches it again.
-FINISHED_STATUSES = frozenset({"succeeded", "failed", "interrupted", "cancelled"})
+FINISHED_STATUSES = frozenset({"succeeded", "failed", "gate_failed", "interrupted", "cancelled"})
 
 
 def _time(value: str | None) -> datetime | None:

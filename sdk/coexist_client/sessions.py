@@ -15,8 +15,11 @@ step t with seed + t (the `Episode` stream's rule), so the transports give the s
 A REST session's requests carry `X-Coexist-Affinity` with a random key made at creation (a load
 balancer hashing on it sends them all to the replica that holds the session;
 docs/architecture.md, "Sessions"), and `expected_step` (`expect_steps=True`), so a retried step
-never counts twice: a conflict raises `Conflict`. `info()` needs a REST session; `close()` deletes
-it (already gone: no error) or half-closes the stream.
+never counts twice: a conflict raises `Conflict`. `info()` asks a REST session's server (`GET`);
+an `Episode` stream or an episode of plain `act` calls holds no state a server could be asked
+for, so their `info()` answers what the client knows: the next step, the last step's beliefs,
+the settings, no id and no expiry (`expires_in_s` infinite: it lives while it is open).
+`close()` deletes a REST session (already gone: no error) or half-closes the stream.
 """
 
 from __future__ import annotations
@@ -30,7 +33,7 @@ from typing import Any
 from coexist_client import proto
 from coexist_client.bodies import Observed, observation_fields, observed_entries, step_body
 from coexist_client.calls import act_exchange
-from coexist_client.errors import CoexistError, NotFound
+from coexist_client.errors import NotFound
 from coexist_client.exchange import Core, Plan, awaiting, blocking
 from coexist_client.gen.coexist.v1 import policy_pb2 as pb
 from coexist_client.transport import Http, StreamClose, StreamOpen, StreamSend
@@ -88,6 +91,8 @@ class SessionCore(Core):
         self.session_id, self.path = "", ""
         self.headers: dict[str, str] = {}
         self.next_step, self.expect_steps = 0, True
+        self.settings: dict[str, Any] = {}  # what `info()` reports of a session without an id
+        self.last_beliefs: tuple[Any, ...] = ()
         if isinstance(opening, Opened):
             self._set(opening)
 
@@ -100,6 +105,7 @@ class SessionCore(Core):
         self.path = f"/v1/sessions/{self.session_id}"
         self.next_step = opened.info.step if opened.info else 0  # the next step's index
         self.expect_steps = opened.expect_steps
+        self.settings = dict(opened.settings or {})
 
 
 def ensure_open(core: SessionCore) -> Plan[Opened]:
@@ -148,6 +154,7 @@ def step(
             settings["seed"] += t
         action = yield from act_exchange(core.transport, {**settings, **fields_})
     core.next_step = t + 1
+    core.last_beliefs = action.beliefs
     return SessionStep(**{f.name: getattr(action, f.name) for f in fields(Action)}, step=t)
 
 
@@ -165,9 +172,16 @@ def act(
 
 
 def info(core: SessionCore) -> Plan[SessionInfo]:
-    """The REST session as the server holds it (next step, beliefs, idle time left)."""
+    """The REST session as the server holds it (next step, beliefs, idle time left); a stream
+    or an episode of `act` calls as the client knows it (module docstring)."""
     if (yield from ensure_open(core)).kind != "rest":
-        raise CoexistError("unimplemented", "info() needs a REST session")
+        return SessionInfo(
+            session_id="",
+            step=core.next_step,
+            expires_in_s=math.inf,
+            beliefs=core.last_beliefs,
+            settings=core.settings,
+        )
     return SessionInfo.from_json((yield Http("GET", core.path, headers=core.headers)))
 
 

@@ -24,6 +24,7 @@ from typing import Any
 import grpc
 import httpx
 
+from coexist_client.address import parse_address
 from coexist_client.errors import CoexistError, Unavailable, error_for_grpc, error_for_http
 from coexist_client.exchange import Retry
 
@@ -112,6 +113,7 @@ class HttpTransport:
         transport: Any = None,
         retry: Retry = Retry(),
     ) -> None:
+        base_url = parse_address(base_url, "http").target  # a bad address: ValueError now
         merged = dict(headers or {})
         if token:
             merged["Authorization"] = f"Bearer {token}"
@@ -184,10 +186,10 @@ def grpc_error(err: grpc.RpcError) -> CoexistError:
 
 
 def grpc_target(target: str) -> tuple[str, bool]:
-    """(`host:port`, whether the target asked for TLS) of `host:port`, `grpc://host:port` or
-    `grpcs://host:port`."""
-    secure = target.startswith("grpcs://")
-    return target.removeprefix("grpcs://").removeprefix("grpc://").rstrip("/"), secure
+    """(what the channel dials, whether the target asked for TLS) of `host:port`,
+    `grpc://host:port`, `grpcs://host:port` or `unix:/path` (`coexist_client.address`)."""
+    address = parse_address(target, "grpc")
+    return address.target, address.tls
 
 
 class _SyncStream:

@@ -223,6 +223,7 @@ def build_grpc_server(
     reuse_port: bool = False,
     session_prefetch: bool = True,
     tokens: tuple[str, ...] | None = None,
+    tokens_required: bool = True,
     tls: tuple[bytes, bytes] | None = None,
     max_episodes: int | None = None,
     episodes_per_client: int | None = None,
@@ -242,7 +243,8 @@ def build_grpc_server(
     use is an error. `session_prefetch`: an `Episode` with inferred partners scores the next
     step's evidence after sending each answer (`services.sessions.session`, "Scoring ahead").
     `tokens`: every call but health checks needs `authorization: Bearer <one of them>`
-    (`services.auth.TokenInterceptor`); None: open. `tls`: (certificate chain, private key),
+    (`services.auth.TokenInterceptor`); with `tokens_required=False` a call without a token
+    passes and only a wrong one is refused; None: open. `tls`: (certificate chain, private key),
     PEM: the port speaks TLS only; None: plaintext. `metrics`: every call counted and timed
     (`services.metrics.GrpcMetrics`, served on the REST server's `/metrics`); `tracer`: every
     call a span (`services.tracing.Tracer`; None, the default: tracing off).
@@ -264,7 +266,9 @@ def build_grpc_server(
         RequestIdInterceptor(metrics, tracer),  # ids, access lines, metrics, spans
     ]
     if tokens is not None:
-        interceptors.append(TokenInterceptor(tokens))  # inside: refusals are logged with ids
+        interceptors.append(
+            TokenInterceptor(tokens, required=tokens_required)
+        )  # inside: refusals are logged with ids
     server = grpc.server(
         futures.ThreadPoolExecutor(max_workers=max_workers, thread_name_prefix="coexist-grpc"),
         options=[("grpc.so_reuseport", 1 if reuse_port else 0)],

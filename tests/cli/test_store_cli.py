@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -116,3 +119,27 @@ def test_export_import_round_trip(url: str, tmp_path: Path) -> None:
     assert "weights" in truncated.output and "safetensors" in truncated.output
     missing = _run("import", str(tmp_path / "nowhere"), "--store-url", url, code=2)
     assert "spec.json" in missing.output
+
+
+def test_a_mistyped_store_path_is_an_error_naming_it(tmp_path: Path) -> None:
+    typo = tmp_path / "modles.db"
+    result = runner.invoke(app, ["list", "--store-url", f"sqlite:///{typo}"])
+    assert result.exit_code == 2, result.output
+    assert f"no SQLite database at '{typo}'" in " ".join(result.output.split())
+    assert "model(s)" not in result.output and not typo.exists()
+
+
+def test_serve_refuses_a_mistyped_store_path_unless_asked_to_create_it(tmp_path: Path) -> None:
+    typo = tmp_path / "modles.db"
+    env = {k: v for k, v in os.environ.items() if not k.startswith("COEXIST_")}
+    served = subprocess.run(
+        [sys.executable, "-m", "cli.main", "serve", "--store-url", f"sqlite:///{typo}"],
+        env={**env, "COEXIST_DEV_MODE": "1", "COEXIST_DATA_DIR": str(tmp_path / "data")},
+        cwd=Path(__file__).resolve().parents[2],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert served.returncode == 2, served.stderr
+    assert f"no SQLite database at '{typo}'" in served.stderr
+    assert "--create-store" in served.stderr and not typo.exists()

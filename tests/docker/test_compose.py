@@ -305,7 +305,7 @@ def _install_like_the_image(tmp_path: Path) -> tuple[list[str], dict[str, str]]:
         if src.is_dir():
             shutil.copytree(src, source / item, ignore=shutil.ignore_patterns("__pycache__"))
         else:
-            source.mkdir(exist_ok=True)
+            (source / item).parent.mkdir(parents=True, exist_ok=True)
             shutil.copy(src, source / item)
     wheels = tmp_path / "wheels"
     subprocess.run(

@@ -22,7 +22,9 @@ def test_default_url_prefers_env_then_data_dir(monkeypatch, tmp_path: Path) -> N
     monkeypatch.delenv("COEXIST_DATA_DIR")
     monkeypatch.chdir(tmp_path)
     assert default_store_url() == "sqlite:///.coexist/models.db"
-    with open_store() as store:
+    with pytest.raises(InvalidArgument, match="no SQLite database"):
+        open_store()  # a reader: nothing there yet, and nothing created
+    with open_store(create=True) as store:
         assert store.list_models().items == ()
     assert (tmp_path / ".coexist" / "models.db").is_file()
 

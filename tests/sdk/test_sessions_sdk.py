@@ -187,8 +187,16 @@ def test_grpc_episodes_with_observed_match_the_core(engine: InferenceEngine) -> 
             GrpcCoexistClient(live.target) as client,
             client.episode("particle", "a2", partners={1: None}, seed=3) as episode,
         ):
+            assert episode.info().step == 0
             for o, a, w in zip(obs, ACTIONS, want, strict=True):
-                assert_same(episode.act(o, observed=None if a is None else {1: a}), w)
+                last = episode.act(o, observed=None if a is None else {1: a})
+                assert_same(last, w)
+            # a stream holds nothing a server could be asked for: what the client knows
+            info = episode.info()
+            assert info.step == len(ACTIONS) and info.beliefs == last.beliefs
+            assert info.beliefs[0].updates == want[-1].beliefs[0].updates
+            assert info.session_id == "" and info.expires_in_s == float("inf")
+            assert info.settings  # the settings the stream was opened with
 
         async def main() -> list[Any]:
             async with (

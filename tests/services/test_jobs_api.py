@@ -20,7 +20,7 @@ from services.app import create_app
 from services.jobs_api import JobRequest
 from services.settings import Settings
 from trainer.jobs import JobSpec, JobStatus, JobTable, train_command
-from trainer.jobs.spec import MAX_SEED, MAX_STEPS
+from trainer.jobs.spec import GATE_FAILED_EXIT_CODE, MAX_SEED, MAX_STEPS
 
 TOKEN = "jobs-t0ken-for-the-tests"
 AUTH = {"Authorization": f"Bearer {TOKEN}"}
@@ -32,6 +32,7 @@ def _settings(tmp_path: Path) -> Settings:
         admin_token=SecretStr(TOKEN),
         data_dir=tmp_path,
         store_url=f"sqlite:///{tmp_path / 'models.db'}",
+        create_store=True,
         grpc_enabled=False,
     )
 
@@ -62,19 +63,23 @@ def offline_client(tmp_path: Path) -> Iterator[TestClient]:
 
 @pytest.mark.slow
 def test_submitted_job_trains_and_registers_the_network(tmp_path: Path) -> None:
+    """20 steps train a network that fails its gate: the job trains and registers it, and ends
+    `gate_failed` (not `succeeded`) with the gate's figures in its log."""
     settings = _settings(tmp_path)
     with TestClient(create_app(settings)) as client:
         answer = client.post("/v1/jobs", json=TINY, headers=AUTH)
         assert answer.status_code == 202
         assert answer.json()["status"] == "queued"
         job = _wait(client, answer.json()["id"])
-        assert job["status"] == "succeeded", client.get(f"/v1/jobs/{job['id']}/logs").json()
-        assert job["exit_code"] == 0 and job["attempts"] == 1
+        assert job["status"] == "gate_failed", client.get(f"/v1/jobs/{job['id']}/logs").json()
+        assert job["exit_code"] == GATE_FAILED_EXIT_CODE and job["attempts"] == 1
         assert job["args"]["goals"] == "a2" and job["args"]["steps"] == 20
         assert Path(job["run_dir"]) == tmp_path / "jobs" / job["id"]
         log = client.get(f"/v1/jobs/{job['id']}/logs").json()["log"]
         assert "train task --env particle --goals a2" in log and "a2" in log.split("\n", 1)[1]
         assert "task a2..a2: 20/20 steps" in log  # progress lines: a log is not a terminal
+        assert "gate failed: task a2: success_rate=" in log  # the gate's figures
+        assert "own_target_return=" in log and "1 network(s) failed their gate" in log
         assert [j["id"] for j in client.get("/v1/jobs").json()["jobs"]] == [job["id"]]
     with SqlModelStore(settings.resolved_store_url()) as store:
         models = store.list_models().items
@@ -195,6 +200,6 @@ def test_a_job_left_running_by_a_dead_server_is_resumed(tmp_path: Path) -> None:
     table.close()
     with TestClient(create_app(settings)) as client:  # the restarted server
         done = _wait(client, job.id)
-    assert done["status"] == "succeeded" and done["attempts"] == 2
+    assert done["status"] == "gate_failed" and done["attempts"] == 2  # 20 steps: gate failed
     with SqlModelStore(settings.resolved_store_url()) as store:
         assert store.list_models().items

@@ -53,7 +53,7 @@ def _job(url: str, job_id: str) -> dict[str, Any]:
 @pytest.mark.slow
 def test_a_job_runs_once_whatever_dies(tmp_path: Path) -> None:
     store_url = f"sqlite:///{tmp_path / 'models.db'}"
-    env = {"COEXIST_JOB_LEASE_S": LEASE_S}
+    env = {"COEXIST_JOB_LEASE_S": LEASE_S, "COEXIST_CREATE_STORE": "1"}  # a new, empty store
     orphans: list[int] = []
     try:
         with serving(tmp_path, store_url, name="first", ready=False, **env) as first:

@@ -6,10 +6,12 @@ import io
 import json
 import logging
 import logging.config
+import time
 from collections.abc import Iterator
 
 import pytest
 from fastapi import APIRouter, FastAPI
+from fastapi.responses import StreamingResponse
 from fastapi.testclient import TestClient
 
 from services.logging import (
@@ -142,3 +144,27 @@ def test_log_config_is_a_valid_dict_config_and_refuses_bad_values() -> None:
         log_config("xml")  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="log_level"):
         log_config("text", "loud")
+
+
+def test_a_streamed_response_is_timed_to_its_last_byte() -> None:
+    """A response streamed over 0.3 s counts 0.3 s, not the moment its first chunk left."""
+    pause_s, chunks = 0.1, 4
+    app = FastAPI()
+
+    @app.get("/stream")
+    def stream() -> StreamingResponse:
+        def frames() -> Iterator[bytes]:
+            for k in range(chunks):
+                if k:
+                    time.sleep(pause_s)
+                yield f"frame {k}\n".encode()
+
+        return StreamingResponse(frames(), media_type="application/x-ndjson")
+
+    seen: list[tuple[str, str, int, float]] = []
+    app.add_middleware(RequestIdMiddleware, record=lambda *row: seen.append(row))
+    with TestClient(app) as client:
+        assert client.get("/stream").text.count("frame") == chunks
+    ((route, method, status, seconds),) = seen
+    assert (route, method, status) == ("/stream", "GET", 200)
+    assert seconds >= pause_s * (chunks - 1)  # the whole stream, not its first byte

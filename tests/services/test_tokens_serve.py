@@ -177,3 +177,29 @@ def test_sessions_are_bounded_per_client(server: Server) -> None:
             client.delete(f"/v1/sessions/{session_id}")
         here.close()
         there.close()
+
+
+@pytest.fixture(scope="module")
+def open_server(
+    tmp_path_factory: pytest.TempPathFactory, _tiny_zoo_template: Path
+) -> Iterator[Server]:
+    """A server whose reads are open (no read token, none required)."""
+    directory = tmp_path_factory.mktemp("open-reads")
+    with serving(directory, zoo_copy(_tiny_zoo_template, directory / "store")) as running:
+        yield running
+
+
+def test_a_wrong_token_is_refused_even_while_reads_are_open(open_server: Server) -> None:
+    with httpx.Client(base_url=open_server.http_url, timeout=30) as client:
+        assert client.post("/v1/act", json=ACT).status_code == 200  # open: no token needed
+        wrong = client.post("/v1/act", json=ACT, headers=WRONG)
+        assert wrong.status_code == 403, wrong.text[:300]
+        assert wrong.json()["error"]["code"] == "forbidden"
+        assert "the bearer token is not valid for this server" in wrong.json()["error"]["message"]
+        assert client.get("/v1/registry/models", headers=WRONG).status_code == 403
+        assert client.get("/healthz", headers=WRONG).status_code == 200  # liveness stays open
+    with grpc.insecure_channel(open_server.grpc_target) as channel:
+        anonymous = _grpc_calls(channel, None)
+        wrong_calls = _grpc_calls(channel, (("authorization", WRONG["Authorization"]),))
+    assert set(anonymous.values()) == {None}, anonymous
+    assert set(wrong_calls.values()) == {grpc.StatusCode.PERMISSION_DENIED}, wrong_calls

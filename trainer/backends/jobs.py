@@ -196,7 +196,7 @@ def train_batch(
 ) -> BatchOutcome:
     """Train `job` and register its networks once per `job_key` (module docstring)."""
     goals = [m[0] for m in job.members]
-    with open_store(store_url) as store:
+    with open_store(store_url, create=True) as store:
         parents: dict[tuple[str, ...], list[str]] = {}
         if job.kind == "task":
             batch = train_tasks(goals, cast(TaskConfig, config), seed=job.seed)

@@ -141,7 +141,7 @@ def run_on_ray(
         for stage in stages:
             jobs = stage.jobs
             if jobs and jobs[0].kind == "impact":
-                with open_store(url) as store:
+                with open_store(url, create=True) as store:
                     jobs = impact_jobs_with_parents(store, env, jobs)
             todo = [job for job in jobs if job.key not in run.done]
             if todo:
@@ -151,7 +151,7 @@ def run_on_ray(
             for attempt in range(1, stage.gate_retries + 1):  # as trainer.zoo's loops
                 if f"{kind}-retry-{attempt}" in run.done:
                     continue
-                with open_store(url) as store:
+                with open_store(url, create=True) as store:
                     goals = [g for g in stage.goals if kind == "task" or g in trained]
                     alias = serve_alias if kind == "task" else "production"
                     failed = goals_without(store, env, kind, goals, alias)

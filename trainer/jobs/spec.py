@@ -103,6 +103,11 @@ def _check(check_goal: Any, domain: Any, goal: str, field: str) -> None:
         raise InvalidArgument(str(err), field=field) from None
 
 
+# `coexist train`'s exit status when every batch trained and registered but a network's final
+# gate failed (after the retries): the job table records it as `gate_failed`, not `succeeded`
+GATE_FAILED_EXIT_CODE = 4
+
+
 def train_command(spec: JobSpec, run_dir: Path) -> list[str]:
     """`python -m cli.main train <kind> ... --resume`: always resumable from `run_dir`. No
     store URL: a command line is public (`ps`, the job's log), and the URL may hold the

@@ -6,6 +6,9 @@
 | `running`     | a runner's subprocess trains it; `heartbeat_at` is refreshed meanwhile |
 | `succeeded`   | the subprocess exited 0                                                |
 | `failed`      | it exited non-zero (`exit_code`, `log_tail`)                           |
+| `gate_failed` | it trained and registered, but a network failed its quality gate (even |
+|               | after the retries): exit code `GATE_FAILED_EXIT_CODE`; the gate's      |
+|               | figures are in its log                                                 |
 | `interrupted` | its runner died `max_attempts` times while it ran: not retried again   |
 | `cancelling`  | cancel asked while it ran: its runner is stopping the subprocess       |
 | `cancelled`   | cancelled before it started, or its subprocess was stopped (exit code) |
@@ -50,7 +53,7 @@ from model_store.errors import Conflict, NotFound, StoreUnavailable, brief
 from model_store.sql.engine import BEGIN_MODE_OPTION, create_store_engine, redact_url
 from model_store.sql.migrate import ensure_schema
 from model_store.sql.orm import TrainingJobRow
-from trainer.jobs.spec import JobSpec
+from trainer.jobs.spec import GATE_FAILED_EXIT_CODE, JobSpec
 
 LOG_TAIL_CHARS = 8_000  # what the row keeps of a finished job's log
 _RUNNER_DIED = "\n--- cancelled; its runner died before it could report the exit code\n"
@@ -62,6 +65,7 @@ class JobStatus(StrEnum):
     running = "running"
     succeeded = "succeeded"
     failed = "failed"
+    gate_failed = "gate_failed"
     interrupted = "interrupted"
     cancelling = "cancelling"
     cancelled = "cancelled"
@@ -220,7 +224,7 @@ class JobTable:
     ) -> None:
         """The subprocess exited by itself. A cancel that came too late to stop it loses: the
         row records what the process did."""
-        status = JobStatus.succeeded if exit_code == 0 else JobStatus.failed
+        status = _finished_status(exit_code)
         with self._write() as s:
             for expected in (JobStatus.running, JobStatus.cancelling):
                 if _set(
@@ -344,3 +348,12 @@ def _now() -> datetime:
 
 def _aware(t: datetime) -> datetime:
     return t if t.tzinfo else t.replace(tzinfo=UTC)  # SQLite returns naive UTC times
+
+
+def _finished_status(exit_code: int) -> JobStatus:
+    """The status of a job whose subprocess exited with `exit_code` by itself."""
+    if exit_code == 0:
+        return JobStatus.succeeded
+    if exit_code == GATE_FAILED_EXIT_CODE:
+        return JobStatus.gate_failed
+    return JobStatus.failed

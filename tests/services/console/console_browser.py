@@ -51,12 +51,13 @@ def _unavailable(reason: str) -> None:
     pytest.skip(reason)
 
 
-def launch_chromium(playwright: Any) -> Any:
-    """Headless Chromium from Debian's package; skip (fail in CI) when it is missing."""
+def launch_chromium(playwright: Any, extra_args: tuple[str, ...] = ()) -> Any:
+    """Headless Chromium from Debian's package (with `extra_args` on its command line); skip
+    (fail in CI) when it is missing."""
     if not Path(CHROMIUM).is_file() and shutil.which("chromium") is None:
         _unavailable(f"no Chromium at {CHROMIUM} (apt-get install chromium)")
     path = CHROMIUM if Path(CHROMIUM).is_file() else str(shutil.which("chromium"))
-    return playwright.chromium.launch(executable_path=path, args=CHROMIUM_ARGS)
+    return playwright.chromium.launch(executable_path=path, args=[*CHROMIUM_ARGS, *extra_args])
 
 
 def sync_playwright() -> Any:
