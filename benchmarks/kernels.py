@@ -1,14 +1,12 @@
-"""What each compiled kernel is worth: an act's and a session step's latency with every kernel,
-and with one kernel's numpy reference instead, in-process.
+"""What the C row forward is worth: an act's and a session step's latency with it, and with its
+numpy reference instead, in-process. (The blend and the belief kernels are numba, one
+implementation each, with nothing to switch: `policy.blend_kernel`, `policy.belief_kernel`.)
 
 Run: `OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/kernels.py [--calls 1500]`
 
-| kernel  | C file                  | numpy reference instead                               |
-|---------|-------------------------|-------------------------------------------------------|
-| blend   | `policy/_blend_row.c`   | `policy.blend`'s vectorised path (`COMPILED` off)     |
+| kernel  | C file                  | numpy reference instead                                |
+|---------|-------------------------|--------------------------------------------------------|
 | forward | `policy/_row_forward.c` | `policy.row_forward.numpy_row_forward` (stacked matmul)|
-| belief  | `policy/_belief_row.c`  | `policy.belief`, `belief_views`, `goal_inference`'s numpy lines |
-| libm    | `policy/_blend_row.c`   | the compiled blend with libm's scalar exp / log / log2 instead of libmvec's vector calls (`vector_math(0)`) |
 
 Cases: a single act with 1 and with 4 announced partners (AAIL), a 256-row batch with 4, and a
 session step with 1 and with 4 inferred partners (its `prepare_next` included: a closed-loop
@@ -16,13 +14,12 @@ client waits for it), on the session benchmarks' store (every particle network, 
 at the trainer's size, `benchmarks/session_scene.py`). The variants run call by call in turn
 (all compiled, then each kernel off), so a burst of load from a neighbour on a shared machine
 hits all of them alike; each figure is the median of `--calls` calls. A kernel whose numpy
-reference costs less than 10 % more on every case is not worth its compiled form.
+reference costs less than 10 % more on every case is not worth its C.
 """
 
 from __future__ import annotations
 
 import argparse
-import importlib
 import statistics
 import sys
 import tempfile
@@ -40,26 +37,14 @@ from session_scene import EGO_GOAL, PARTNER_GOALS, build_store, episode  # noqa:
 
 import services.engine.networks as networks  # noqa: E402
 
-# The modules themselves: `import policy.blend as m` would bind the function `policy.blend`
-# that policy/__init__.py exports under the module's name, and switch nothing.
-blend_kernel = importlib.import_module("policy.blend")
-forward_kernel = importlib.import_module("policy.row_forward")
-belief_kernel = importlib.import_module("policy.belief_compiled")
-
-blend_extension = importlib.import_module("policy._blend_row") if blend_kernel.COMPILED else None
-
-VARIANTS = ("all compiled", "blend", "libm", "forward", "belief")
+VARIANTS = ("all compiled", "forward")
 Call = Callable[[int], object]
+BUILT = networks.ROW_FORWARD  # whether the C forward is built here
 
 
-def use(variant: str, belief_extension: object) -> None:
-    """Every kernel on, then the one named by `variant` off (its numpy reference runs)."""
-    setattr(blend_kernel, "COMPILED", variant != "blend")  # noqa: B010
-    setattr(forward_kernel, "COMPILED", variant != "forward")  # noqa: B010
-    networks.ROW_FORWARD = variant != "forward"
-    setattr(belief_kernel, "_EXTENSION", None if variant == "belief" else belief_extension)  # noqa: B010
-    if blend_extension is not None:
-        blend_extension.vector_math(0 if variant == "libm" else blend_extension.VECTOR_MATH)
+def use(variant: str) -> None:
+    """The C forward, or (`variant` "forward") its numpy reference."""
+    networks.ROW_FORWARD = BUILT and variant != "forward"
 
 
 def cases(url: str) -> dict[str, tuple[Call, int]]:
@@ -109,7 +94,6 @@ def cases(url: str) -> dict[str, tuple[Call, int]]:
 
 def measure(calls: int) -> dict[str, dict[str, float]]:
     """Median µs per case and variant."""
-    extension = belief_kernel._EXTENSION
     with tempfile.TemporaryDirectory() as tmp:
         url = f"sqlite:///{tmp}/models.db"
         build_store(url)
@@ -118,13 +102,13 @@ def measure(calls: int) -> dict[str, dict[str, float]]:
             times: dict[str, list[float]] = {v: [] for v in VARIANTS}
             for i in range(-20, max(20, calls * share // 10)):  # 20 warm-up rounds
                 for variant in VARIANTS:
-                    use(variant, extension)
+                    use(variant)
                     start = time.perf_counter()
                     call(i)
                     if i >= 0:
                         times[variant].append(time.perf_counter() - start)
             found[name] = {v: statistics.median(t) * 1e6 for v, t in times.items()}
-        use("all compiled", extension)
+        use("all compiled")
     return found
 
 
@@ -133,11 +117,8 @@ def main() -> None:
     parser.add_argument("--calls", type=int, default=1500, help="timed calls per case (batch: /10)")
     args = parser.parse_args()
     print(describe())
-    print(
-        "| case | all compiled | blend in numpy | blend on libm's exp/log | forward in numpy "
-        "| belief in numpy |"
-    )
-    print("|---|---|---|---|---|---|")
+    print("| case | C forward | forward in numpy |")
+    print("|---|---|---|")
     for name, row in measure(args.calls).items():
         base = row["all compiled"]
         cells = [f"{row[v]:.0f} µs ({(row[v] - base) / base * 100:+.0f} %)" for v in VARIANTS[1:]]

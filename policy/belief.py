@@ -325,10 +325,16 @@ def _updated(
     evidence and normalisable: the usual case) the masks are skipped; the operations, hence the
     bits, are those of the general path. That case runs compiled where it can
     (`policy.belief_compiled`, equal within 1e-12)."""
-    n_goals = log_b.shape[-1]
     fast = compiled_update(log_b, lik, pull, lam, eps)
-    if fast is not None:
-        return fast
+    return reference_update(log_b, lik, pull, lam, eps) if fast is None else fast
+
+
+def reference_update(
+    log_b: np.ndarray, lik: np.ndarray, pull: np.ndarray | None, lam: float, eps: float
+) -> np.ndarray:
+    """`_updated` in numpy: the compiled update's reference, and the rows it leaves (a
+    non-finite likelihood or update)."""
+    n_goals = log_b.shape[-1]
     if np.isfinite(lik).all():
         x = lam * log_b + lik
         if pull is not None:

@@ -1,10 +1,11 @@
-"""The compiled belief step (policy/_belief_row.c) behind `policy.belief`'s update and
+"""The compiled belief step (`policy.belief_kernel`, numba) behind `policy.belief`'s update and
 `policy.belief_views.belief_views`, the goal likelihoods' table of
 `services.engine.goal_inference` and the expected impact Q of goal distributions
-(`services.engine.engine._impact_q`): C loops over the rows instead of ~25 small numpy calls. The
+(`services.engine.engine._impact_q`): loops over the rows instead of ~25 small numpy calls. The
 numpy code is the reference; the compiled results agree with it within 1e-12
 (tests/policy/test_belief_compiled.py). Each function answers None where the compiled code
-does not apply (or is not built), and the caller then runs its numpy path:
+does not apply (the rows it leaves to the numpy code: non-finite values, a zero probability),
+and the caller then runs its numpy path for them:
 
 | function               | compiled when                                       | else  |
 |------------------------|-----------------------------------------------------|-------|
@@ -18,13 +19,11 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 
-from policy._kernels import load_kernel
-
-MAX_TOP = 64  # top goals the compiled views list at most (policy/_belief_row.c)
+from policy import belief_kernel
 
 
 class BeliefView(NamedTuple):
@@ -36,9 +35,7 @@ class BeliefView(NamedTuple):
     entropy: float  # and entropy
 
 
-# policy/_belief_row.c, built by setup.py where a C compiler exists
-_EXTENSION: Any = load_kernel("_belief_row")
-COMPILED = _EXTENSION is not None
+_NO_PULL = np.zeros((0, 0))
 
 
 def _rows(array: np.ndarray) -> np.ndarray:
@@ -53,41 +50,50 @@ def compiled_update(
 ) -> np.ndarray | None:
     """`policy.belief._updated(log_b, lik, pull, lam, eps)` compiled, or None (module
     docstring). Shapes as `_updated` takes them: (G,) or (E, G), `pull` broadcasting."""
-    if _EXTENSION is None or lik.shape != log_b.shape:
+    if lik.shape != log_b.shape:
         return None
     if pull is not None and pull.shape != log_b.shape:
         pull = np.broadcast_to(pull, log_b.shape)  # one prior for every row
-    pull_rows = None if pull is None else _rows(pull)
-    floor_log = math.log(eps) if eps else None  # `_apply_floor`: no floor at 0
+    floor_log = math.log(eps) if eps else 0.0  # `_apply_floor`: no floor at 0
     floor_scale = math.log1p(-log_b.shape[-1] * eps)
-    out = _EXTENSION.update_rows(_rows(log_b), _rows(lik), pull_rows, lam, floor_scale, floor_log)
-    return None if out is None else out.reshape(log_b.shape)
+    out, done = belief_kernel.update_rows(
+        _rows(log_b),
+        _rows(lik),
+        _NO_PULL if pull is None else _rows(pull),
+        pull is not None,
+        lam,
+        floor_scale,
+        bool(eps),
+        floor_log,
+    )
+    return out.reshape(log_b.shape) if done else None
 
 
 def compiled_views(log_b: np.ndarray, goals: Sequence[str], k: int) -> list[BeliefView] | None:
     """`belief_views(log_b, goals, k)` of a whole-belief blend compiled, or None (module
     docstring); `log_b` (P, G) float64, checked by the caller."""
-    if _EXTENSION is None or k > MAX_TOP:
+    probs, blend, top, entropy, usable = belief_kernel.view_rows(np.ascontiguousarray(log_b), k)
+    if not usable.all():
         return None
-    rows = _EXTENSION.view_rows(np.ascontiguousarray(log_b), k)
-    if any(row is None for row in rows):
-        return None
-    n_goals = log_b.shape[1]
+    every_goal = list(range(log_b.shape[1]))
     return [
-        BeliefView(list(range(n_goals)), blend, [(goals[g], probs[g]) for g in top], entropy)
-        for probs, blend, top, entropy in rows
+        BeliefView(every_goal.copy(), blend_row, [(goals[g], row[g]) for g in top_row], h)
+        for row, blend_row, top_row, h in zip(
+            probs.tolist(), blend.tolist(), top.tolist(), entropy.tolist(), strict=True
+        )
     ]
 
 
 def compiled_log_softmax(q_GPA: np.ndarray, alpha: np.ndarray | float) -> np.ndarray | None:
     """log softmax(q / α_g) over the last axis of a (G, P, A) float32 array, float64, as
     `services.engine.goal_inference` computes it with numpy (`alpha` a float or G values in
-    any shape), or None without the extension."""
-    if _EXTENSION is None or q_GPA.dtype != np.float32 or not q_GPA.flags.c_contiguous:
+    any shape), or None where `q_GPA` is not C-contiguous float32."""
+    if q_GPA.dtype != np.float32 or not q_GPA.flags.c_contiguous:
         return None
-    if isinstance(alpha, np.ndarray):
-        alpha = np.ascontiguousarray(alpha, dtype=np.float64).reshape(-1)
-    result: np.ndarray = _EXTENSION.log_softmax_table(q_GPA, alpha)
+    alpha_G = np.ascontiguousarray(alpha, dtype=np.float64).reshape(-1)
+    if alpha_G.size != q_GPA.shape[0]:
+        alpha_G = np.full(q_GPA.shape[0], alpha_G)  # one α for every goal
+    result: np.ndarray = belief_kernel.log_softmax_table(q_GPA, alpha_G)
     return result
 
 
@@ -96,8 +102,10 @@ def compiled_mix_goals(
 ) -> np.ndarray | None:
     """(B, P, A) float64: each of P goal distributions' expected Q (§3.2), out[b, p] = sum over
     g of probs[p][g] * q_RA[units_PG[p, g] * batch + b] (`_impact_q`'s einsum), or None
-    (module docstring). `units_PG` intp (P, G), C-contiguous."""
-    if _EXTENSION is None or q_RA.dtype != np.float32 or not q_RA.flags.c_contiguous:
+    where `q_RA` is not C-contiguous float32. `units_PG` intp (P, G)."""
+    if q_RA.dtype != np.float32 or not q_RA.flags.c_contiguous:
         return None
-    result: np.ndarray = _EXTENSION.mix_goals(q_RA, units_PG, probs, batch)
+    units = np.ascontiguousarray(units_PG, dtype=np.int64)
+    probs_PG = np.array(probs, dtype=np.float64).reshape(units.shape)
+    result: np.ndarray = belief_kernel.mix_goals(q_RA, units, probs_PG, batch)
     return result

@@ -199,6 +199,16 @@ def belief_views(
         views = compiled_views(log_b, goals, k)
         if views is not None:
             return views
+    return reference_views(log_b, goals, k, mass, max_goals)
+
+
+def reference_views(
+    log_b: np.ndarray, goals: Sequence[str], k: int, mass: float, max_goals: int | None
+) -> list[BeliefView]:
+    """`belief_views` in numpy on checked arguments (a non-empty (P, G) float64 `log_b`): the
+    compiled views' reference, and the beliefs they leave (a partial blend, a zero
+    probability)."""
+    n_goals = log_b.shape[1]
     b = np.exp(log_b)
     order = np.argsort(-log_b, axis=1, kind="stable")
     positive = b.min() > 0  # the floor's usual case: no 0 log 0 terms to mask

@@ -46,23 +46,22 @@ under the goal probabilities. Soft Q is linear in the reward for a fixed policy,
 Q of the expected impact reward; it is our choice (the paper only says the framework "allows to
 probabilistically combine policies").
 
-Two implementations of the same maths: `blend_vectorised`, numpy over the whole batch, is the
-reference; `policy/_blend_row.c` (built by setup.py) computes each row's steps in C loops, where
-numpy's per-call overhead would otherwise dominate the few numbers of a row. `blend` takes the
-compiled kernel where it is built (`COMPILED`), for any batch, else the reference; the two
-agree within 1e-9 (tests/policy/test_blend_compiled.py). `aail_bounded`'s bound (eq. R1) is
-`policy.regret_bound.bound_rows` on the numpy path and a last step of the same kernel.
+`blend_vectorised`, numpy over the whole batch, is the reference (for the tests);
+`blend` and `blend_checked` run `policy.blend_kernel`, the same maths compiled by numba row by
+row, where numpy's per-call overhead would otherwise dominate the few numbers of a row. The two
+agree within 1e-9 (tests/policy/test_blend_kernel.py). `aail_bounded`'s bound (eq. R1) is
+`policy.regret_bound.bound_rows` in the reference and a last step of the same kernel.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Any, Literal
+from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from policy._kernels import load_kernel
+from policy import blend_kernel
 from policy._validate import (
     PROB_SUM_TOL,
     alpha_array,
@@ -73,13 +72,7 @@ from policy._validate import (
 from policy.maths import boltzmann, js_distance, normalized_entropy, task_weight
 from policy.regret_bound import bound_rows, check_regret_bound
 
-# policy/_blend_row.c, built by setup.py where a C compiler exists
-_kernel: Any = load_kernel("_blend_row")
-
-COMPILED: bool = _kernel is not None
-
 __all__ = [
-    "COMPILED",
     "FLAT_STD_RTOL",
     "METHODS",
     "BlendMethod",
@@ -198,7 +191,15 @@ def blend(
         method, q_task_BA, q_impact_BPA, alpha, partner_mask_BP
     )
     epsilon = _epsilon(method, regret_bound, q_task.shape[0])
-    return blend_checked(method, q_task, q_impact, mask, alpha_B1[:, 0], normalise, epsilon)
+    return blend_checked(
+        method,
+        _kernel_array(q_task, np.float64),
+        _kernel_array(q_impact, np.float64),
+        _kernel_array(mask, np.bool_),
+        _kernel_array(alpha_B1[:, 0], np.float64),
+        normalise,
+        None if epsilon is None else _kernel_array(epsilon, np.float64),
+    )
 
 
 def blend_checked(
@@ -210,26 +211,48 @@ def blend_checked(
     normalise: bool,
     epsilon_B: np.ndarray | None,
 ) -> BlendResult:
-    """`blend` on inputs it would accept, already in its working form: finite float64 Q-values
-    (B, A) and (B, P, A) (masked slots zero), a bool mask (B, P), positive temperatures (B,)
-    and, for `aail_bounded` only, ε >= 0 per row (B,). For a caller that checked them (the
+    """`blend` on inputs it would accept, already in its working form: C-contiguous arrays
+    (read-only ones too) of finite float64 Q-values (B, A) and (B, P, A), a bool mask (B, P), positive
+    temperatures (B,) and, for `aail_bounded` only, ε >= 0 per row (B,) (another layout or
+    dtype raises TypeError). For a caller that checked them (the
     inference engine validates each request once), except for the Q-values' finiteness: a NaN
     or infinite Q-value of an unmasked slot raises `FloatingPointError`, found in the same pass
-    over the inputs. Compiled when `COMPILED`."""
+    over the inputs."""
     base: BlendMethod = "aail" if method == "aail_bounded" else method
-    if COMPILED:  # the bound (eq. R1) in the same call
-        return BlendResult(
-            *_kernel.blend_rows(
-                base, q_task_BA, q_impact_BPA, alpha_B, mask_BP, normalise, epsilon_B
-            )
-        )
-    if not (np.isfinite(q_task_BA).all() and np.isfinite(q_impact_BPA[mask_BP]).all()):
-        raise FloatingPointError("a Q-value is NaN or infinite")
-    alpha_B1 = alpha_B[:, None]
-    result = _vectorised(base, q_task_BA, q_impact_BPA, mask_BP, alpha_B1, normalise)
-    if epsilon_B is None:
-        return result
-    return _bounded(result, q_task_BA, alpha_B1, epsilon_B)
+    (n_rows, n_actions), n_slots = q_task_BA.shape, q_impact_BPA.shape[1]
+    result = BlendResult(
+        np.empty((n_rows, n_actions)),
+        np.empty((n_rows, n_actions)),
+        np.empty(n_rows),
+        np.empty(n_rows),
+        np.empty((n_rows, n_slots)),
+    )
+    blend_kernel.blend_rows(
+        _METHOD_CODES[base],
+        q_task_BA,
+        q_impact_BPA,
+        alpha_B,
+        mask_BP,
+        normalise,
+        _NO_BOUND if epsilon_B is None else epsilon_B,
+        epsilon_B is not None,
+        result.q_BA,
+        result.probs_BA,
+        result.task_entropy_B,
+        result.task_weight_B,
+        result.partner_weights_BP,
+    )
+    return result
+
+
+def _kernel_array(array: np.ndarray, dtype: type) -> np.ndarray:
+    """`array` as the kernel takes it, C-contiguous (the array itself where it is one already;
+    a copy of a broadcast α or of a strided view)."""
+    return np.ascontiguousarray(array, dtype=dtype)
+
+
+_METHOD_CODES = {"sl": blend_kernel.SL, "nail": blend_kernel.NAIL, "aail": blend_kernel.AAIL}
+_NO_BOUND = np.zeros(0)
 
 
 def _epsilon(

@@ -73,9 +73,8 @@ buys more help for the others without stranding the ego. Chosen by measurement o
 pairs drawn with seeds the report does not use (`reports/paper/blend_choice.md`): before R4,
 ε = α let the ego step out of its target in five-agent scenes and α/2 was kept; with R4, 2α
 helps more than α/2 or α in five-agent scenes and on aligned pairs at no cost to the ego's own
-return, and 4α gains little more. `bound_rows` computes R1 for B rows in numpy: the reference,
-and the path where the blend kernel is not built (`policy/_blend_row.c` applies R1 as its last
-step).
+return, and 4α gains little more. `bound_rows` computes R1 for B rows in numpy: the tests'
+reference (`policy.blend_kernel` applies R1 as its last step).
 """
 
 from __future__ import annotations

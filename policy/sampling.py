@@ -6,25 +6,19 @@ action.
 Row b's action is the first whose cumulative probability exceeds u_b times the row's total
 (so an action of probability 0 is never drawn, and a total that rounding moved off 1 changes
 nothing), at most A - 1; its greedy action is the first most probable one. `numpy_sample_rows` is the
-reference; `policy/_blend_row.c` (`sample_rows`) computes the same sums in the same order, so
-the two give the same actions (tests/policy/test_sampling.py), in one call instead of numpy's
-six. The inference engine draws u from the request's generator, the evaluation from its common
+tests' reference; `policy.blend_kernel.sample_rows` computes the same sums in the same order,
+so the two give the same actions (tests/policy/test_sampling.py), in one call instead of
+numpy's six. The inference engine draws u from the request's generator, the evaluation from its common
 random numbers.
 """
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
-from policy._kernels import load_kernel
+from policy import blend_kernel
 
-__all__ = ["COMPILED", "numpy_sample_rows", "sample_actions", "sample_rows"]
-
-_kernel: Any = load_kernel("_blend_row")
-
-COMPILED: bool = _kernel is not None
+__all__ = ["numpy_sample_rows", "sample_actions", "sample_rows"]
 
 
 def numpy_sample_rows(probs_BA: np.ndarray, u_B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -37,11 +31,11 @@ def numpy_sample_rows(probs_BA: np.ndarray, u_B: np.ndarray) -> tuple[np.ndarray
 
 def sample_rows(probs_BA: np.ndarray, u_B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(actions, greedy actions), each (B,) int64, of the (B, A) policy `probs_BA` given one
-    uniform in [0, 1) per row (module docstring); compiled when `COMPILED`."""
-    if COMPILED:
-        result: tuple[np.ndarray, np.ndarray] = _kernel.sample_rows(probs_BA, u_B)
-        return result
-    return numpy_sample_rows(probs_BA, u_B)
+    uniform in [0, 1) per row (module docstring)."""
+    actions_greedy = blend_kernel.sample_rows(
+        np.ascontiguousarray(probs_BA, dtype=np.float64), np.ascontiguousarray(u_B, np.float64)
+    )
+    return actions_greedy[0], actions_greedy[1]
 
 
 def sample_actions(probs_BA: np.ndarray, u_B: np.ndarray) -> np.ndarray:

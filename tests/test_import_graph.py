@@ -39,7 +39,7 @@ def _modules() -> dict[str, Path]:
 
 
 def _compiled(name: str) -> bool:
-    """A compiled extension (policy/_blend_row.c ...): no Python imports of its own."""
+    """A compiled extension (policy/_row_forward.c ...): no Python imports of its own."""
     folder, _, stem = name.rpartition(".")
     return (ROOT / folder.replace(".", "/") / f"{stem}.c").exists()
 

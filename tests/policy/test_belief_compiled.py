@@ -1,20 +1,27 @@
-"""`policy.belief_compiled`: the compiled belief update, views and likelihood table against the
-numpy reference, within 1e-12 (absolute on log-probabilities and probabilities), on random,
-peaked, flat, floored and extreme beliefs (the top goals and the kept goals exactly); they step
-aside (None) where the numpy path masks."""
+"""`policy.belief_compiled` (numba, `policy.belief_kernel`): the compiled belief update, views,
+likelihood table and goal mix against the numpy reference (`policy.belief.reference_update`,
+`policy.belief_views.reference_views`, the engine's numpy lines), within 1e-12 (absolute on
+log-probabilities and probabilities), on random, peaked, flat, floored and extreme beliefs (the
+top goals and the kept goals exactly), over 10,000 random rows each for the update and the
+views; they step aside (None) where the numpy path masks."""
 
 from __future__ import annotations
-
-from collections.abc import Callable
-from typing import Any
 
 import numpy as np
 import pytest
 
 from policy import belief_compiled as bc
-from policy.belief import BeliefConfig, PreparedUpdate, belief_views, update_log_belief
+from policy import belief_kernel
+from policy.belief import (
+    BeliefConfig,
+    PreparedUpdate,
+    _forgetting_pull,
+    belief_views,
+    reference_update,
+    update_log_belief,
+)
+from policy.belief_views import reference_views
 
-pytestmark = pytest.mark.skipif(not bc.COMPILED, reason="built without a C compiler")
 TOL = 1e-12
 
 
@@ -26,15 +33,6 @@ def same_views(got: list[bc.BeliefView], want: list[bc.BeliefView]) -> None:
         assert [g for g, _ in a.top] == [g for g, _ in b.top]
         np.testing.assert_allclose([p for _, p in a.top], [p for _, p in b.top], rtol=0, atol=TOL)
         assert a.entropy == pytest.approx(b.entropy, rel=0, abs=TOL)
-
-
-def both(call: Callable[[], Any], monkeypatch: pytest.MonkeyPatch) -> tuple[Any, Any]:
-    """`call()` compiled, then with the numpy path."""
-    compiled = call()
-    with monkeypatch.context() as patch:
-        patch.setattr(bc, "_EXTENSION", None)
-        reference = call()
-    return compiled, reference
 
 
 def log_beliefs(rng: np.random.Generator, rows: int, goals: int, kind: str) -> np.ndarray:
@@ -63,9 +61,7 @@ def log_beliefs(rng: np.random.Generator, rows: int, goals: int, kind: str) -> n
     ],
 )
 @pytest.mark.parametrize(("rows", "goals"), [(1, 35), (4, 35), (3, 1), (2, 7), (5, 200)])
-def test_the_update_matches_numpy(
-    kind: str, config: BeliefConfig, rows: int, goals: int, monkeypatch: pytest.MonkeyPatch
-) -> None:
+def test_the_update_matches_numpy(kind: str, config: BeliefConfig, rows: int, goals: int) -> None:
     if config.floor * goals >= 1:
         config = BeliefConfig(forgetting=config.forgetting, floor=0.0)
     rng = np.random.default_rng(rows * 1000 + goals)
@@ -76,57 +72,97 @@ def test_the_update_matches_numpy(
         update = PreparedUpdate(prior, config)
         # the compiled path did run (the comparison below is not numpy against itself)
         assert bc.compiled_update(log_b, lik, None, config.forgetting, config.floor) is not None
-        got, want = both(lambda: update(log_b, lik), monkeypatch)  # noqa: B023
-        np.testing.assert_allclose(got, want, rtol=TOL, atol=TOL)
-        got, want = both(lambda: update_log_belief(log_b[0], lik[0], prior[0], config), monkeypatch)  # noqa: B023
+        lam, eps = config.forgetting, config.floor
+        want = reference_update(log_b, lik, update._pull_PG, lam, eps)
+        np.testing.assert_allclose(update(log_b, lik), want, rtol=TOL, atol=TOL)
+        got = update_log_belief(log_b[0], lik[0], prior[0], config)
+        pull = _forgetting_pull(prior[0], lam, eps)
+        want = reference_update(log_b[0], lik[0], pull, lam, eps)
         np.testing.assert_allclose(got, want, rtol=TOL, atol=TOL)
 
 
-def test_non_finite_evidence_takes_the_numpy_path(monkeypatch: pytest.MonkeyPatch) -> None:
+@pytest.mark.parametrize("floor", [0.0, 1e-3])
+def test_ten_thousand_random_updates_match_numpy(floor: float) -> None:
+    """10,000 random rows of 35 goals (a session's partner beliefs), in batches of 1 to 8
+    rows, with and without the prior's pull: the compiled update within 1e-12 of numpy's."""
+    rng = np.random.default_rng(10_000 + int(floor * 1e3))
+    done, worst = 0, 0.0
+    while done < 10_000:
+        rows = int(rng.integers(1, 9))
+        log_b = log_beliefs(rng, rows, 35, str(rng.choice(["random", "peaked", "flat", "ties"])))
+        lik = -np.abs(rng.standard_normal((rows, 35))) * rng.choice([0.01, 1, 300])
+        pull = None if rng.random() < 0.3 else 0.1 * log_beliefs(rng, rows, 35, "random")
+        got = bc.compiled_update(log_b, lik, pull, 0.9, floor)
+        assert got is not None
+        want = reference_update(log_b, lik, pull, 0.9, floor)
+        worst = max(worst, float(np.abs(got - want).max()))
+        done += rows
+    assert worst <= TOL
+
+
+def test_non_finite_evidence_takes_the_numpy_path() -> None:
     prior = np.log(np.full((2, 5), 0.2))
     update = PreparedUpdate(prior, BeliefConfig())
     with np.errstate(divide="ignore"):
         lik = np.log(np.array([[0.1, 0.2, 0.3, 0.2, 0.2], [0.0, 0.5, 0.5, 0.0, 0.0]]))
     assert bc.compiled_update(prior, lik, None, 0.9, 1e-3) is None
-    got, want = both(lambda: update(prior, lik), monkeypatch)
-    np.testing.assert_array_equal(got, want)
+    want = reference_update(prior, lik, update._pull_PG, update.forgetting, update.floor)
+    np.testing.assert_array_equal(update(prior, lik), want)
 
 
 @pytest.mark.parametrize("kind", ["random", "peaked", "flat", "ties"])
 @pytest.mark.parametrize(
     ("rows", "goals", "k"), [(1, 35, 3), (4, 35, 3), (2, 1, 3), (3, 9, 9), (2, 200, 64)]
 )
-def test_the_views_match_numpy(
-    kind: str, rows: int, goals: int, k: int, monkeypatch: pytest.MonkeyPatch
-) -> None:
+def test_the_views_match_numpy(kind: str, rows: int, goals: int, k: int) -> None:
     rng = np.random.default_rng(goals + k)
     names = [f"g{i}" for i in range(goals)]
     for _ in range(20):
         log_b = log_beliefs(rng, rows, goals, kind)
-        assert bc.compiled_views(log_b, names, k) is not None
-        got, want = both(lambda: belief_views(log_b, names, k), monkeypatch)  # noqa: B023
-        same_views(got, want)
+        got = bc.compiled_views(log_b, names, k)
+        assert got is not None
+        same_views(got, reference_views(log_b, names, k, 1.0, None))
+        same_views(belief_views(log_b, names, k), got)
 
 
-def test_a_zero_probability_takes_the_numpy_path(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_ten_thousand_random_views_match_numpy() -> None:
+    """10,000 random belief rows of 35 goals, in batches of 1 to 8."""
+    rng = np.random.default_rng(20_000)
+    names = [f"g{i}" for i in range(35)]
+    done, worst = 0, 0.0
+    while done < 10_000:
+        rows = int(rng.integers(1, 9))
+        log_b = log_beliefs(rng, rows, 35, str(rng.choice(["random", "peaked", "flat", "ties"])))
+        got = bc.compiled_views(log_b, names, 3)
+        assert got is not None
+        want = reference_views(log_b, names, 3, 1.0, None)
+        assert [v.top[0][0] for v in got] == [v.top[0][0] for v in want]
+        for field in ("blend_probs", "entropy"):
+            gap = np.subtract([getattr(v, field) for v in got], [getattr(v, field) for v in want])
+            worst = max(worst, float(np.abs(gap).max()))
+        done += rows
+    assert worst <= TOL
+
+
+def test_a_zero_probability_takes_the_numpy_path() -> None:
     with np.errstate(divide="ignore"):
         log_b = np.log(np.array([[0.5, 0.5, 0.0], [0.2, 0.3, 0.5]]))
     assert bc.compiled_views(log_b, ["a", "b", "c"], 2) is None
-    got, want = both(lambda: belief_views(log_b, ["a", "b", "c"], 2), monkeypatch)
-    assert got == want
+    want = reference_views(log_b, ["a", "b", "c"], 2, 1.0, None)
+    assert belief_views(log_b, ["a", "b", "c"], 2) == want
 
 
 def test_bad_arguments_are_refused() -> None:
-    from policy import _belief_row
-
-    with pytest.raises(ValueError, match="log_belief"):
-        _belief_row.update_rows(
-            np.zeros((2, 3), np.float32), np.zeros((2, 3)), None, 1.0, 0.0, None
-        )
+    """The kernels check what they index (the wrappers hand them the right types)."""
+    update, zeros = belief_kernel.update_rows, np.zeros((2, 3))
+    with pytest.raises(TypeError):
+        update(np.zeros((2, 3), np.float32), zeros, zeros, False, 1.0, 0.0, False, 0.0)
     with pytest.raises(ValueError, match="lik, pull"):
-        _belief_row.update_rows(np.zeros((2, 3)), np.zeros((1, 3)), None, 1.0, 0.0, None)
+        update(zeros, np.zeros((1, 3)), zeros, False, 1.0, 0.0, False, 0.0)
+    with pytest.raises(ValueError, match="lik, pull"):
+        update(zeros, zeros, np.zeros((2, 4)), True, 1.0, 0.0, False, 0.0)
     with pytest.raises(ValueError, match="k: expected"):
-        _belief_row.view_rows(np.zeros((2, 3)), 0)
+        belief_kernel.view_rows(zeros, 0)
 
 
 @pytest.mark.parametrize(
@@ -194,21 +230,19 @@ def test_the_goal_mix_carries_non_finite_q_values() -> None:
 
 
 def test_bad_goal_mix_arguments_are_refused() -> None:
-    from policy import _belief_row
-
     q_RA, units = np.zeros((6, 5), np.float32), np.array([[0, 1, 2]], np.intp)
-    with pytest.raises(ValueError, match="q_RA"):
-        _belief_row.mix_goals(q_RA.astype(np.float64), units, [(1, 0, 0)], 1)
-    with pytest.raises(ValueError, match="units_PG: expected"):
-        _belief_row.mix_goals(q_RA, units.astype(np.int32), [(1, 0, 0)], 1)
     with pytest.raises(ValueError, match="outside"):
-        _belief_row.mix_goals(q_RA, units, [(1, 0, 0)], 3)  # unit 2 needs rows 6..8
-    with pytest.raises(ValueError, match="G numbers"):
-        _belief_row.mix_goals(q_RA, units, [(1, 0)], 1)
-    with pytest.raises(ValueError, match="one sequence per row"):
-        _belief_row.mix_goals(q_RA, units, [(1, 0, 0), (1, 0, 0)], 1)
-    with pytest.raises(TypeError):
-        _belief_row.mix_goals(q_RA, units, [(1, "x", 0)], 1)
+        bc.compiled_mix_goals(q_RA, units, [(1, 0, 0)], 3)  # unit 2 needs rows 6..8
+    with pytest.raises(ValueError, match="outside"):
+        bc.compiled_mix_goals(q_RA, -units, [(1, 0, 0)], 1)
+    with pytest.raises(ValueError):
+        bc.compiled_mix_goals(q_RA, units, [(1, 0)], 1)  # G numbers per partner
+    with pytest.raises(ValueError):
+        bc.compiled_mix_goals(q_RA, units, [(1, 0, 0), (1, 0, 0)], 1)  # one row per partner
+    with pytest.raises(ValueError):
+        bc.compiled_mix_goals(q_RA, units, [(1, "x", 0)], 1)  # type: ignore[list-item]
+    with pytest.raises(ValueError, match="batch"):
+        belief_kernel.mix_goals(q_RA, units.astype(np.int64), np.ones((1, 3)), 0)
 
 
 def test_the_goal_mix_steps_aside_for_other_q_layouts() -> None:

@@ -3,12 +3,12 @@
 below, `PreparedUpdate` = `update_log_belief`, `belief_summary` = `top_goals` +
 `belief_entropy`, `blend_goal_weights` = `blend_goal_probs`, `belief_views` = both per row. Random beliefs, likelihoods with
 -inf / NaN / +inf entries, forgetting 1 and floor 0 included (the shortcuts branch on exactly
-those cases). The numpy code throughout: the compiled kernel is held to it within a tolerance
-by tests/policy/test_belief_compiled.py."""
+those cases). The numpy code throughout (`reference_update`, `reference_views` where the
+compiled kernel would take the case): the compiled kernel is held to it within a tolerance by
+tests/policy/test_belief_compiled.py."""
 
 from __future__ import annotations
 
-import importlib
 import math
 
 import numpy as np
@@ -23,9 +23,11 @@ from policy.belief import (
     blend_goal_probs,
     blend_goal_weights,
     initial_log_belief,
+    reference_update,
     top_goals,
     update_log_belief,
 )
+from policy.belief_views import reference_views
 
 CONFIGS = [
     BeliefConfig(),
@@ -33,12 +35,6 @@ CONFIGS = [
     BeliefConfig(forgetting=0.7, floor=0.0),
     BeliefConfig(forgetting=1.0, floor=0.01),
 ]
-
-
-@pytest.fixture(autouse=True)
-def numpy_only(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The numpy shortcuts, not the compiled kernel (`policy.belief_compiled` steps aside)."""
-    monkeypatch.setattr(importlib.import_module("policy.belief_compiled"), "_EXTENSION", None)
 
 
 def _random_log_probs(rng: np.random.Generator, shape: tuple[int, ...], zeros: bool) -> np.ndarray:
@@ -104,9 +100,12 @@ def test_update_equals_the_fully_masked_arithmetic(config: BeliefConfig) -> None
         log_b_PG = initial_log_belief(_random_log_probs(rng, (n_partners, n_goals), zeros), config)
         lik_PG = _random_likelihoods(rng, (n_partners, n_goals))
         with np.errstate(invalid="ignore"):
-            got = update_log_belief(log_b_PG, lik_PG, log_prior_PG, config)
+            pull = PreparedUpdate(log_prior_PG, config)._pull_PG
+            got = reference_update(log_b_PG, lik_PG, pull, config.forgetting, config.floor)
             expected = _reference_update(log_b_PG, lik_PG, log_prior_PG, config)
+            compiled = update_log_belief(log_b_PG, lik_PG, log_prior_PG, config)
         np.testing.assert_array_equal(got, expected)
+        np.testing.assert_allclose(compiled, expected, rtol=1e-12, atol=1e-12)
 
 
 @pytest.mark.parametrize("config", CONFIGS)
@@ -182,7 +181,7 @@ def test_belief_views_equal_blend_weights_and_summary_row_by_row() -> None:
         k = int(rng.integers(1, 5))
         mass = float(rng.choice([1.0, 0.99, 0.5]))
         max_goals = [None, 1, 8, n_goals][trial % 4]
-        views = belief_views(log_b_PG, goals, k, mass, max_goals)
+        views = reference_views(log_b_PG, goals, k, mass, max_goals)
         assert len(views) == n_partners
         for row, view in zip(log_b_PG, views, strict=True):
             assert (view.blend_goals, view.blend_probs) == blend_goal_weights(row, mass, max_goals)

@@ -1,5 +1,6 @@
-"""`policy.sampling`: the compiled sampler gives the numpy reference's actions exactly, never
-draws an action of probability 0, and follows the inverse CDF by hand."""
+"""`policy.sampling`: the compiled sampler (`policy.blend_kernel.sample_rows`) gives the numpy
+reference's actions exactly, never draws an action of probability 0, and follows the inverse
+CDF by hand."""
 
 from __future__ import annotations
 
@@ -8,10 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from policy import sampling
 from policy.sampling import numpy_sample_rows, sample_actions, sample_rows
-
-needs_kernel = pytest.mark.skipif(not sampling.COMPILED, reason="policy._blend_row not built")
 
 
 def test_inverse_cdf_by_hand() -> None:
@@ -38,7 +36,6 @@ def test_never_an_action_of_probability_zero(weights: list[float], seed: int) ->
     assert (probs_BA[0][actions] > 0).all()
 
 
-@needs_kernel
 @settings(max_examples=200, deadline=None)
 @given(
     rows=st.integers(1, 40),
@@ -60,7 +57,6 @@ def test_compiled_equals_the_reference(rows: int, n_actions: int, seed: int, tie
     assert got[1].tolist() == expected[1].tolist()
 
 
-@needs_kernel
 def test_bad_shapes_are_refused() -> None:
     with pytest.raises(ValueError, match="shapes"):
         sample_rows(np.ones((3, 2)), np.ones(2))

@@ -64,33 +64,27 @@ def test_general_path_layouts_are_remembered(tiny_zoo) -> None:
     assert [m.partner_index for m in first[0].models] == [None, 1, 1, 2, 2]
 
 
-@pytest.mark.parametrize(
-    ("compiled", "numpy_forward"), [(True, False), (False, False), (True, True)]
-)
+@pytest.mark.parametrize("numpy_forward", [False, True])
 @pytest.mark.parametrize("announced", [True, False])
 @pytest.mark.parametrize("batch", [1, 3])
 def test_goal_distributions_mix_as_mix_goal_beliefs_does(
     tiny_zoo,
     batch: int,
     announced: bool,
-    compiled: bool,
     numpy_forward: bool,
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     """`_impact_q` mixes equal-size distributions in one pass over the impact members' rows
-    (compiled, else numpy's einsum): each partner's expected Q is `mix_goal_beliefs` of its own
+    (`policy.belief_compiled.compiled_mix_goals`): each partner's expected Q is `mix_goal_beliefs` of its own
     goals' Q-values (with an announced partner and a distribution of another size beside them,
     or every partner a distribution over the same goals, as a session's beliefs), also on
     the Q-values of the numpy forward (an install without a C compiler)."""
-    from policy import belief_compiled
     from policy.blend import mix_goal_beliefs
     from services.engine import ActRequest, InferenceEngine, PartnerSpec
     from services.engine.engine import _impact_q, _inputs, _layout
     from services.engine.networks import forward_group
     from services.engine.validation import check_request
 
-    if not compiled:
-        monkeypatch.setattr(belief_compiled, "_EXTENSION", None)
     if numpy_forward:
         monkeypatch.setattr("services.engine.networks.ROW_FORWARD", False)
     engine = InferenceEngine(tiny_zoo.store)

@@ -1,0 +1,322 @@
+"""The blend of eqs. 8-10 and the regret bound of eq. R1, compiled by numba: `policy.blend`'s
+kernel, and the inverse-CDF sampling of `policy.sampling`.
+
+Why compiled: the blend of one row is a few hundred double operations over vectors of a
+handful of actions; numpy spends ~40 calls on them, and its per-call overhead, not the
+arithmetic, then sets a single act's latency. Here each row is plain loops over doubles.
+
+The semantics are those of `policy.blend`'s vectorised numpy path, the reference, documented
+there (standardisation and scale rule, the Σw = 0 fallback, rows without partners, one
+action); each helper below names the numpy function it follows. Sums run in plain order, so
+the results differ from numpy's (pairwise sums) by rounding: tests/policy/test_blend_kernel.py
+holds them to the reference within 1e-9. Every row is computed alone, so a row of a batch
+equals the same row blended on its own, bit for bit.
+
+Inputs are trusted (`policy.blend` checks them: alpha > 0, A >= 1, C-contiguous float64),
+except for finiteness: a NaN or infinite Q-value of an unmasked slot raises
+FloatingPointError. Masked partner slots are never read.
+
+The signatures are explicit, so the kernels compile (or load from numba's on-disk cache) when
+this module is imported, never on a request.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, types
+
+SL, NAIL, AAIL = 0, 1, 2  # `blend_rows`' method codes (aail_bounded is AAIL with `bounded`)
+FLAT_STD_RTOL = 1e-12  # policy.blend.FLAT_STD_RTOL
+
+# Every function: cache=True (compiled once on a machine, then loaded from numba's cache),
+# nogil, and error_model="numpy": a float division by zero gives inf or NaN as in numpy (the JS
+# terms of an underflowed mixture rely on it) instead of raising ZeroDivisionError.
+
+f8, i8, b1 = types.float64, types.int64, types.boolean
+
+
+def in_array(dtype: types.Type, ndim: int) -> types.Array:
+    """A C-contiguous input array type that also takes read-only arrays (the engine's
+    constants, broadcast values)."""
+    return types.Array(dtype, ndim, "C", readonly=True)
+
+
+def out_array(dtype: types.Type, ndim: int) -> types.Array:
+    return types.Array(dtype, ndim, "C")
+
+
+_BLEND_SIGNATURE = types.void(
+    *(
+        i8,
+        in_array(f8, 2),
+        in_array(f8, 3),
+        in_array(f8, 1),
+        in_array(b1, 2),
+        b1,
+        in_array(f8, 1),
+        b1,
+    ),
+    *(out_array(f8, 2), out_array(f8, 2), out_array(f8, 1), out_array(f8, 1), out_array(f8, 2)),
+)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _boltzmann(q, alpha, out):
+    """`maths.boltzmann` (eq. 2) of one Q-vector into `out`."""
+    top = q[0]
+    for a in range(1, q.size):
+        if q[a] > top:
+            top = q[a]
+    total = 0.0
+    for a in range(q.size):
+        out[a] = math.exp((q[a] - top) / alpha)
+        total += out[a]
+    for a in range(q.size):
+        out[a] = out[a] / total
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _renormalised(p, out):
+    """p divided by its sum (as `policy._validate.prob_array` hands policies to `maths`)."""
+    total = 0.0
+    for a in range(p.size):
+        total += p[a]
+    for a in range(p.size):
+        out[a] = p[a] / total
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _entropy(p):
+    """`maths.normalized_entropy` of the (renormalised) policy p, in [0, 1]; 0 for one action."""
+    if p.size == 1:
+        return 0.0
+    h = 0.0
+    for a in range(p.size):
+        if p[a] > 0:
+            h -= p[a] * math.log(p[a])
+    return min(max(h / math.log(p.size), 0.0), 1.0)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _kl_bits(p, m):
+    """`maths._kl_to_mixture_bits`: KL(p ‖ m) in bits (inf where m underflowed to 0)."""
+    total = 0.0
+    for a in range(p.size):
+        if p[a] > 0:
+            total += p[a] * math.log2(p[a] / m[a])
+    return total
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _js_distance(p, q, m):
+    """`maths.js_distance` (eq. 10) of two renormalised policies; `m` is scratch."""
+    for a in range(p.size):
+        m[a] = 0.5 * (p[a] + q[a])
+    divergence = 0.5 * _kl_bits(p, m) + 0.5 * _kl_bits(q, m)
+    return math.sqrt(min(max(divergence, 0.0), 1.0))
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _standardise(q, z):
+    """`blend.standardise` of one Q-vector: z-scores into `z`, the scale returned (z = 0 and
+    scale 0 when flat)."""
+    n = q.size
+    magnitude = 0.0
+    for a in range(n):
+        magnitude = max(magnitude, abs(q[a]))
+    divisor = magnitude if magnitude > 0 else 1.0
+    mean = 0.0
+    for a in range(n):
+        z[a] = q[a] / divisor
+        mean += z[a]
+    mean = mean / n
+    squares = 0.0
+    for a in range(n):
+        z[a] = z[a] - mean
+        squares += z[a] * z[a]
+    std = math.sqrt(squares / n)
+    if std <= FLAT_STD_RTOL:
+        z[:] = 0.0
+        return 0.0
+    for a in range(n):
+        z[a] = z[a] / std
+    return std * magnitude
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _bound(probs, q_task, pi_task, epsilon):
+    """Eq. R1 (`regret_bound.bound_rows`) of one row, in place: the actions within ε of the
+    task's best share the task policy's mass on them as the blend says, every other action
+    keeps its task probability; the task policy itself where the blend puts nothing on them."""
+    lowest = q_task.max() - epsilon
+    task_mass = 0.0
+    blend_mass = 0.0
+    for a in range(q_task.size):
+        if q_task[a] >= lowest:
+            task_mass += pi_task[a]
+            blend_mass += probs[a]
+    for a in range(q_task.size):
+        if not blend_mass > 0.0 or q_task[a] < lowest:
+            probs[a] = pi_task[a]
+        else:
+            probs[a] = task_mass * (probs[a] / blend_mass)
+
+
+@njit(_BLEND_SIGNATURE, cache=True, nogil=True, error_model="numpy")
+def blend_rows(
+    method,
+    q_task,
+    q_impact,
+    alpha,
+    mask,
+    normalise,
+    epsilon,
+    bounded,
+    q_out,
+    probs_out,
+    entropy_out,
+    weight_out,
+    partners_out,
+):
+    """B rows blended with `method` (SL, NAIL or AAIL; `policy.blend._vectorised`), the policy
+    bounded by eq. R1 with ε = epsilon[b] where `bounded` (AAIL only), into the caller's
+    q_out (B, A), probs_out (B, A), entropy_out (B,), weight_out (B,), partners_out (B, P).
+    (Output arrays handed in: numba's boxing of a returned tuple of arrays costs more than a
+    row's blend.)"""
+    n_rows, n_actions = q_task.shape
+    n_slots = q_impact.shape[1]
+    if not (
+        n_actions >= 1
+        and q_impact.shape[0] == n_rows
+        and q_impact.shape[2] == n_actions
+        and alpha.size == n_rows
+        and mask.shape == (n_rows, n_slots)
+        and (not bounded or epsilon.size == n_rows)
+        and q_out.shape == (n_rows, n_actions)
+        and probs_out.shape == (n_rows, n_actions)
+        and entropy_out.size == n_rows
+        and weight_out.size == n_rows
+        and partners_out.shape == (n_rows, n_slots)
+    ):
+        raise ValueError("expected shapes (B, A), (B, P, A), (B,), (B, P)[, (B,)] with A >= 1")
+    for b in range(n_rows):
+        for a in range(n_actions):
+            if not math.isfinite(q_task[b, a]):
+                raise FloatingPointError("a Q-value is NaN or infinite")
+        for s in range(n_slots):
+            if mask[b, s]:
+                for a in range(n_actions):
+                    if not math.isfinite(q_impact[b, s, a]):
+                        raise FloatingPointError("a Q-value is NaN or infinite")
+    partners_out[:] = 0.0
+    # working memory, one block (an allocation costs more than a row's arithmetic)
+    work = np.empty((5 + n_slots) * n_actions)
+    pi_task = work[:n_actions]
+    p_task = work[n_actions : 2 * n_actions]  # the task policy as `maths` sees it (renormalised)
+    scratch = work[2 * n_actions : 3 * n_actions]
+    pi_impact = work[3 * n_actions : 4 * n_actions]
+    z_task = work[4 * n_actions : 5 * n_actions]
+    z_impact = work[5 * n_actions :].reshape((n_slots, n_actions))
+    for b in range(n_rows):
+        q, weights, out = q_task[b], partners_out[b], q_out[b]
+        active = 0
+        for s in range(n_slots):
+            if mask[b, s]:
+                active += 1
+        _boltzmann(q, alpha[b], pi_task)
+        _renormalised(pi_task, p_task)
+        entropy_out[b] = _entropy(p_task)
+        if method == SL:
+            out[:] = q
+            weight_out[b] = 1.0
+            probs_out[b] = pi_task
+            continue
+        if method == NAIL:  # the plain mean of the raw Q-vectors
+            out[:] = 0.0
+            for s in range(n_slots):
+                if mask[b, s]:
+                    out += q_impact[b, s]
+            for a in range(n_actions):
+                out[a] = (q[a] + out[a]) / (1.0 + active)
+            for s in range(n_slots):
+                weights[s] = (1.0 if mask[b, s] else 0.0) / max(active, 1)
+            weight_out[b] = 1.0 / (1.0 + active)
+            _boltzmann(out, alpha[b], probs_out[b])
+            continue
+        # AAIL. Eq. 9 on the task policy renormalised once more (`maths.task_weight` checks
+        # the policy it is given); the task alone without an active partner
+        w_t = 1.0
+        if active > 0 and n_actions > 1:
+            _renormalised(p_task, scratch)
+            w_t = 1.0 - float(n_actions) ** _entropy(scratch) / n_actions
+        weight_out[b] = w_t
+        # eq. 10: the JS distance of the task policy to each active impact policy, then ŵ
+        total = 0.0
+        for s in range(n_slots):
+            if mask[b, s]:
+                _boltzmann(q_impact[b, s], alpha[b], scratch)
+                _renormalised(scratch, pi_impact)
+                weights[s] = _js_distance(p_task, pi_impact, scratch)
+                total += weights[s]
+        for s in range(n_slots):
+            if total > 0:
+                weights[s] = weights[s] / total
+            else:  # every impact policy equals the task policy: equal shares
+                weights[s] = (1.0 if mask[b, s] else 0.0) / max(active, 1)
+        # eq. 8, on the raw Q-vectors or on the standardised preferences and their scales
+        if not normalise:
+            for a in range(n_actions):
+                mixed = 0.0  # Σ_i ŵ_i Q_i
+                for s in range(n_slots):
+                    if mask[b, s]:
+                        mixed += weights[s] * q_impact[b, s, a]
+                out[a] = w_t * q[a] + (1.0 - w_t) * mixed
+        else:
+            s_task = _standardise(q, z_task)
+            s_mixed = 0.0  # Σ_i ŵ_i s_i
+            for s in range(n_slots):
+                if mask[b, s]:
+                    s_mixed += weights[s] * _standardise(q_impact[b, s], z_impact[s])
+            s_blend = w_t * s_task + (1.0 - w_t) * s_mixed
+            for a in range(n_actions):
+                mixed = 0.0  # Σ_i ŵ_i z_i
+                for s in range(n_slots):
+                    if mask[b, s]:
+                        mixed += weights[s] * z_impact[s, a]
+                out[a] = s_blend * (w_t * z_task[a] + (1.0 - w_t) * mixed)
+        _boltzmann(out, alpha[b], probs_out[b])
+        if bounded:
+            _bound(probs_out[b], q, pi_task, epsilon[b])
+
+
+@njit(
+    out_array(i8, 2)(in_array(f8, 2), in_array(f8, 1)), cache=True, nogil=True, error_model="numpy"
+)
+def sample_rows(probs, u):
+    """(2, B) int64: per row the first action whose cumulative probability exceeds u[b] times
+    the row's total, at most A - 1 (row 0), and the first most probable action (row 1)
+    (`policy.sampling.numpy_sample_rows`: the same sums in the same order, so the same
+    actions). One array, not two: numba's boxing of a returned tuple costs more than the
+    sampling."""
+    n_rows, n_actions = probs.shape
+    if n_actions < 1 or u.size != n_rows:
+        raise ValueError("expected shapes (B, A) and (B,) with A >= 1")
+    out = np.empty((2, n_rows), dtype=np.int64)
+    for b in range(n_rows):
+        total = 0.0
+        for a in range(n_actions):
+            total += probs[b, a]
+        threshold = u[b] * total
+        cdf = 0.0
+        below = 0
+        best = 0
+        for a in range(n_actions):
+            cdf += probs[b, a]
+            below += cdf <= threshold
+            if probs[b, a] > probs[b, best]:
+                best = a
+        out[0, b] = min(below, n_actions - 1)
+        out[1, b] = best
+    return out
