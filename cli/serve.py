@@ -96,7 +96,7 @@ def serve(
         + (f" and {grpc_kind} on {host}:{grpc_port}" if grpc_port else "")
     )
     uvicorn.run(
-        "services.app:create_app",
+        "services.allowed_hosts:served_app",  # create_app() behind the Host check
         factory=True,
         host=host,
         port=http_port,

@@ -28,6 +28,10 @@ by the test suite and by Ray.
 |                               |                    |               | (413) before they are read; fits a batch of       |
 |                               |                    |               | `MAX_BATCH` rows of 208 numbers at full precision |
 | `COEXIST_HOST`                | `127.0.0.1`        | server        | address to listen on (`0.0.0.0` in a container)   |
+| `COEXIST_ALLOWED_HOSTS`       | loopback names     | `serve`       | `Host` names REST answers (comma-separated, `*.`  |
+|                               |                    |               | for subdomains, `*`: any); others get 400. Unset: |
+|                               |                    |               | `localhost`, `127.0.0.1`, `::1` on a loopback     |
+|                               |                    |               | `HOST`, any otherwise (`services.allowed_hosts`)  |
 | `COEXIST_HTTP_PORT`           | 8000               | server        | REST port                                         |
 | `COEXIST_TLS_CERT_FILE`,      | unset              | server        | PEM certificate (chain) and private key: REST     |
 | `COEXIST_TLS_KEY_FILE`        |                    |               | serves HTTPS and gRPC TLS on their ports (both or |
@@ -124,6 +128,7 @@ class Settings(BaseSettings):
     tls_cert_file: Path | None = None
     tls_key_file: Path | None = None
     host: str = "127.0.0.1"
+    allowed_hosts: str = ""  # `Host` names answered; "": derived from `host`
     http_port: int = Field(default=8000, ge=0, le=65535)
     grpc_port: int = Field(default=50051, ge=0, le=65535)
     grpc_enabled: bool = True
