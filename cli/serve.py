@@ -62,10 +62,10 @@ def serve(
         os.environ["COEXIST_STORE_URL"] = store_url
     os.environ["COEXIST_CREATE_STORE"] = "true" if create_store else "false"
 
-    import uvicorn
-
     from model_store.errors import InvalidArgument
     from model_store.sql.engine import check_store_exists, create_store_engine, sqlite_file
+    from services.http_protocol import GuardedHttpProtocol
+    from services.http_server import serve as serve_http
     from services.logging import log_config
     from services.settings import InsecureSettings, Settings
 
@@ -95,14 +95,14 @@ def serve(
         f"serving REST on {scheme}://{host}:{http_port} (docs at /docs)"
         + (f" and {grpc_kind} on {host}:{grpc_port}" if grpc_port else "")
     )
-    uvicorn.run(
+    serve_http(  # uvicorn, whose shutdown first answers the requests already sent
         "services.allowed_hosts:served_app",  # create_app() behind the Host check
-        factory=True,
         host=host,
         port=http_port,
         workers=workers,
         loop="uvloop",
-        http="httptools",
+        http=GuardedHttpProtocol,  # httptools with header, time and connection limits
+        timeout_keep_alive=settings.http_keep_alive_s,
         log_config=log_config(settings.log_format, settings.log_level),
         log_level=settings.log_level,
         access_log=False,  # services.logging writes access lines, with request ids

@@ -48,6 +48,18 @@ by the test suite and by Ray.
 |                               |                    |               | (behind a proxy every client has its address)     |
 | `COEXIST_EPISODE_IDLE_TIMEOUT_S` | 60              | server        | an `Episode` stream that sent no step this long   |
 |                               |                    |               | is ended with DEADLINE_EXCEEDED                   |
+| `COEXIST_HTTP_MAX_HEADER_BYTES` | 65536          | server        | request line and headers of one HTTP request:     |
+|                               |                    |               | larger ones get 431 (`services.http_protocol`)    |
+| `COEXIST_HTTP_HEADER_TIMEOUT_S` | 10               | server        | time a connection has to send a request's line    |
+|                               |                    |               | and headers, from its opening or the previous     |
+|                               |                    |               | answer; then it is closed (408)                   |
+| `COEXIST_HTTP_IDLE_TIMEOUT_S` | 30                 | server        | silence allowed while a request body is due, and  |
+|                               |                    |               | while an answer waits for its client to read it   |
+| `COEXIST_HTTP_KEEP_ALIVE_S`   | 5                  | server        | an idle keep-alive connection is closed after it  |
+| `COEXIST_MAX_CONNECTIONS`     | fd limit - 256     | server        | open HTTP connections per process (at most the    |
+|                               |                    |               | file-descriptor limit less 256); past it the      |
+|                               |                    |               | longest-waiting idle one is closed, else 503      |
+|                               |                    |               | (docs/operations.md)                              |
 | `COEXIST_REFRESH_INTERVAL_S`  | 2.0                | server        | how often aliases are re-checked (hot reload)     |
 | `COEXIST_CACHE_SIZE`          | 256                | server        | networks kept loaded (LRU)                        |
 | `COEXIST_MAX_BATCH`           | 4096               | server        | rows allowed in one act:batch                     |
@@ -77,7 +89,9 @@ by the test suite and by Ray.
 |                               |                    |               | by another (or the restarted) server, and a       |
 |                               |                    |               | runner that could not renew it stops its trainer  |
 | `COEXIST_SHUTDOWN_GRACE_S`    | 10                 | server        | on SIGTERM: how long in-flight HTTP requests and  |
-|                               |                    |               | gRPC calls may take to finish                     |
+|                               |                    |               | gRPC calls may take to finish; HTTP requests      |
+|                               |                    |               | clients had sent but the server had not read yet  |
+|                               |                    |               | are answered too (`services.http_server`)         |
 | `COEXIST_OTEL_ENABLED`        | false              | server        | OpenTelemetry spans of requests, the engine and   |
 |                               |                    |               | the store (the `otel` extra; `services.tracing`)  |
 | `PROMETHEUS_MULTIPROC_DIR`    | `DATA_DIR/prometheus` | `serve --workers N` | N > 1: where the workers' metrics meet; |
@@ -136,6 +150,11 @@ class Settings(BaseSettings):
     max_episodes: int | None = Field(default=None, ge=1)
     max_episodes_per_client: int | None = Field(default=None, ge=1)
     episode_idle_timeout_s: float = Field(default=60.0, gt=0, le=86400)
+    http_max_header_bytes: int = Field(default=64 << 10, ge=1024)
+    http_header_timeout_s: float = Field(default=10.0, gt=0, le=3600)
+    http_idle_timeout_s: float = Field(default=30.0, gt=0, le=3600)
+    http_keep_alive_s: int = Field(default=5, ge=1, le=3600)
+    max_connections: int | None = Field(default=None, ge=16)
     refresh_interval_s: float = Field(default=2.0, gt=0, le=3600)
     cache_size: int = Field(default=256, ge=1)
     max_batch: int = Field(default=4096, ge=1)
