@@ -27,12 +27,12 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Header, Path, Query, Request, Response, status
 from starlette.concurrency import run_in_threadpool
 
-from model_store.artifacts import sha256_hex
 from model_store.entities import Lineage
 from model_store.errors import ArtifactTooLarge, InvalidArtifact
 from model_store.naming import MAX_VERSION
 from services.deps import ReadAuth, SettingsDep, StoreDep, WriteAuth
 from services.engine.admission import refuse_unservable_upload, refuse_unservable_version
+from services.registry.downloads import DOWNLOADS, WeightsResponse
 from services.registry.errors import ERROR_RESPONSES, ApiError
 from services.registry.multipart import Part, boundary_of, parse_form_data
 from services.registry.schemas import AliasOut, AliasSet, VersionOut
@@ -175,25 +175,25 @@ def get_version(name: str, version: VersionNumber, store: StoreDep, _: ReadAuth)
     responses={200: {"content": {"application/octet-stream": {}}}, 304: {}},
     tags=["versions"],
 )
-def download_weights(
+async def download_weights(
     name: str,
     version: VersionNumber,
     store: StoreDep,
     _: ReadAuth,
     if_none_match: Annotated[str | None, Header()] = None,
 ) -> Response:
-    """The safetensors bytes (checksum verified), with `X-Checksum-Sha256` and an ETag."""
-    meta = store.get_version(name, version)
+    """The safetensors bytes (checksum verified), with `X-Checksum-Sha256` and an ETag; sent in
+    chunks as the client reads them (`services.registry.downloads`)."""
+    meta = await run_in_threadpool(store.get_version, name, version)
     etag = f'"{meta.sha256}"'
     if if_none_match is not None and etag in [t.strip() for t in if_none_match.split(",")]:
         return Response(status_code=status.HTTP_304_NOT_MODIFIED, headers={"ETag": etag})
-    data = store.load_weights(name, version)
+    weights = await DOWNLOADS.open(store, name, version)
     filename = f"{name.replace('/', '_')}_v{version}.safetensors"
-    return Response(
-        content=data,
-        media_type="application/octet-stream",
+    return WeightsResponse(
+        weights,
         headers={
-            "X-Checksum-Sha256": sha256_hex(data),
+            "X-Checksum-Sha256": weights.sha256,
             "ETag": etag,
             "Content-Disposition": f'attachment; filename="{filename}"',
         },
