@@ -17,6 +17,7 @@ import typer
 
 from evaluation.base import Bars, EvalOptions, OptionError
 from evaluation.suites import DEFAULT_SUITE, get_suite, suites_help
+from model_store.errors import InvalidArgument
 
 ServerOpt = Annotated[
     str | None,
@@ -174,5 +175,8 @@ def evaluate(
         run = chosen.run(options, ui)
     except OptionError as err:
         raise typer.BadParameter(str(err), param_hint=err.option) from None
+    except InvalidArgument as err:  # a store URL that names no store (or a missing driver)
+        ui.console.print(f"[red]error:[/red] {err}")
+        raise typer.Exit(2) from None
     if run is not None:
         chosen.write_report(run, options, ui)

@@ -63,7 +63,9 @@ def test_server_answers_rest_and_grpc_and_reports_metrics(tiny_zoo_store: SqlMod
 
 
 def test_empty_store_is_alive_but_not_ready(tmp_path: Path) -> None:
-    settings = _settings(store_url=f"sqlite:///{tmp_path / 'empty.db'}", grpc_enabled=False)
+    settings = _settings(
+        store_url=f"sqlite:///{tmp_path / 'empty.db'}", grpc_enabled=False, create_store=True
+    )
     with TestClient(create_app(settings)) as client:
         assert client.get("/healthz").status_code == 200
         ready = client.get("/readyz")

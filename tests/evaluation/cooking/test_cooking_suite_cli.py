@@ -119,6 +119,7 @@ def test_the_same_episodes_through_a_server(store_url: str) -> None:
 
 def test_missing_networks_and_paper_options_are_refused(tmp_path: Path) -> None:
     empty = f"sqlite:///{tmp_path / 'empty.db'}"
+    SqlModelStore(empty).close()  # an empty store: it exists, it serves nothing
     args = ["eval", "--suite", "cooking", "--store-url", empty, "--out", str(tmp_path / "c")]
     result = CliRunner().invoke(app, args)
     assert result.exit_code == 2 and "not served" in result.output

@@ -308,6 +308,7 @@ def test_report_renders_every_section_and_figure(suite_results: dict, tmp_path: 
 
 def test_missing_networks_fail_before_any_episode(tmp_path: Path) -> None:
     url = f"sqlite:///{tmp_path}/empty.db"
+    SqlModelStore(url).close()  # an empty store: it exists, it serves nothing
     args = ["eval", "--suite", "inference", "--store-url", url, "--out", str(tmp_path / "r")]
     result = CliRunner().invoke(app, args)
     assert result.exit_code == 2, result.output

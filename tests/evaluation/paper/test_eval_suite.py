@@ -75,6 +75,9 @@ def test_unknown_suite_is_refused() -> None:
 
 def test_missing_networks_fail_before_any_episode(tmp_path: Path) -> None:
     store_url = f"sqlite:///{tmp_path}/empty.db"
+    missing = CliRunner().invoke(app, ["eval", "--store-url", store_url, "--out", str(tmp_path)])
+    assert missing.exit_code == 2 and "no SQLite database" in missing.output  # a mistyped path
+    SqlModelStore(store_url).close()  # an empty store: it exists, it serves nothing
     result = CliRunner().invoke(app, ["eval", "--store-url", store_url, "--out", str(tmp_path)])
     assert result.exit_code == 2, result.output
     assert "not served" in result.output and "particle/task/b3@partners" in result.output

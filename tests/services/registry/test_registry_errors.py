@@ -215,7 +215,12 @@ def test_default_token_refused_outside_dev_mode(tmp_path: Path) -> None:
     with pytest.raises(InsecureSettings):
         create_app(Settings(admin_token=SecretStr("")))
     dev = create_app(
-        Settings(dev_mode=True, grpc_port=0, store_url=f"sqlite:///{tmp_path / 'dev.db'}")
+        Settings(
+            dev_mode=True,
+            grpc_port=0,
+            store_url=f"sqlite:///{tmp_path / 'dev.db'}",
+            create_store=True,  # a new file: creation asked for
+        )
     )
     with TestClient(dev) as client:  # the lifespan opens (and closes) the store from settings
         assert client.get(f"{BASE}/models").json() == {"models": [], "next_page_token": None}
