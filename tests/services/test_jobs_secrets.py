@@ -113,7 +113,8 @@ def test_a_jobs_store_password_is_in_no_log_command_line_or_answer(tmp_path: Pat
                         break
                     time.sleep(0.2)
             logs = httpx.get(f"{base}/v1/jobs/{job['id']}/logs").json()["log"]
-            assert job["status"] == "succeeded", logs
+            # 20 steps train a network that fails its gate: the job ran the trainer to the end
+            assert job["status"] in ("succeeded", "gate_failed"), logs
             trainer_lines = [line for line in ps.lines if job["id"] in line and "train" in line]
             assert trainer_lines, "the sampler never saw the trainer's command line"
             assert not [line for line in ps.lines if marker in line]

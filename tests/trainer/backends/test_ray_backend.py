@@ -200,7 +200,9 @@ def test_train_task_cli_with_the_ray_backend(
         str(run_dir),
     ]
     result = CliRunner().invoke(app, args)
-    assert result.exit_code == 0, result.output
+    # the tiny configurations train networks that may fail their gates: exit 4 says so
+    assert result.exit_code in (0, 4), result.output
+    assert result.exit_code == 0 or "failed their gate" in result.output
     assert "trained networks" in result.output  # the summary table
     job_id = (run_dir / "job-id").read_text().strip()
     done = json.loads((run_dir / "run.json").read_text())["done"]
