@@ -1,5 +1,5 @@
-"""The images are reproducible: docker/Dockerfile's base images are pinned by digest, every
-dependency comes from docker/requirements.lock (pinned, covering pyproject's requirements, and
+"""The images are reproducible: docker/Dockerfile's base images and the third-party images of
+docker/compose.yaml are pinned by digest, every dependency comes from docker/requirements.lock (pinned, covering pyproject's requirements, and
 current with the installed versions), and the dependency layer is built before any code is
 copied, so a code change does not reinstall the dependencies."""
 
@@ -10,6 +10,7 @@ import re
 import tomllib
 from pathlib import Path
 
+import yaml
 from packaging.requirements import Requirement
 from packaging.utils import canonicalize_name
 from packaging.version import Version
@@ -17,6 +18,7 @@ from packaging.version import Version
 REPO = Path(__file__).resolve().parents[2]
 DOCKERFILE = REPO / "docker" / "Dockerfile"
 LOCK = REPO / "docker" / "requirements.lock"
+COMPOSE = REPO / "docker" / "compose.yaml"
 DIGEST = re.compile(r"^[\w./-]+:[\w.-]+@sha256:[0-9a-f]{64}$")
 NOT_LOCKED = {"coexist", "coexist-client", "torch"}  # the code layer, and torch's own index
 
@@ -53,6 +55,18 @@ def test_every_base_image_is_pinned_by_digest() -> None:
     assert bases, "no FROM found"
     for base in bases:
         assert DIGEST.match(base), f"not pinned by digest: {base}"
+
+
+def test_every_compose_image_not_built_here_is_pinned_by_digest() -> None:
+    services = yaml.safe_load(COMPOSE.read_text())["services"]
+    third_party = {name: s["image"] for name, s in services.items() if "build" not in s}
+    assert {"postgres", "lb", "prometheus", "grafana"} <= set(third_party), third_party
+    for name, image in third_party.items():
+        assert DIGEST.match(image), f"{name}: not pinned by digest: {image}"
+        tag = image.split("@")[0].rsplit(":", 1)[1]
+        assert "latest" not in tag, f"{name}: a moving tag beside the digest: {image}"
+    built = [s["image"] for s in services.values() if "build" in s]
+    assert built and all(image.startswith("coexist-") for image in built), built
 
 
 def test_the_lock_pins_every_requirement_of_the_images() -> None:
