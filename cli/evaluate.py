@@ -1,6 +1,6 @@
 """`coexist eval --suite NAME`: run one evaluation suite and write its report.
 
-The suites (`evaluation.suites.SUITES`: `paper`, the particle experiments of §4.2; `inference`,
+The suites (`evaluation.suites`, plugins: `paper`, the particle experiments of §4.2; `inference`,
 online goal inference; `cooking`, the kitchen of Fig. 9) each read the options they use from
 `evaluation.base.EvalOptions`; their modules' docstrings (`evaluation/<suite>/command.py`) say
 which and what each writes. This module only parses the options and gives the suite a console.

@@ -93,7 +93,7 @@ def _goals(env: str, goals: str) -> list[str]:
 
 
 def _combos(env: str, combos: str) -> list[list[str]]:
-    from trainer.domain import env_trainer
+    from trainer.plugins import env_trainer
 
     no_joint = env_trainer(env).no_joint_reason
     if no_joint:
@@ -259,7 +259,7 @@ def _figure(value: Any) -> str:
 
 def _print_gates(env: str, batches: list[Any]) -> None:
     """The environment's gate details beyond the summary table (the kitchen's dish table)."""
-    from trainer.domain import env_trainer
+    from trainer.plugins import env_trainer
 
     env_trainer(env).print_gates(batches)
 
@@ -267,7 +267,7 @@ def _print_gates(env: str, batches: list[Any]) -> None:
 def _configs(steps: int | None, env: str = "particle") -> tuple[Any, Any, Any]:
     """Task, impact and joint configurations of `env` (the kitchen has its own: sparse dishes)."""
     from trainer.config import JointConfig
-    from trainer.domain import env_trainer
+    from trainer.plugins import env_trainer
 
     task, impact = env_trainer(env).default_configs()
     joint = JointConfig()

@@ -8,24 +8,24 @@ of environment-specific code.
 Every network in coexist is evaluated on a *view* built from the ego agent's observation:
 
 - task view  (ego, other)   -> the ego's task network Q_t (one view per other agent, Q averaged);
-- impact view (ego, partner) -> the impact network Q_i for that partner's goal;
+  the same pair is the impact view of that partner: the impact network Q_i of the partner's
+  goal reads `task_views(obs_BD, n_agents)[:, partner - 1]`;
 - partner view (partner, ego) -> the partner's task network, whose soft value V^h is the impact
   reward of eq. 6 (the same pair seen from the partner's side);
 - joint view: the ego's whole observation, for the joint-learner baseline (one net per goal combo).
 
-A domain also draws its envs for the web console (`scene`, `scene_frame`: shapes in the world's
-units, `envs.scene`), so the console needs no environment-specific code either.
+What only the console needs (how to draw an env: `envs.registry.Drawing`) and what only the
+trainer needs (`trainer.domain.EnvTrainer`) come with the environment's registration
+(`envs.registry.EnvPlugin`), beside the domain and optional where they can be.
 
 Shapes carry suffixes: `obs_BD` is a batch B of observations of size D.
 """
 
 from __future__ import annotations
 
-from typing import Any, Literal, Protocol, runtime_checkable
+from typing import Literal, Protocol, runtime_checkable
 
 import numpy as np
-
-from envs.scene import Scene, SceneFrame
 
 BlendNormalisation = Literal["standardise", "none"]
 
@@ -62,12 +62,6 @@ class Domain(Protocol):
         """Views for the ego's task network, shape (B, K, pair_obs_dim), K >= 1."""
         ...
 
-    def impact_view(self, obs_BD: np.ndarray, n_agents: int, partner: int) -> np.ndarray:
-        """(ego, partner) view for an impact network, shape (B, pair_obs_dim); partner in 1..N-1.
-        The same pair as the task view of that agent: `task_views(obs_BD, n_agents)[:, partner -
-        1]` (the inference engine reads the impact views from there, in one pass)."""
-        ...
-
     def partner_view(self, obs_BD: np.ndarray, n_agents: int, partner: int) -> np.ndarray:
         """(partner, ego) view: the pair as the partner sees it, shape (B, pair_obs_dim)."""
         ...
@@ -83,15 +77,6 @@ class Domain(Protocol):
         can be kept from there, (B, A) bool; None where the environment cannot tell or the goal
         cannot be lost. AAIL-B takes no action that loses a reached goal where another keeps it
         (`policy.regret_bound`, R4)."""
-        ...
-
-    def scene(self, env: Any) -> Scene:
-        """What does not move in `env` (an env of this domain, from `envs.registry.make_env`),
-        as shapes to draw (`envs.scene`): the web console paints it once per episode."""
-        ...
-
-    def scene_frame(self, env: Any) -> SceneFrame:
-        """Where `env`'s agents and objects are now, in the units of `scene(env)`."""
         ...
 
 

@@ -4,8 +4,10 @@ A PettingZoo `render()` gives pixels; the console wants to draw the world itself
 every element for screen readers and let a test read where each agent is. A domain therefore
 describes its env as a `Scene` (what does not move: areas, walls, stations; once per episode)
 and a `SceneFrame` per step (the agents and the objects that move), both from
-`Domain.scene(env)` / `Domain.scene_frame(env)` (`envs.base`). The console's painter knows
-only these shapes, never an environment.
+`Drawing.scene(env)` / `Drawing.scene_frame(env)` (`envs.registry`: an environment's
+registration; `PlainDrawing` where it gives none). The console's painter knows only these
+shapes, never an environment. `to_json` writes plain Python numbers and strings whatever the
+env handed in (numpy scalars included), so any env's scene can be streamed as JSON.
 
 | shape    | fields used                       | drawn as                                   |
 |----------|-----------------------------------|--------------------------------------------|
@@ -25,10 +27,26 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any, Literal, TypeAlias
+
+import numpy as np
 
 ShapeKind = Literal["rect", "circle", "line", "text"]
+Number: TypeAlias = float | np.floating[Any] | np.integer[Any]
+"""A coordinate or size: a Python number or a numpy scalar (`to_json` makes it a float)."""
 DIGITS = 4  # coordinates are rounded in JSON: far below a pixel at any sensible zoom
+
+
+def _number(value: Any, field: str) -> float:
+    """`value` as a plain, finite float rounded to `DIGITS` (a numpy scalar is not JSON to
+    every encoder); ValueError naming the field otherwise."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{field}: expected a number, got {value!r}") from None
+    if number != number or number in (float("inf"), float("-inf")):
+        raise ValueError(f"{field}: expected a finite number, got {number}")
+    return round(number, DIGITS)
 
 
 def hex_colour(rgb: Sequence[int]) -> str:
@@ -42,53 +60,54 @@ def hex_colour(rgb: Sequence[int]) -> str:
 @dataclass(frozen=True)
 class Shape:
     kind: ShapeKind
-    x: float
-    y: float
-    w: float = 0.0  # rect: width; line: x2
-    h: float = 0.0  # rect: height; line: y2; text: font size
-    r: float = 0.0  # circle: radius
+    x: Number
+    y: Number
+    w: Number = 0.0  # rect: width; line: x2
+    h: Number = 0.0  # rect: height; line: y2; text: font size
+    r: Number = 0.0  # circle: radius
     fill: str | None = None
     stroke: str | None = None
-    opacity: float = 1.0
+    opacity: Number = 1.0
     dash: bool = False  # a dashed outline
     text: str = ""
     label: str = ""
 
     def to_json(self) -> dict[str, Any]:
-        out: dict[str, Any] = {"kind": self.kind, "x": round(self.x, DIGITS)}
-        out["y"] = round(self.y, DIGITS)
+        where = f"shape {self.label or self.kind!r}"
+        out: dict[str, Any] = {"kind": str(self.kind), "x": _number(self.x, f"{where}: x")}
+        out["y"] = _number(self.y, f"{where}: y")
         if self.kind == "rect":
-            out["w"], out["h"] = round(self.w, DIGITS), round(self.h, DIGITS)
+            out["w"], out["h"] = _number(self.w, f"{where}: w"), _number(self.h, f"{where}: h")
         elif self.kind == "line":
-            out["x2"], out["y2"] = round(self.w, DIGITS), round(self.h, DIGITS)
+            out["x2"], out["y2"] = _number(self.w, f"{where}: x2"), _number(self.h, f"{where}: y2")
         elif self.kind == "circle":
-            out["r"] = round(self.r, DIGITS)
+            out["r"] = _number(self.r, f"{where}: r")
         elif self.kind == "text":
-            out["size"] = round(self.h, DIGITS)
+            out["size"] = _number(self.h, f"{where}: size")
         for key in ("fill", "stroke", "text", "label"):
             value = getattr(self, key)
             if value:
-                out[key] = value
+                out[key] = str(value)
         if self.opacity != 1.0:
-            out["opacity"] = self.opacity
+            out["opacity"] = _number(self.opacity, f"{where}: opacity")
         if self.dash:
             out["dash"] = True
         return out
 
 
-def rect(x: float, y: float, w: float, h: float, **style: Any) -> Shape:
+def rect(x: Number, y: Number, w: Number, h: Number, **style: Any) -> Shape:
     return Shape("rect", x, y, w=w, h=h, **style)
 
 
-def circle(x: float, y: float, r: float, **style: Any) -> Shape:
+def circle(x: Number, y: Number, r: Number, **style: Any) -> Shape:
     return Shape("circle", x, y, r=r, **style)
 
 
-def line(x: float, y: float, x2: float, y2: float, **style: Any) -> Shape:
+def line(x: Number, y: Number, x2: Number, y2: Number, **style: Any) -> Shape:
     return Shape("line", x, y, w=x2, h=y2, **style)
 
 
-def text(x: float, y: float, content: str, size: float, **style: Any) -> Shape:
+def text(x: Number, y: Number, content: str, size: Number, **style: Any) -> Shape:
     return Shape("text", x, y, h=size, text=content, **style)
 
 
@@ -96,38 +115,39 @@ def text(x: float, y: float, content: str, size: float, **style: Any) -> Shape:
 class Scene:
     """What does not move, and how to read the units."""
 
-    width: float
-    height: float
+    width: Number
+    height: Number
     y_up: bool
-    agent_radius: float  # in world units
+    agent_radius: Number  # in world units
     agent_colours: tuple[str, ...]  # one per agent, "#rrggbb"
     shapes: tuple[Shape, ...]
 
     def to_json(self) -> dict[str, Any]:
         return {
-            "width": self.width,
-            "height": self.height,
-            "y_up": self.y_up,
-            "agent_radius": self.agent_radius,
-            "agent_colours": list(self.agent_colours),
+            "width": _number(self.width, "scene: width"),
+            "height": _number(self.height, "scene: height"),
+            "y_up": bool(self.y_up),
+            "agent_radius": _number(self.agent_radius, "scene: agent_radius"),
+            "agent_colours": [str(c) for c in self.agent_colours],
             "shapes": [s.to_json() for s in self.shapes],
         }
 
 
 @dataclass(frozen=True)
 class AgentMark:
-    index: int
-    x: float
-    y: float
+    index: int | np.integer[Any]
+    x: Number
+    y: Number
     label: str  # e.g. "agent 0 (a2) at 0.31, 0.52, in its target area"
     status: str = ""  # a short state word: "in target", "served", "holds tomato"
 
     def to_json(self) -> dict[str, Any]:
-        out: dict[str, Any] = {"index": self.index, "x": round(self.x, DIGITS)}
-        out["y"] = round(self.y, DIGITS)
-        out["label"] = self.label
+        where = f"agent {self.index}"
+        out: dict[str, Any] = {"index": int(self.index), "x": _number(self.x, f"{where}: x")}
+        out["y"] = _number(self.y, f"{where}: y")
+        out["label"] = str(self.label)
         if self.status:
-            out["status"] = self.status
+            out["status"] = str(self.status)
         return out
 
 

@@ -7,7 +7,7 @@ over the parts they share:
 | module       | what                                                                       |
 |--------------|----------------------------------------------------------------------------|
 | `base`       | `Suite`, what a suite implements, and `EvalOptions`, the CLI's options     |
-| `suites`     | `SUITES`: the suites by name (`coexist eval --suite NAME`)                 |
+| `suites`     | the suites by name (`coexist eval --suite NAME`): `coexist.suites` plugins |
 | `config`     | scenarios, methods, episode counts and seeds of the particle suite          |
 | `backend`    | action distributions from the in-process engine or a server (SDK)          |
 | `rollout`    | paired, vectorised episodes in one batched world (common random numbers)   |

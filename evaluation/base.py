@@ -1,11 +1,12 @@
 """What an evaluation suite implements, and what it is given.
 
-`coexist eval --suite NAME` parses every option once into `EvalOptions`, looks the suite up in
-`evaluation.suites.SUITES` and calls its `run`, then its `write_report`. Each suite lives in its
-own folder (`evaluation/<suite>/command.py`), reads the options it uses (and refuses, with an
-`OptionError`, those it cannot honour), and shows progress through the `Ui` the CLI gives it. So
-adding a suite (a third environment's experiments) means adding its folder and one line in
-`evaluation/suites.py`; the CLI tests no suite's name.
+`coexist eval --suite NAME` parses every option once into `EvalOptions`, looks the suite up
+(`evaluation.suites.get_suite`: the `coexist.suites` entry points) and calls its `run`, then its
+`write_report`. Each suite lives in its own folder (`evaluation/<suite>/command.py`, or a
+plugin's package), reads the options it uses (and refuses, with an `OptionError`, those it
+cannot honour), and shows progress through the `Ui` the CLI gives it. So adding a suite (a
+third environment's experiments) means adding its module and one entry point; the CLI tests no
+suite's name.
 
 A suite's module imports its heavy parts (torch, the engine, matplotlib) inside `run` and
 `write_report`: the CLI imports every suite to build `--help`, which stays fast.

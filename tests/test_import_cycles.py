@@ -99,7 +99,8 @@ def test_the_cycle_finder_finds_one() -> None:
 
 def test_the_trainer_names_no_environment_outside_its_folders() -> None:
     """`trainer/` outside `trainer/<env>/` neither imports an environment's package nor tests a
-    name or a type against one (`trainer.domain.env_trainer` finds the folder by the name)."""
+    name or a type against one (`trainer.plugins.env_trainer` finds a trainer through the
+    environment's registration)."""
     envs = [p.name for p in (ROOT / "envs").iterdir() if (p / "__init__.py").exists()]
     pattern = re.compile(rf"envs\.({'|'.join(envs)})\b|==\s*[\"']({'|'.join(envs)})[\"']")
     offenders = []
@@ -115,7 +116,7 @@ def test_the_trainer_names_no_environment_outside_its_folders() -> None:
 def test_the_evaluation_and_its_command_test_no_environment_or_suite_name() -> None:
     """`evaluation/`'s shared modules and `cli/evaluate.py` neither compare a name with an
     environment's or a suite's nor test a type against an environment's: the CLI finds a suite
-    through `evaluation.suites.SUITES`, and each suite lives in its own folder."""
+    through `evaluation.suites` (entry points), and each suite lives in its own folder."""
     envs = [p.name for p in (ROOT / "envs").iterdir() if (p / "__init__.py").exists()]
     suites = [p.parent.name for p in (ROOT / "evaluation").glob("*/command.py")]
     names = "|".join(envs + suites)

@@ -70,6 +70,11 @@ class SoftQConfig:
         if not 0.0 <= self.explore_eps <= 1.0:
             raise ValueError(f"explore_eps: expected a share in [0, 1], got {self.explore_eps}")
 
+    def env_name(self) -> str:
+        """The environment this configuration trains in (`ENV`; the generic trainer's
+        configurations carry it as a field, `trainer.generic`)."""
+        return self.ENV
+
     def to_dict(self) -> dict[str, Any]:
         data = asdict(self)
         data["hidden"] = list(self.hidden)

@@ -1,26 +1,28 @@
 """What the trainer needs from an environment, and where it finds it.
 
-Each environment the trainer knows has one folder, `trainer/<env>/`, whose `__init__.py`
-exports `TRAINER`, an object implementing `EnvTrainer`: the learners of the paper (task, impact,
-and where it applies the joint baseline) on that environment's rollouts, gated by its quality
-gates (a trainer without the joint baseline subclasses `EnvTrainer`, sets `no_joint_reason` and
-inherits `train_joint`'s refusal). `trainer.zoo`, `trainer.learners`, the job backends and the
-CLI reach an environment only through `env_trainer(name)`, so adding a third environment means
-adding `envs/<env>/` (its `Domain`, for the server) and `trainer/<env>/`, and nothing else in
-the trainer.
+An environment's registration (`envs.registry.EnvPlugin.training`) names how it trains:
 
-A configuration names its environment (`SoftQConfig.ENV`), so `trainer.learners.train_tasks`
+- nothing, or a `trainer.generic.GenericTraining`: the trainer's generic machinery (task and
+  impact learners on the env's own PettingZoo env, generic gates) with the env's numbers;
+- an object implementing `EnvTrainer`: the learners of the paper (task, impact, and where it
+  applies the joint baseline) on rollouts of its own, gated by its own quality gates (a trainer
+  without the joint baseline subclasses `EnvTrainer`, sets `no_joint_reason` and inherits
+  `train_joint`'s refusal). The particle world and the kitchen do this (`trainer/particle/`,
+  `trainer/cooking/`): batched worlds and scripted references make them faster and stricter.
+
+`trainer.zoo`, `trainer.learners`, the job backends and the CLI reach an environment only
+through `trainer.plugins.env_trainer(name)`, so a new environment needs nothing in the trainer.
+
+A configuration names its environment (`SoftQConfig.env_name()`), so `trainer.learners.train_tasks`
 and its siblings dispatch on the configuration they are given.
 """
 
 from __future__ import annotations
 
-import importlib
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, ClassVar, Literal, Protocol
 
-from envs.registry import get_domain
 from policy.qnet import QNetSpec, StackedQNet
 from trainer.config import SoftQConfig
 from trainer.loop import TrainingCurves
@@ -98,13 +100,6 @@ class EnvTrainer(Protocol):
     def print_gates(self, batches: Sequence[TrainedBatch], console: Any = None) -> None:
         """Gate details beyond the summary table (nothing where the table says it all)."""
         ...
-
-
-def env_trainer(env: str) -> EnvTrainer:
-    """The trainer of environment `env` (`trainer/<env>/`); ValueError for an unknown env."""
-    get_domain(env)  # a clear ValueError naming the known environments
-    trainer: EnvTrainer = importlib.import_module(f"trainer.{env}").TRAINER
-    return trainer
 
 
 Kind = Literal["task", "impact", "joint"]

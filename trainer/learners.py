@@ -6,9 +6,9 @@
 - `train_joint`: the joint-learner baseline, one network per goal combination.
 
 Each returns a `TrainedBatch`: the stacked networks, their training curves and their gate results.
-The configuration names its environment (`SoftQConfig.ENV`) and the environment's folder
-(`trainer/<env>/`, found by `trainer.domain.env_trainer`) does the training, so the zoo and the
-job backends need no environment-specific code.
+The configuration names its environment (`SoftQConfig.env_name()`) and that environment's trainer
+(`trainer.plugins.env_trainer`: its own, or the generic machinery with its numbers) does the
+training, so the zoo and the job backends need no environment-specific code.
 """
 
 from __future__ import annotations
@@ -19,8 +19,9 @@ from typing import Any
 from envs.registry import get_domain
 from policy.qnet import StackedQNet
 from trainer.config import SoftQConfig
-from trainer.domain import TrainedBatch, env_trainer
+from trainer.domain import TrainedBatch
 from trainer.loop import ProgressFn
+from trainer.plugins import env_trainer
 
 
 def train_tasks(
@@ -31,8 +32,8 @@ def train_tasks(
     progress: ProgressFn | None = None,
     evaluate: bool = True,
 ) -> TrainedBatch:
-    """Task networks for `goals`, trained side by side in one batched world of `config.ENV`."""
-    return env_trainer(config.ENV).train_tasks(
+    """Task networks for `goals`, trained side by side in one batched world of `config.env_name()`."""
+    return env_trainer(config.env_name()).train_tasks(
         goals, config, seed=seed, progress=progress, evaluate=evaluate
     )
 
@@ -47,7 +48,7 @@ def train_impacts(
     evaluate: bool = True,
 ) -> TrainedBatch:
     """Impact networks for `partner_goals`; member g of `partner_task_nets` is goal g's task net."""
-    return env_trainer(config.ENV).train_impacts(
+    return env_trainer(config.env_name()).train_impacts(
         partner_goals, partner_task_nets, config, seed=seed, progress=progress, evaluate=evaluate
     )
 
@@ -63,7 +64,7 @@ def train_joint(
     """JL networks, one per (ego goal, partner goals...) combination, on the team reward.
 
     `partner_task_nets[k]` stacks, for every combination, the task net of its k-th partner."""
-    return env_trainer(config.ENV).train_joint(
+    return env_trainer(config.env_name()).train_joint(
         combos, partner_task_nets, config, seed=seed, progress=progress
     )
 

@@ -45,6 +45,26 @@ class Rollout(Protocol):
         ...
 
 
+class EpisodeTracker:
+    """Per-env returns of G networks with E envs each (env b belongs to network b // E); hands
+    out the finished episodes grouped by network (a `Rollout`'s `finished_returns`)."""
+
+    def __init__(self, n_nets: int, envs_per_net: int) -> None:
+        self.n_nets, self.envs_per_net = n_nets, envs_per_net
+        self.running_B = np.zeros(n_nets * envs_per_net)
+        self.finished: list[list[float]] = [[] for _ in range(n_nets)]
+
+    def add(self, reward_B: np.ndarray, done_B: np.ndarray) -> None:
+        self.running_B += reward_B
+        for b in np.flatnonzero(done_B):
+            self.finished[b // self.envs_per_net].append(float(self.running_B[b]))
+        self.running_B[done_B] = 0.0
+
+    def pop(self) -> list[list[float]]:
+        out, self.finished = self.finished, [[] for _ in range(self.n_nets)]
+        return out
+
+
 @dataclass
 class TrainingCurves:
     """Mean episode return per network, sampled along training (paper Fig. 4)."""

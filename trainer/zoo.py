@@ -29,7 +29,6 @@ from model_store.naming import task_model_name
 from model_store.store import ModelStore
 from policy.qnet import QNetSpec, StackedQNet, tensors_from_safetensors
 from trainer.config import GATE_RETRIES, SoftQConfig
-from trainer.domain import env_trainer
 from trainer.learners import (
     TrainedBatch,
     chunked,
@@ -40,6 +39,7 @@ from trainer.learners import (
 )
 from trainer.loop import ProgressFactory
 from trainer.parallel import BatchJob, train_batches
+from trainer.plugins import env_trainer
 from trainer.publish import publish_batch
 
 log = logging.getLogger(__name__)
@@ -129,8 +129,8 @@ def fingerprint(**parts: object) -> str:
 
 
 def check_config_env(config: SoftQConfig, env: str) -> None:
-    """A configuration trains in the environment it names (`SoftQConfig.ENV`)."""
-    if env != config.ENV:
+    """A configuration trains in the environment it names (`SoftQConfig.env_name()`)."""
+    if env != config.env_name():
         raise ValueError(f"config: a {type(config).__name__} does not train env {env!r}")
 
 

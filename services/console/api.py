@@ -13,13 +13,15 @@ Everything else the page does goes through the public API (`/v1/registry`, `/v1/
 
 The episode's settings are query parameters, so a URL reproduces an episode. They are checked,
 and the first step is played, before the answer starts: bad input is a 4xx JSON error naming
-the field (`services.rest.errors`); a failure later in the stream (a network deleted meanwhile)
-is a last line `{"type": "error", "error": {code, message, field}}`. The steps are computed in
+the field (`services.rest.errors`); a failure later in the stream (a network deleted meanwhile,
+an environment whose step or drawing raised) is a last line `{"type": "error", "error": {code,
+message, field}}`, never a stream that stops without a word. The steps are computed in
 the thread pool, one line at a time, while the client reads them.
 """
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Iterator
 from typing import Annotated, Any
 
@@ -43,6 +45,8 @@ from services.console.episodes import (
 from services.deps import ReadAuth, StoreDep
 from services.engine import EngineError, InferenceEngine, ModelUnavailable
 from services.rest.errors import ACT_ERROR_RESPONSES
+
+log = logging.getLogger(__name__)
 
 router = APIRouter(prefix="/v1/console", tags=["console"])
 STORE_PAGE = 1000  # the store interface's largest page (models, events)
@@ -144,5 +148,9 @@ async def live_episode(
         except EngineError as err:
             error = {"code": err.code, "message": str(err), "field": err.field}
             yield _line({"type": "error", "error": error})
+        except Exception as exc:  # the env's own code (step, drawing): say so, log the trace
+            log.exception("console episode of env %r stopped", settings.env)
+            message = f"the episode stopped: env {settings.env!r} raised {type(exc).__name__}"
+            yield _line({"type": "error", "error": {"code": "internal", "message": message}})
 
     return StreamingResponse(lines(), media_type="application/x-ndjson")

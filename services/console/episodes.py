@@ -17,7 +17,7 @@ in every lane (the engine draws one uniform from it and takes the inverse CDF), 
 by policy only, never by sampling luck; a particle episode is the first episode of
 `coexist run --seed SEED` with the same goals and method.
 
-Frame t of a lane: the scene at state s_t (`Domain.scene_frame`), the rewards received on the
+Frame t of a lane: the scene at state s_t (`envs.registry.Drawing.scene_frame`), the rewards received on the
 way into s_t (zeros at t = 0), the returns so far, and, while the lane runs, each agent's action
 distribution at s_t, the action it then took, and the ego's blend diagnostics (w_t, each
 partner's weight, the task policy's normalised entropy, the beliefs over inferred partners'
@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 
 from envs.base import check_goal
-from envs.registry import get_domain, make_env
+from envs.registry import get_drawing, make_env
 from services.engine import ActRequest, EngineError, InferenceEngine, InvalidRequest
 from services.engine.environments import env_runtime
 from services.env_client import agent_seed
@@ -158,10 +158,9 @@ class _Lane:
         """Frame t (module docstring); decides the agents' actions while the lane runs."""
         if self.ended:
             return None
-        domain = get_domain(self.settings.env)
         out: dict[str, Any] = {
             "method": self.method,
-            **domain.scene_frame(self.env).to_json(),
+            **get_drawing(self.settings.env).scene_frame(self.env).to_json(),
             "rewards": self.rewards.tolist(),
             "returns": self.returns.tolist(),
             "done": not self.env.agents,
@@ -259,7 +258,7 @@ class LiveEpisode:
             "settings": s.to_json(),
             "agents": agents,
             "action_meanings": list(env_runtime(s.env).info.action_meanings),
-            "scene": get_domain(s.env).scene(lane.env).to_json(),
+            "scene": get_drawing(s.env).scene(lane.env).to_json(),
         }
 
     def frames(self) -> Iterator[dict[str, Any]]:

@@ -6,12 +6,10 @@ count, model names per goal, and how to build the ego's observation from a globa
 | `EnvRuntime`                 | one environment's domain plus look-up tables for the hot path  |
 | `env_runtime(name)`          | the cached `EnvRuntime`, or `InvalidRequest("env")`            |
 | `observations_from_states`   | global states (B, N, S) + ego index -> ego observations (B, D) |
-| `STATE_ADAPTERS`             | per env: one agent's state features and the observation builder|
 
-State input is kept here, keyed by env name, rather than on the `Domain`: the domain contract is
-about views of an *observation*, and only the transports need the state form. Each adapter calls
-its environment package (the particle world's `observations`), so the perspective transform lives
-in one place.
+State input comes with the environment's registration (`envs.registry.StateAdapter`), not on
+the `Domain`: the domain contract is about views of an *observation*, and only the transports
+need the state form. An environment without one takes observations only.
 """
 
 from __future__ import annotations
@@ -23,27 +21,11 @@ from functools import cache
 import numpy as np
 
 from envs.base import Domain
-from envs.particle import world as particle_world
-from envs.registry import get_domain
+from envs.registry import StateAdapter, env_plugin
 from model_store.errors import InvalidArgument, brief
 from model_store.naming import impact_model_name, task_model_name
 from services.engine.errors import InvalidRequest
 from services.engine.messages import METHODS, EnvInfo
-
-
-@dataclass(frozen=True)
-class StateAdapter:
-    """How the global state of an env becomes an agent's observation."""
-
-    features: tuple[str, ...]  # one agent's row of the state, e.g. ("x", "y", "vx", "vy")
-    observations: Callable[[np.ndarray], np.ndarray]  # (B, N, S) -> (B, N, D) every agent's view
-
-
-# No "cooking" adapter: a kitchen's state is not one row per agent (objects, plates, who holds
-# what, the layout), so cooking clients send observations (`envs.cooking.observation`).
-STATE_ADAPTERS: dict[str, StateAdapter] = {
-    "particle": StateAdapter(("x", "y", "vx", "vy"), particle_world.observations),
-}
 
 
 def _model_name(make: Callable[[str, str], str], env: str, goal: str) -> str:
@@ -57,6 +39,7 @@ def _model_name(make: Callable[[str, str], str], env: str, goal: str) -> str:
 @dataclass(frozen=True)
 class EnvRuntime:
     domain: Domain
+    state_adapter: StateAdapter | None
     goals: frozenset[str]
     agents_by_obs_dim: dict[int, int]  # observation length -> number of agents
     task_names: dict[str, str]  # goal -> `{env}/task/{goal}`
@@ -66,10 +49,10 @@ class EnvRuntime:
 
 @cache
 def _build_runtime(name: str) -> EnvRuntime:
-    domain = get_domain(name)
+    plugin = env_plugin(name)
+    domain, adapter = plugin.domain, plugin.state_adapter
     counts = range(1, domain.max_agents + 1)
     obs_dims = {n: domain.obs_dim(n) for n in counts}
-    adapter = STATE_ADAPTERS.get(name)
     info = EnvInfo(
         name=domain.name,
         goals=tuple(domain.goals),
@@ -86,6 +69,7 @@ def _build_runtime(name: str) -> EnvRuntime:
         by_dim.setdefault(dim, n)
     return EnvRuntime(
         domain=domain,
+        state_adapter=adapter,
         goals=frozenset(domain.goals),
         agents_by_obs_dim=by_dim,
         task_names={g: _model_name(task_model_name, name, g) for g in domain.goals},
@@ -113,7 +97,7 @@ def observations_from_states(
     agent j is at position j + 1 for j < ego_index and at j for j > ego_index.
     """
     runtime = env_runtime(env)
-    adapter = STATE_ADAPTERS.get(runtime.domain.name)
+    adapter = runtime.state_adapter
     if adapter is None:
         raise InvalidRequest(
             field,

@@ -42,7 +42,7 @@ class JobSpec:
         """Check every field (see the module docstring); return self."""
         from envs.base import check_goal
         from envs.registry import get_domain
-        from trainer.domain import env_trainer
+        from trainer.plugins import env_trainer
 
         if self.kind not in JOB_KINDS:
             raise InvalidArgument(

@@ -6,7 +6,7 @@
 | impact (partner goal h) | 2 agents | impact view (ego, partner) | I = V^h(s'_p) − V^h(s_p), eq. 6 | the partner acts with the frozen task net of h |
 | joint (g, h1..hk) | 1+k agents | the ego's whole observation | Σ_i r_i over all agents | each partner acts with the frozen task net of its goal |
 
-All rollouts share the episode bookkeeping in `_EpisodeTracker`: training episodes are cut after
+All rollouts share the episode bookkeeping in `EpisodeTracker`: training episodes are cut after
 `episode_steps` (a time limit, bootstrapped through), then restart from uniform random states.
 """
 
@@ -24,27 +24,9 @@ from envs.particle.scripted import scripted_actions
 from policy.qnet import StackedQNet
 from trainer.config import SoftQConfig, TaskConfig
 from trainer.frozen import FrozenTaskNets
+from trainer.loop import EpisodeTracker
 
 N_GOALS = len(GOAL_IDS)
-
-
-class _EpisodeTracker:
-    """Per-env returns; hands out finished episodes grouped by network."""
-
-    def __init__(self, n_nets: int, envs_per_net: int) -> None:
-        self.n_nets, self.envs_per_net = n_nets, envs_per_net
-        self.running_B = np.zeros(n_nets * envs_per_net)
-        self.finished: list[list[float]] = [[] for _ in range(n_nets)]
-
-    def add(self, reward_B: np.ndarray, done_B: np.ndarray) -> None:
-        self.running_B += reward_B
-        for b in np.flatnonzero(done_B):
-            self.finished[b // self.envs_per_net].append(float(self.running_B[b]))
-        self.running_B[done_B] = 0.0
-
-    def pop(self) -> list[list[float]]:
-        out, self.finished = self.finished, [[] for _ in range(self.n_nets)]
-        return out
 
 
 def wall_states(rng: np.random.Generator, n: int) -> np.ndarray:
@@ -83,7 +65,7 @@ class ParticleTaskRollout:
         self.world.reset()
         self.resting_B = np.zeros(n_envs, dtype=bool)
         self.obs_BND = self._rest_some_on_walls(np.ones(n_envs, dtype=bool))
-        self.tracker = _EpisodeTracker(self.n_nets, self.envs_per_net)
+        self.tracker = EpisodeTracker(self.n_nets, self.envs_per_net)
 
     def _rest_some_on_walls(self, fresh_B: np.ndarray) -> np.ndarray:
         """Of the freshly started worlds, `partner_wall_prob` get a partner resting on a wall
@@ -153,8 +135,8 @@ class ParticleImpactRollout:
         self.obs_BND = self.world.reset()
         generator = torch.Generator().manual_seed(seed + 1)
         self.partners = FrozenTaskNets(partner_task_nets, config.alpha, generator)
-        self.tracker = _EpisodeTracker(self.n_nets, self.envs_per_net)
-        self.partner_return_tracker = _EpisodeTracker(self.n_nets, self.envs_per_net)
+        self.tracker = EpisodeTracker(self.n_nets, self.envs_per_net)
+        self.partner_return_tracker = EpisodeTracker(self.n_nets, self.envs_per_net)
         assert n_envs == self.goals_BN.shape[0]
 
     def _grouped(self, views_BD: np.ndarray) -> np.ndarray:
@@ -212,7 +194,7 @@ class ParticleJointRollout:
         generator = torch.Generator().manual_seed(seed + 1)
         # partner_task_nets[k]: stacked task nets of the k-th partner's goal, one member per combo.
         self.partners = [FrozenTaskNets(n, config.alpha, generator) for n in partner_task_nets]
-        self.tracker = _EpisodeTracker(self.n_nets, self.envs_per_net)
+        self.tracker = EpisodeTracker(self.n_nets, self.envs_per_net)
 
     def observe(self) -> np.ndarray:
         obs = self.obs_BND[:, 0].reshape(self.n_nets, self.envs_per_net, -1)

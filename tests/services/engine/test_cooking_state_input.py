@@ -11,9 +11,8 @@ STATE = [[1.0, 7.0, 0.0, 0.0], [2.0, 8.0, 0.0, 0.0]]
 
 
 def test_cooking_has_no_state_adapter() -> None:
-    assert (
-        "cooking" not in environments.STATE_ADAPTERS and "particle" in environments.STATE_ADAPTERS
-    )
+    assert environments.env_runtime("cooking").state_adapter is None
+    assert environments.env_runtime("particle").state_adapter is not None
 
 
 def test_a_cooking_state_is_refused_with_a_clear_message(act_client: TestClient) -> None:
