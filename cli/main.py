@@ -10,7 +10,7 @@ from typing import Annotated
 
 import typer
 
-from cli import demo, evaluate, jobs, models, run, serve, train
+from cli import demo, env, evaluate, jobs, models, run, serve, train
 
 app = typer.Typer(
     name="coexist",
@@ -48,6 +48,7 @@ app.command("serve")(serve.serve)
 app.add_typer(train.app, name="train")
 app.add_typer(models.app, name="models")
 app.add_typer(jobs.app, name="jobs")
+app.add_typer(env.app, name="env")
 
 
 if __name__ == "__main__":  # pragma: no cover
