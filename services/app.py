@@ -8,9 +8,10 @@ given), the inference engine with its hot-reload thread, and the gRPC server on
 `settings.grpc_port` (unless disabled). Several uvicorn workers can run this app side by side:
 uvicorn shares the HTTP socket, and gRPC binds its port with SO_REUSEPORT (grpcio's default on
 Linux), so the kernel spreads both kinds of connections over the workers. Nothing in a worker is
-state another worker needs: the store is the only shared state. The exception is REST sessions
-(`/v1/sessions`, kept in `app.state.sessions`, one process's memory): with `settings.workers` > 1
-creating one is refused (docs/architecture.md, "Sessions").
+state another worker needs: the store is the only shared state. REST sessions (`/v1/sessions`,
+`app.state.sessions`) are kept in Redis or PostgreSQL with `settings.session_store_url`, which
+every worker and replica reaches; without it they live in one process's memory, and with
+`settings.workers` > 1 creating one is refused (docs/architecture.md, "Sessions").
 
 Routes: `/v1/act`, `/v1/act:batch`, `/v1/envs`, `/v1/sessions` (services.rest), the registry under
 `/v1/registry` (services.registry), `/v1/jobs`, `/healthz` (liveness), `/readyz` (models loaded,
@@ -65,7 +66,8 @@ from services.rest import router as act_router
 from services.rest import sessions_router
 from services.rest.body_limit import BodyLimit
 from services.rest.lean_route import LeanDispatch
-from services.sessions import SessionStore
+from services.rest.sessions_api import open_session_store
+from services.sessions import SharedSessionStore
 from services.settings import Settings, get_settings
 from services.version import VERSION
 from services.warmup import warm_up
@@ -113,13 +115,7 @@ def create_app(
             app.state.engine = owned_engine
         if tracer is not None:
             tracer.instrument(app.state.engine, app.state.engine.store)
-        app.state.sessions = SessionStore(
-            app.state.engine,
-            max_sessions=settings.max_sessions,
-            max_per_client=settings.max_sessions_per_client,
-            ttl_s=settings.session_ttl_s,
-            prefetch=settings.session_prefetch,
-        )
+        app.state.sessions = open_session_store(app.state.engine, settings)
         if settings.grpc_enabled:
             from services.grpc_api.server import build_grpc_server
 
@@ -153,6 +149,8 @@ def create_app(
             if grpc_server is not None:
                 grace = settings.shutdown_grace_s  # in-flight calls finish first
                 grpc_server.stop(grace).wait(grace + 1.0)
+            if isinstance(app.state.sessions, SharedSessionStore):
+                app.state.sessions.backend.close()
             app.state.sessions = None
             if owned_engine is not None:
                 owned_engine.stop()
@@ -173,7 +171,7 @@ def create_app(
     app.state.settings = settings
     app.state.store = store
     app.state.engine = engine
-    app.state.sessions = None  # the lifespan's SessionStore
+    app.state.sessions = None  # the lifespan's session store
     app.state.grpc_port = None
     # The registry's handlers first, then the inference API's (which also format request
     # validation errors for every route): one JSON error shape everywhere.

@@ -23,7 +23,8 @@ gRPC) use prometheus_client's multiprocess mode. `cli/serve.py` points `PROMETHE
 at a directory it empties at start (`prepare_multiprocess_dir`), each worker writes its values
 to its own files there, and a scrape, whichever worker takes it, sums every worker's files
 (`scrape_registry`). The engine and session figures stay per process (they describe the process
-that answers: its cache, its sessions).
+that answers: its cache, its sessions; with a shared session store, `coexist_sessions_live` counts
+the deployment's).
 """
 
 from __future__ import annotations
@@ -39,7 +40,7 @@ from prometheus_client.core import CounterMetricFamily, GaugeMetricFamily, Metri
 from prometheus_client.registry import Collector
 
 from services.engine import InferenceEngine
-from services.sessions import SessionStore
+from services.sessions import SessionStore, SessionStoreUnavailable, SharedSessionStore
 
 MULTIPROC_ENV = "PROMETHEUS_MULTIPROC_DIR"
 # Latency buckets from 50 µs to 60 s: single acts take well under a millisecond, while a streamed
@@ -147,20 +148,25 @@ class EngineCollector(Collector):
 
 
 class SessionCollector(Collector):
-    """Exports how many sessions this process holds, at scrape time."""
+    """Exports how many sessions the store holds, at scrape time: this process's (in memory),
+    or the deployment's (a shared store; left out while it does not answer)."""
 
-    def __init__(self, store_of: Callable[[], SessionStore | None]) -> None:
+    def __init__(self, store_of: Callable[[], SessionStore | SharedSessionStore | None]) -> None:
         self.store_of = store_of
 
     def collect(self) -> Iterator[Metric]:
         store = self.store_of()
         if store is None:
             return
-        store.purge_expired()  # an expired session is gone: do not count it
+        try:
+            store.purge_expired()  # an expired session is gone: do not count it
+            count = len(store)
+        except SessionStoreUnavailable:  # the sessions' routes answer 503 naming it
+            return
         live = GaugeMetricFamily("coexist_sessions_live", "goal-inference sessions held")
-        live.add_metric([], len(store))
+        live.add_metric([], count)
         yield live
-        limit = GaugeMetricFamily("coexist_sessions_max", "the most sessions this process holds")
+        limit = GaugeMetricFamily("coexist_sessions_max", "the most sessions the store holds")
         limit.add_metric([], store.max_sessions)
         yield limit
 

@@ -77,9 +77,17 @@ by the test suite and by Ray.
 | `COEXIST_SESSION_PREFETCH`    | true               | server        | after a session step's answer is sent, score the  |
 |                               |                    |               | next step's evidence ahead (REST and `Episode`;   |
 |                               |                    |               | `services.sessions.session`, "Scoring ahead")     |
+| `COEXIST_SESSION_STORE_URL`   | unset (in memory)  | server        | REST sessions kept in Redis (`redis://…`) or      |
+|                               |                    |               | PostgreSQL (`postgresql://…`), so every worker    |
+|                               |                    |               | and replica serves every session                  |
+|                               |                    |               | (`services.sessions.shared`); unset: in this      |
+|                               |                    |               | process's memory                                  |
+| `COEXIST_SESSION_SECRET`      | unset              | server        | required with `SESSION_STORE_URL`, the same on    |
+|                               |                    |               | every replica of a deployment: signs session ids  |
+|                               |                    |               | and stored session state; never logged            |
 | `COEXIST_WORKERS`             | 1                  | server        | uvicorn worker processes (set by `coexist serve   |
-|                               |                    |               | --workers`); > 1 refuses REST sessions, which     |
-|                               |                    |               | live in one process's memory                      |
+|                               |                    |               | --workers`); > 1 refuses REST sessions unless     |
+|                               |                    |               | `SESSION_STORE_URL` is set                        |
 | `COEXIST_LOG_FORMAT`          | `text`             | server        | `json`: one JSON object per line (the images set  |
 |                               |                    |               | it); `text`: for a terminal (`services.logging`)  |
 | `COEXIST_LOG_LEVEL`           | `info`             | server        | `debug` (also probe access lines), `info`,        |
@@ -163,6 +171,8 @@ class Settings(BaseSettings):
     max_sessions_per_client: int = Field(default=100, ge=1)
     forwarded_allow_ips: str = ""  # trusted proxies (comma-separated); "": none
     session_prefetch: bool = True
+    session_store_url: str | None = None  # Redis or PostgreSQL; None: in this process
+    session_secret: SecretStr | None = None  # signs ids and records of the shared store
     workers: int = Field(default=1, ge=1)
     log_format: Literal["json", "text"] = "text"
     log_level: Literal["debug", "info", "warning", "error"] = "info"
@@ -233,6 +243,12 @@ class Settings(BaseSettings):
         if not self.admin_token.get_secret_value().strip():
             raise InsecureSettings("COEXIST_ADMIN_TOKEN is empty: set a secret token")
         self._check_tls()
+        if self.session_store_url and self.session_secret is None:
+            raise InsecureSettings(
+                "COEXIST_SESSION_SECRET is unset: a shared session store "
+                "(COEXIST_SESSION_STORE_URL) needs a secret, the same on every replica, to sign "
+                "session ids and state (COEXIST_SESSION_SECRET=$(openssl rand -hex 24))"
+            )
         if self.dev_mode:
             return
         if self.admin_token.get_secret_value() == DEFAULT_ADMIN_TOKEN:
@@ -244,6 +260,8 @@ class Settings(BaseSettings):
         tokens = [("COEXIST_ADMIN_TOKEN", self.admin_token)]
         if self.read_token is not None:
             tokens.append(("COEXIST_READ_TOKEN", self.read_token))
+        if self.session_store_url and self.session_secret is not None:
+            tokens.append(("COEXIST_SESSION_SECRET", self.session_secret))
         for name, token in tokens:
             weakness = token_weakness(token.get_secret_value())
             if weakness is not None:

@@ -15,6 +15,8 @@ one `{field, message}` per problem. Fields use the engine's naming: `partners[0]
 | `StepConflict`                     | 409    | step_conflict     |
 | `SessionLimitReached`              | 429    | too_many_sessions (with `Retry-After`) |
 | `SessionsUnavailable`              | 501    | sessions_unavailable (several workers) |
+| `SessionStateInvalid`              | 410    | session_state_invalid (shared store)   |
+| `SessionStoreUnavailable`          | 503    | session_store_unavailable              |
 | a body that is not UTF-8 (FastAPI) | 400    | (the app's HTTPException handler) |
 
 `install_error_handlers(app)` registers both handlers. Call it *after* the registry's
@@ -38,6 +40,8 @@ from services.registry.errors import MAX_DETAILS, ErrorResponse, error_response
 from services.sessions.errors import (
     SessionLimitReached,
     SessionNotFound,
+    SessionStateInvalid,
+    SessionStoreUnavailable,
     SessionsUnavailable,
     StepConflict,
 )
@@ -49,6 +53,8 @@ ENGINE_STATUS: tuple[tuple[type[EngineError], int], ...] = (
     (StepConflict, 409),
     (SessionLimitReached, 429),
     (SessionsUnavailable, 501),
+    (SessionStateInvalid, 410),
+    (SessionStoreUnavailable, 503),
     (InvalidRequest, 422),
     (ModelNotFound, 404),
     (ModelUnavailable, 503),
@@ -77,7 +83,15 @@ SESSION_ERROR_RESPONSES: dict[int | str, dict[str, Any]] = {
         "description": "the server, or this client, holds its maximum of sessions; "
         "`Retry-After` says when the first could expire",
     },
+    410: {
+        "model": ErrorResponse,
+        "description": "the shared store's record of the session fails its signature or format",
+    },
     501: {"model": ErrorResponse, "description": "this server cannot keep sessions (workers > 1)"},
+    503: {
+        "model": ErrorResponse,
+        "description": "model store, model, or the shared session store unavailable",
+    },
 }
 
 

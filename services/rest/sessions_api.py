@@ -9,13 +9,16 @@
 
 Step semantics are `services.sessions.session`'s. The sessions live in `app.state.sessions` (a
 `SessionStore` the app's lifespan creates over the engine; created on first use with defaults
-when an app did not set one). They are in this process's memory: with `settings.workers` > 1
-(`coexist serve --workers N`) a step could reach a worker that does not hold its session, so
-creating one is refused (501) there; see docs/architecture.md "Sessions". Errors: those of
-`/v1/act` (422 naming the field, 404 model not found, 503) plus 404 `session_not_found`, 409
-`step_conflict`, 429 `too_many_sessions` (the server's `max_sessions`, or the creating client's
-`max_sessions_per_client`: clients are told apart by address; a `Retry-After` says when the
-first slot could free up) and 501 `sessions_unavailable`.
+when an app did not set one): a `SharedSessionStore` over Redis or PostgreSQL with
+`settings.session_store_url` (every worker and replica serves every session), else a
+`SessionStore` in this process's memory, which with `settings.workers` > 1 (`coexist serve
+--workers N`) refuses to create one (501: a step could reach another worker); see
+docs/architecture.md "Sessions". Errors: those of `/v1/act` (422 naming the field, 404 model
+not found, 503) plus 404 `session_not_found`, 409 `step_conflict`, 429 `too_many_sessions` (the
+server's `max_sessions`, or the creating client's `max_sessions_per_client`: clients are told
+apart by address; a `Retry-After` says when the first slot could free up), 501
+`sessions_unavailable`, and with a shared store 410 `session_state_invalid` (its stored record
+fails its signature or format) and 503 `session_store_unavailable`.
 
 Speed (a step is the hot route): the routes are `LeanJsonRoute`s, so a valid body reaches its
 handler without FastAPI's router and dependency solving (`services.rest.lean_route`, the app's
@@ -61,30 +64,48 @@ from services.sessions import (
     SessionStepResult,
     SessionStore,
     SessionsUnavailable,
+    SharedSessionStore,
 )
+from services.sessions.backends import open_backend
+from services.sessions.codec import SessionCodec
+from services.settings import Settings
 
 # LeanJsonRoute: a valid step (or create) body goes straight to its handler (LeanDispatch)
 router = APIRouter(prefix="/v1/sessions", tags=["sessions"], route_class=LeanJsonRoute)
 
 
-def session_store(request: Request) -> SessionStore:
-    """The app's `SessionStore` (made on first use over the app's engine if none was set)."""
+AnyStore = SessionStore | SharedSessionStore
+
+
+def open_session_store(engine: InferenceEngine, settings: Settings | None) -> AnyStore:
+    """The sessions' store for `settings`: shared (Redis or PostgreSQL) with
+    `session_store_url`, else this process's memory. `ValueError` for an unusable URL."""
+    if settings is None:
+        return SessionStore(engine)
+    bounds: dict[str, Any] = {
+        "max_sessions": settings.max_sessions,
+        "max_per_client": settings.max_sessions_per_client,
+        "ttl_s": settings.session_ttl_s,
+        "prefetch": settings.session_prefetch,
+    }
+    if not settings.session_store_url:
+        return SessionStore(engine, **bounds)
+    if settings.session_secret is None:  # check_secure refuses this first
+        raise ValueError("COEXIST_SESSION_SECRET: required with COEXIST_SESSION_STORE_URL")
+    codec = SessionCodec(settings.session_secret.get_secret_value().encode())
+    backend = open_backend(settings.session_store_url, codec.namespace())
+    return SharedSessionStore(engine, backend, codec, **bounds)
+
+
+def session_store(request: Request) -> AnyStore:
+    """The app's session store (made on first use over the app's engine if none was set)."""
     state = request.app.state
-    store: SessionStore | None = getattr(state, "sessions", None)
+    store: AnyStore | None = getattr(state, "sessions", None)
     engine: InferenceEngine | None = getattr(state, "engine", None)
     if engine is None:  # as /v1/act answers then
         raise ModelUnavailable(None, "the inference engine is not running")
     if store is None or store.engine is not engine:
-        settings = getattr(request.app.state, "settings", None)
-        kwargs = {}
-        if settings is not None:
-            kwargs = {
-                "max_sessions": settings.max_sessions,
-                "max_per_client": settings.max_sessions_per_client,
-                "ttl_s": settings.session_ttl_s,
-                "prefetch": settings.session_prefetch,
-            }
-        store = SessionStore(engine, **kwargs)
+        store = open_session_store(engine, getattr(state, "settings", None))
         request.app.state.sessions = store
     return store
 
@@ -236,7 +257,7 @@ async def step_session(session_id: str, body: SessionStepBody, request: Request)
     return response
 
 
-async def _prepare_next(store: SessionStore, session_id: str) -> None:
+async def _prepare_next(store: AnyStore, session_id: str) -> None:
     """The next step's evidence scored ahead (`Session.prepare_next`): runs once the step's
     answer is on the socket, while the client reads it and sends its next step."""
     store.prepare_next(session_id)
@@ -245,17 +266,19 @@ async def _prepare_next(store: SessionStore, session_id: str) -> None:
 @router.post("", status_code=201, response_model=SessionOut, responses=SESSION_ERROR_RESPONSES)
 async def create_session(body: SessionBody, request: Request) -> Response:
     """A new session; its beliefs start at the partners' priors. Expires when idle."""
+    store = session_store(request)
     settings = getattr(request.app.state, "settings", None)
-    if settings is not None and settings.workers > 1:
+    if settings is not None and settings.workers > 1 and isinstance(store, SessionStore):
         raise SessionsUnavailable(
             None,
-            f"this server runs {settings.workers} worker processes and a session lives in the "
-            "memory of one: run sessions on a server with one worker (coexist serve --workers "
-            "1, several replicas behind a load balancer routing each session to one), or use "
-            "the gRPC Episode stream, which is a session on one connection",
+            f"this server runs {settings.workers} worker processes and keeps sessions in the "
+            "memory of one: set COEXIST_SESSION_STORE_URL (Redis or PostgreSQL) and "
+            "COEXIST_SESSION_SECRET so that every worker serves every session, run one worker "
+            "(coexist serve --workers 1), or use the gRPC Episode stream, which is a session "
+            "on one connection",
         )
     client = request.client.host if request.client is not None else ""
-    info = session_store(request).create(_settings(body), client)
+    info = store.create(_settings(body), client)
     location = f"/v1/sessions/{info.session_id}"
     return _json(_session_json(info), status_code=201, headers={"Location": location})
 

@@ -15,6 +15,10 @@
 | `checks`   | settings checked once at creation; each step's `observed` entries           |
 | `session`  | `Session`: one session's state and its all-or-nothing step (step semantics) |
 | `store`    | `SessionStore`: in-memory, bounded, expiring, one lock per session          |
+| `shared`   | `SharedSessionStore`: the same over Redis or PostgreSQL, for every worker   |
+|            | and replica (`COEXIST_SESSION_STORE_URL`); `open_session_store` picks one   |
+| `codec`    | a session's settings and state as signed bytes (no pickle)                  |
+| `backends` | the Redis and PostgreSQL records: versioned, compare-and-set                |
 
 The transports only translate: REST `services.rest.sessions_api`, gRPC `Episode`
 (`services.grpc_api.servicer`). The maths is `policy.belief`; the likelihood pass is
@@ -25,6 +29,8 @@ from services.sessions.errors import (
     SessionError,
     SessionLimitReached,
     SessionNotFound,
+    SessionStateInvalid,
+    SessionStoreUnavailable,
     SessionsUnavailable,
     StepConflict,
 )
@@ -34,9 +40,11 @@ from services.sessions.messages import (
     SessionInfo,
     SessionPartner,
     SessionSettings,
+    SessionState,
     SessionStepResult,
 )
 from services.sessions.session import Session
+from services.sessions.shared import SharedSessionStore
 from services.sessions.store import SessionStore
 
 __all__ = [
@@ -49,8 +57,12 @@ __all__ = [
     "SessionNotFound",
     "SessionPartner",
     "SessionSettings",
+    "SessionState",
+    "SessionStateInvalid",
     "SessionStepResult",
     "SessionStore",
+    "SessionStoreUnavailable",
     "SessionsUnavailable",
+    "SharedSessionStore",
     "StepConflict",
 ]

@@ -8,6 +8,9 @@ existing error mapping carries them; each transport maps them to its status in i
 |                       | the creating client (after purging expired)          |      |                    |
 | `StepConflict`        | `expected_step` is not the session's next step       | 409  | ABORTED            |
 | `SessionsUnavailable` | this server cannot keep sessions (several workers)   | 501  | UNIMPLEMENTED      |
+| `SessionStateInvalid` | the shared store's record of the session fails its   | 410  | (REST only: the    |
+|                       | tag or format: that session cannot go on             |      | `Episode` stream   |
+| `SessionStoreUnavailable` | the shared session store does not answer         | 503  | keeps no store)    |
 
 Bad input to a step (observation length, an `observed` entry, ...) is `InvalidRequest`, as for
 `/v1/act`.
@@ -61,11 +64,16 @@ class SessionLimitReached(SessionError):
 class StepConflict(SessionError):
     code = "step_conflict"
 
-    def __init__(self, session_id: str, expected: int, actual: int) -> None:
+    def __init__(self, session_id: str, expected: int, actual: int, raced: bool = False) -> None:
+        why = (
+            "another request stepped it at the same time, on another server process, and its "
+            "step was applied instead of this one; send the next step with expected_step"
+            if raced
+            else "another request stepped it, or a retry of an answered step"
+        )
         super().__init__(
             "expected_step",
-            f"session {brief(session_id)} is at step {actual}, not {expected} (another request "
-            "stepped it, or a retry of an answered step)",
+            f"session {brief(session_id)} is at step {actual}, not {expected} ({why})",
         )
         self.expected = expected
         self.actual = actual
@@ -73,3 +81,24 @@ class StepConflict(SessionError):
 
 class SessionsUnavailable(SessionError):
     code = "sessions_unavailable"
+
+
+class SessionStateInvalid(SessionError):
+    """The shared store holds a record of the session that this deployment cannot trust or
+    read (`services.sessions.codec`); the other sessions are untouched."""
+
+    code = "session_state_invalid"
+
+    def __init__(self, session_id: str, reason: str) -> None:
+        super().__init__(
+            "session_id",
+            f"session {brief(session_id)} cannot go on: {reason}; create a new session",
+        )
+        self.session_id = session_id
+
+
+class SessionStoreUnavailable(SessionError):
+    """The shared session store (`COEXIST_SESSION_STORE_URL`) did not answer; the message names
+    it (without a password) and the cause. Nothing was changed by the failed request."""
+
+    code = "session_store_unavailable"

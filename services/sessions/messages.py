@@ -10,12 +10,15 @@
 | `PartnerBelief`     | one inferred partner's belief: top goals, entropy, update counters     |
 | `SessionStepResult` | one step's answer: the engine's `ActResult` plus the beliefs           |
 | `SessionInfo`       | a session as `GET /v1/sessions/{id}` describes it                      |
+| `SessionState`      | what a session carries from one step to the next (`Session.export_state`)|
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+
+import numpy as np
 
 from policy.belief import BeliefConfig
 from services.engine import ActResult, Method
@@ -93,3 +96,19 @@ class SessionInfo:
     step: int  # the index the next step gets (= steps taken so far)
     beliefs: tuple[PartnerBelief, ...]
     expires_in_s: float  # idle time left before the session expires
+
+
+@dataclass(frozen=True, eq=False)  # eq=False: arrays
+class SessionState:
+    """A session's state between two steps, without its settings (`Session.export_state`).
+    There is no random state to carry: a seeded session samples step t with seed + t."""
+
+    first_step: int
+    next_step: int  # the index the next step gets
+    log_belief_PG: np.ndarray  # float64 (inferred partners, goals)
+    updates: tuple[int, ...]  # actions incorporated, per inferred partner
+    last_actions: tuple[int | None, ...]  # the action the last update used, per inferred partner
+    previous: np.ndarray | None  # float32 (1, D): the last step's observation
+    previous_agents: int  # the agents `previous` holds
+    budget: tuple[float, float] | None  # aail_budget's (spent S, budget B) after the last step
+    table_partners: tuple[int, ...]  # whose actions the next step likely brings (scoring ahead)

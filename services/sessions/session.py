@@ -71,13 +71,14 @@ from services.engine.validation import (
     check_observations,
     check_partner_index,
 )
-from services.sessions.checks import check_observed, check_settings
+from services.sessions.checks import CheckedSettings, check_observed, check_settings
 from services.sessions.errors import StepConflict
 from services.sessions.messages import (
     TOP_GOALS,
     Observed,
     PartnerBelief,
     SessionSettings,
+    SessionState,
     SessionStepResult,
 )
 
@@ -97,12 +98,14 @@ class Session:
         previous_observation: ArrayLike | None = None,
         prefetch: bool = True,
         budget_state: tuple[float, float] | None = None,
+        checked: CheckedSettings | None = None,
     ) -> None:
         self.engine = engine
         self.session_id = session_id
         self.prefetch = prefetch
         self._lock = threading.Lock()
-        self._checked = check_settings(settings)
+        # `checked`: `check_settings(settings)` made before (the shared store's per-process cache)
+        self._checked = checked if checked is not None else check_settings(settings)
         self._log_belief_PG = self._checked.initial_PG.copy()
         self._updates = [0] * len(self._checked.inferred)
         self._last_actions: list[int | None] = [None] * len(self._checked.inferred)
@@ -121,10 +124,84 @@ class Session:
         self._table_partners: tuple[int, ...] = ()
         self._table: tuple[int, LikelihoodTable] | None = None
 
+    # --- state kept elsewhere (services.sessions.shared) ------------------------------------
+    def export_state(self) -> SessionState:
+        """What the next step needs, as plain values and arrays (copies): with the settings,
+        `restore` makes a session that answers every later step as this one would. Derived
+        caches (the belief's views, the table scored ahead) are left out: a restored session
+        recomputes them, with the same numbers."""
+        with self._lock:
+            previous = None if self._previous is None else self._previous.copy()
+            return SessionState(
+                first_step=self._first_step,
+                next_step=self._next_step,
+                log_belief_PG=self._log_belief_PG.copy(),
+                updates=tuple(self._updates),
+                last_actions=tuple(self._last_actions),
+                previous=previous,
+                previous_agents=self._previous_agents,
+                budget=self._budget,
+                table_partners=self._table_partners,
+            )
+
+    @classmethod
+    def restore(
+        cls,
+        engine: InferenceEngine,
+        checked: CheckedSettings,
+        state: SessionState,
+        session_id: str = "",
+        *,
+        prefetch: bool = True,
+    ) -> Session:
+        """The session `export_state` described, over `checked` = `check_settings` of its
+        settings (checked once per process and shared: it is read only). `ValueError` when the
+        state does not fit the settings (rows, goals, counters)."""
+        rows, goals = len(checked.inferred), len(checked.goals)
+        if state.log_belief_PG.shape != (rows, goals) or state.log_belief_PG.dtype != np.float64:
+            raise ValueError(
+                f"log_belief_PG: expected float64 {(rows, goals)}, got "
+                f"{state.log_belief_PG.dtype} {state.log_belief_PG.shape}"
+            )
+        if len(state.updates) != rows or len(state.last_actions) != rows:
+            raise ValueError(f"updates, last_actions: expected {rows} entries each")
+        if state.previous is not None and (
+            state.previous.dtype != np.float32
+            or state.previous.ndim != 2
+            or state.previous.shape[0] != 1
+            or checked.runtime.agents_by_obs_dim.get(state.previous.shape[1])
+            != state.previous_agents
+        ):
+            raise ValueError("previous: expected a float32 (1, D) observation of its agents")
+        if not 0 <= state.first_step <= state.next_step:
+            raise ValueError("next_step: expected >= first_step >= 0")
+        session = cls.__new__(cls)
+        session.engine = engine
+        session.session_id = session_id
+        session.prefetch = prefetch
+        session._lock = threading.Lock()
+        session._checked = checked
+        session._log_belief_PG = state.log_belief_PG
+        session._updates = list(state.updates)
+        session._last_actions = list(state.last_actions)
+        session._previous = state.previous
+        session._previous_agents = state.previous_agents if state.previous is not None else 0
+        session._last_views = None
+        session._next_step, session._first_step = state.next_step, state.first_step
+        session._budget = state.budget
+        session._table_partners = state.table_partners
+        session._table = None
+        return session
+
     # --- read ------------------------------------------------------------------------------
     @property
     def settings(self) -> SessionSettings:
         return self._checked.settings
+
+    @property
+    def checked(self) -> CheckedSettings:
+        """`check_settings` of the settings (read only; sessions of equal settings may share it)."""
+        return self._checked
 
     @property
     def next_step(self) -> int:
