@@ -273,11 +273,10 @@ class PostgresBackend:
             conn = getattr(self._local, "conn", None)
             if conn is None or conn.closed:
                 conn = psycopg.connect(
-                    self._dsn,
-                    autocommit=True,
-                    connect_timeout=max(1, round(self._timeout_s)),
-                    options=f"-c statement_timeout={int(self._timeout_s * 1000)}",
+                    self._dsn, autocommit=True, connect_timeout=max(1, round(self._timeout_s))
                 )
+                # (a SET, not the `options` parameter, which would replace the URL's own)
+                conn.execute(f"SET statement_timeout = {int(self._timeout_s * 1000)}")
                 self._local.conn = conn
                 if not self._made_table:
                     # two servers starting at once may race on the catalogue: the loser's
