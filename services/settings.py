@@ -106,6 +106,8 @@ by the test suite and by Ray.
 |                               |                    |               | emptied at start (`services.metrics`)             |
 | `COEXIST_TEST_PG_URL`         | `postgresql://postgres@127.0.0.1:5432/test` | tests | the PostgreSQL server of the tests   |
 | `COEXIST_REQUIRE_POSTGRES`    | unset              | tests         | PostgreSQL tests fail instead of skipping         |
+| `COEXIST_TEST_REDIS_URL`      | `redis://127.0.0.1:6379/0` | tests | the Redis server of the tests            |
+| `COEXIST_REQUIRE_REDIS`       | unset              | tests         | Redis tests fail instead of skipping              |
 | `RAY_ADDRESS`                 | unset              | `--backend ray` | the Ray cluster when `--ray-address` is not given |
 
 Reads are open unless a read token is set or `require_read_token` is true; then every request

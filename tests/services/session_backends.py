@@ -18,7 +18,11 @@ import pytest
 from replica_cluster import pg_schema_url
 
 REDIS_URL = os.environ.get("COEXIST_TEST_REDIS_URL", "redis://127.0.0.1:6379/0")
-BACKENDS = ("redis", "postgres")
+# parameters of a test over both stores
+BACKENDS = (
+    pytest.param("redis", marks=pytest.mark.redis),
+    pytest.param("postgres", marks=pytest.mark.postgres),
+)
 
 
 def new_secret() -> bytes:
