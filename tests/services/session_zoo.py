@@ -3,6 +3,7 @@ network for EVERY goal of the catalogue (goal inference evaluates all 35 task ne
 weights (numpy, no training), lineage α 0.05, aliases production and latest.
 
     template = build_session_zoo(path)            # once; then copy or open read-only
+    register_session_zoo(postgres_url)            # the same zoo in another store
     partner_action(engine, obs, partner=1, goal="c1")   # the action goal c1's task policy prefers
 """
 
@@ -37,6 +38,12 @@ def _weights(spec: dict, seed: int) -> bytes:
 def build_session_zoo(path: Path) -> str:
     """Register the zoo into a new SQLite file at `path`; its URL."""
     url = f"sqlite:///{path}"
+    register_session_zoo(url)
+    return url
+
+
+def register_session_zoo(url: str) -> None:
+    """Register the zoo into the (empty) store at `url`: SQLite or PostgreSQL."""
     spec = qnet_spec(obs_dim=8, n_actions=5, hidden=(16,))
     with SqlModelStore(url) as store:
         for kind, naming, offset in (
@@ -55,7 +62,6 @@ def build_session_zoo(path: Path) -> str:
                     lineage=Lineage(config={"alpha": ALPHA}, seed=k, registered_by="pytest"),
                     aliases=("latest", "production"),
                 )
-    return url
 
 
 def partner_action(engine: InferenceEngine, obs: np.ndarray, partner: int, goal: str) -> int:
