@@ -35,26 +35,21 @@ sys.path.insert(0, str(ROOT))
 from machine import describe  # noqa: E402
 from session_scene import EGO_GOAL, PARTNER_GOALS, build_store, episode  # noqa: E402
 
-import services.engine.networks as networks  # noqa: E402
+from services.engine.networks import ROW_FORWARD  # noqa: E402  (whether the C forward is built)
 
 VARIANTS = ("all compiled", "forward")
 Call = Callable[[int], object]
-BUILT = networks.ROW_FORWARD  # whether the C forward is built here
 
 
-def use(variant: str) -> None:
-    """The C forward, or (`variant` "forward") its numpy reference."""
-    networks.ROW_FORWARD = BUILT and variant != "forward"
-
-
-def cases(url: str) -> dict[str, tuple[Call, int]]:
-    """The module docstring's cases, each with its share of the calls (batches: a tenth)."""
+def cases(url: str, variant: str) -> dict[str, tuple[Call, int]]:
+    """The module docstring's cases, each with its share of the calls (batches: a tenth), on
+    an engine with the C forward, or (`variant` "forward") its numpy reference."""
     from model_store.sql import SqlModelStore
     from services.engine import ActRequest, InferenceEngine, PartnerSpec
     from services.sessions.messages import Observed, SessionPartner, SessionSettings
     from services.sessions.session import Session
 
-    engine = InferenceEngine(SqlModelStore(url))
+    engine = InferenceEngine(SqlModelStore(url), numpy_forward=variant == "forward")
     out: dict[str, tuple[Call, int]] = {}
     for n in (1, 4):
         obs_TD, actions_TP = episode(n + 1, 200)
@@ -98,17 +93,17 @@ def measure(calls: int) -> dict[str, dict[str, float]]:
         url = f"sqlite:///{tmp}/models.db"
         build_store(url)
         found: dict[str, dict[str, float]] = {}
-        for name, (call, share) in cases(url).items():
+        by_variant = {variant: cases(url, variant) for variant in VARIANTS}
+        for name, (_, share) in by_variant[VARIANTS[0]].items():
             times: dict[str, list[float]] = {v: [] for v in VARIANTS}
             for i in range(-20, max(20, calls * share // 10)):  # 20 warm-up rounds
                 for variant in VARIANTS:
-                    use(variant)
+                    call = by_variant[variant][name][0]
                     start = time.perf_counter()
                     call(i)
                     if i >= 0:
                         times[variant].append(time.perf_counter() - start)
             found[name] = {v: statistics.median(t) * 1e6 for v, t in times.items()}
-        use("all compiled")
     return found
 
 
@@ -117,6 +112,8 @@ def main() -> None:
     parser.add_argument("--calls", type=int, default=1500, help="timed calls per case (batch: /10)")
     args = parser.parse_args()
     print(describe())
+    if not ROW_FORWARD:
+        print("no C forward built here: both columns run numpy's")
     print("| case | C forward | forward in numpy |")
     print("|---|---|---|")
     for name, row in measure(args.calls).items():

@@ -97,15 +97,16 @@ def row_forward(
     activation: str,
     *,
     lanes: int = 0,
+    numpy: bool = False,
 ) -> np.ndarray:
     """Members `start` .. `start + members - 1` of the stacked `layers` on their rows (module
-    docstring): (members, P, A) float32, compiled when `COMPILED`. `lanes`: the compiled
-    forward's vector width, one of `vector_widths()` (0: the widest; where nothing is compiled,
-    only 0: numpy has no width to choose)."""
-    if not COMPILED:
+    docstring): (members, P, A) float32, compiled when `COMPILED` unless `numpy` asks for the
+    reference. `lanes`: the compiled forward's vector width, one of `vector_widths()` (0: the
+    widest; for numpy, only 0: numpy has no width to choose)."""
+    if numpy or not COMPILED:
         if lanes != 0:
             raise ValueError(
-                f"lanes: expected 0 (no compiled forward on this machine), got {lanes}"
+                f"lanes: expected 0 (numpy's forward has no vector width), got {lanes}"
             )
         return numpy_row_forward(x_XPF, layers, start, members, activation)
     x = np.ascontiguousarray(x_XPF, dtype=np.float32)

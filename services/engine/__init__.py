@@ -13,6 +13,7 @@
 | `engine`       | `InferenceEngine`: the act (check, resolve, forward, blend, sample),   |
 |                | envs, refresh (thread), status, stats                                  |
 | `validation`   | every field of an `ActRequest` checked, naming the bad one             |
+| `planning`     | a request's networks and layout, remembered in one `PlanCache`         |
 | `model_cache`  | resolve `name@alias` / pinned versions, load, stack; hot reload        |
 | `networks`     | LRU cache, loaded networks, stacked groups and their forward           |
 | `messages`     | request / result / status dataclasses (docs/architecture.md contract)  |

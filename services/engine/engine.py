@@ -5,33 +5,24 @@ bottom in `_act`; every batch size takes the same steps (a single observation is
 | step     | what                                                          | where          |
 |----------|---------------------------------------------------------------|----------------|
 | check    | every field; bad ones -> `InvalidRequest(field, message)`     | `validation`   |
-| resolve  | `{env}/task/{ego_goal}` and `{env}/impact/{g}` for every      | `_plan_members`|
+| resolve  | `{env}/task/{ego_goal}` and `{env}/impact/{g}` for every      | `planning`,    |
 |          | partner goal g with probability > 0 (sl: the task net only;   | `model_cache`  |
 |          | jl: `{env}/joint/{ego}+{p1}+...`, partners ordered by index), |                |
 |          | by `name@alias` or a pinned version                           |                |
 | stack    | the networks' weights, once per combination of versions       | `model_cache`  |
-| inputs   | each member's input rows from the domain's views (table below)| `_inputs`      |
+| inputs   | each member's input rows from the domain's views              | `planning`     |
 | forward  | `networks.forward_group`: every member on its rows            | `networks`     |
 | reduce   | task Q = mean over the K task views; one impact Q per partner,| `mean_views`,  |
-|          | a goal distribution's the expectation over its goals (§3.2)   |                |
+|          | a goal distribution's the expectation over its goals (§3.2)   | `planning`     |
 | blend    | `policy.blend.blend_checked` (eqs. 8-10; R1 for aail_bounded);| `policy.blend` |
 |          | jl: the joint Q alone; aail_budget: AAIL's policy mixed with  | `spend_budget` |
 |          | the task's within the episode's budget (eqs. B1-B4)           |                |
 | sample   | inverse CDF per row from `default_rng(seed)`, one stream over | `sample_rows`  |
 |          | the rows (row r of a batch is not row 1 of a single request)  |                |
 
-Member input rows (B observation rows, K task views, U_g partners with goal g):
-
-| member          | input rows                                   | Q-values used as                   |
-|-----------------|----------------------------------------------|------------------------------------|
-| task            | (B*K, pair_dim), row b*K + k = view k of b   | mean over k -> q_task (B, A)       |
-| impact, goal g  | (U_g*B, pair_dim), block u = the impact view | block u -> partner u's Q for g     |
-|                 | of the u-th partner with goal g              |                                    |
-| joint           | (B, obs_dim), the whole observation          | q (B, A)                           |
-
-What a request's shape fixes (its networks, `_plan_members`; where each partner's Q-values lie
-and the models used, `_layout`) is computed once and remembered: the plans by request shape,
-the layouts on the stacked group they index (`StackedGroup.memo`).
+What a request's shape fixes (its networks, where each partner's Q-values lie, the models
+used) is computed once and remembered in the engine's `planning.PlanCache`, which forgets
+everything when the store's generation moves (a refresh that saw the store change).
 
 Goal distributions. A request with a partner given as a goal distribution (a session's
 beliefs, or /v1/act's `goal_probs`) takes its networks from its own stacked group when that is
@@ -47,7 +38,7 @@ bit for bit: the compiled forward's rows are independent, so a network's Q-value
 on the group or the other rows, and a partner's mix adds its goals in its own order. Hence the
 rule holds for the compiled forward only, without pinned versions, and where every goal's
 network can be resolved and loaded (after a failure, every goal's group is asked for again only
-once the store changed).
+in the store's next generation).
 
 Choices the paper leaves open: the temperature is the request's, else the task (jl: joint)
 model's training α (`lineage.config["alpha"]`), else 0.02. Whether AAIL standardises the
@@ -64,21 +55,15 @@ Hot reload: `refresh()` (or the daemon thread of `start_refresh_thread`, every
 
 from __future__ import annotations
 
-import bisect
-import itertools
 import logging
 import threading
 from collections.abc import Mapping, Sequence
-from dataclasses import replace
-from typing import NamedTuple
 
 import numpy as np
 
 from envs.registry import known_envs
-from model_store.errors import InvalidArgument, ModelStoreError
-from model_store.naming import joint_model_name
+from model_store.errors import ModelStoreError
 from model_store.store import ModelStore
-from policy.belief_compiled import compiled_mix_goals
 from policy.blend import BlendMethod, blend_checked
 from policy.maths import boltzmann
 from policy.regret_bound import DEFAULT_EPSILON_PER_ALPHA, keep_goal_rows
@@ -90,7 +75,6 @@ from policy.regret_budget import (
 )
 from policy.row_forward import mean_views
 from policy.sampling import sample_rows
-from services.engine import networks
 from services.engine.environments import env_runtime
 from services.engine.errors import EngineError, InvalidRequest, ModelNotFound, ModelUnavailable
 from services.engine.goal_inference import goal_log_likelihoods, recover_partner_actions
@@ -103,21 +87,43 @@ from services.engine.messages import (
     EngineStatus,
     EnvInfo,
     Member,
-    ModelUsed,
 )
 from services.engine.model_cache import ModelCache
-from services.engine.networks import MemberQ, StackedGroup, forward_group, overflow_error
-from services.engine.validation import CheckedPartner, CheckedRequest, check_request
+from services.engine.networks import ROW_FORWARD, StackedGroup, forward_group, overflow_error
+from services.engine.planning import (
+    Layout,
+    Needs,
+    PlanCache,
+    Plans,
+    catalogue_plan,
+    constant,
+    impact_q,
+    layout_of,
+    member_inputs,
+    plan_members,
+)
+from services.engine.validation import CheckedRequest, check_request
 
 log = logging.getLogger(__name__)
 
-MEMBER_PLANS_MAX = 1024  # request shapes remembered (the table is cleared when full)
-CONSTANTS_MAX = 256  # constant arrays remembered (`_constant`; cleared when full)
-LAYOUTS_MAX = 256  # request layouts remembered per stacked group (cleared when full)
+# the method `blend_checked` runs for each method: aail_budget is AAIL bounded by R1 at every
+# step, then the budget (B1-B4); sl and jl take the task (joint) network alone
+BLEND_OF: dict[str, BlendMethod] = {
+    "sl": "sl",
+    "jl": "sl",
+    "nail": "nail",
+    "aail": "aail",
+    "aail_bounded": "aail_bounded",
+    "aail_budget": "aail_bounded",
+}
 
 
 class InferenceEngine:
-    """Resolve, load, stack, evaluate, blend and sample (module docstring)."""
+    """Resolve, load, stack, evaluate, blend and sample (module docstring).
+
+    `plans`: the memory of request plans and layouts (a new `PlanCache` if None).
+    `numpy_forward`: numpy's forward even where the compiled one is built (the reference;
+    then every request is served from its own group, `networks.forward_group`)."""
 
     def __init__(
         self,
@@ -127,6 +133,8 @@ class InferenceEngine:
         stack_cache_size: int = 64,
         refresh_interval_s: float = 2.0,
         max_batch: int = 4096,
+        plans: PlanCache | None = None,
+        numpy_forward: bool = False,
     ) -> None:
         for name, value in (("cache_size", cache_size), ("stack_cache_size", stack_cache_size)):
             if value < 1:
@@ -142,15 +150,12 @@ class InferenceEngine:
         self.cache = ModelCache(
             store, self.stats, cache_size=cache_size, stack_cache_size=stack_cache_size
         )
+        self.plans = PlanCache() if plans is None else plans
+        self.numpy_forward = numpy_forward
+        # whether a network's Q-values on a row are the same bits in any group and beside any
+        # other rows (module docstring, "Goal distributions"): the compiled forward's are
+        self.rows_independent = ROW_FORWARD and not numpy_forward
         self._rng = np.random.default_rng()  # for unseeded requests
-        # request shape -> the networks it needs (`_plan_members`; pure, so never stale)
-        self._member_plans: dict[tuple[object, ...], MemberPlan] = {}
-        # a distributions-only plan (by the id of its needs) -> "seen", or "stacked" once its
-        # own group was stacked (`_distributions_group`)
-        self._shapes_seen: dict[int, str] = {}
-        # (env, method, ego goal, alias) -> every goal's plan, and the store generation
-        # (`stats.refreshes`) at which one of its networks was missing (None: none was)
-        self._catalogue_plans: dict[tuple[str, ...], CataloguePlan] = {}
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
@@ -186,56 +191,50 @@ class InferenceEngine:
         public = checked is None  # a transport's request, not a session's (which checks its own)
         if checked is None:
             checked = check_request(request, self.max_batch)
-        domain, method = checked.runtime.domain, request.method
-        members, group = self._resolve_members(request, checked, check_pins=public)
-        layout = _layout(checked, members, group)
-        q_members = forward_group(group, _inputs(checked, members, group, layout))
-        batch, n_actions = checked.obs_BD.shape[0], domain.n_actions
-        if method == "jl":
-            q_task_BA = q_members[0].astype(np.float64)
-        else:  # the task Q averaged over the K task views (one per other agent)
-            q_task_BA = mean_views(q_members[0], q_members[0].shape[0] // batch)
+        plans = self.plans.at(self.cache.generation)
+        members, group = self._resolve_members(request, checked, plans, check_pins=public)
+        layout: Layout = plans.remember(
+            ("layout", group.key, members, checked.partners_key), layout_of, checked, members, group
+        )
+        inputs = member_inputs(checked, members, group, layout)
+        q_members = forward_group(group, inputs, numpy_forward=self.numpy_forward)
+        method, batch = request.method, checked.obs_BD.shape[0]
         epsilon_B, finished_B = aail_bounded_guard(request, group, checked)
-        if finished_B is not None:  # R3: nothing left to earn, the exact task Q is flat
-            flat_BA = np.broadcast_to(q_task_BA.mean(axis=1, keepdims=True), q_task_BA.shape)
-            q_task_BA = np.where(finished_B[:, None], flat_BA, q_task_BA)
-        if method in ("nail", "aail", "aail_bounded", "aail_budget"):
-            # aail_budget: AAIL bounded by R1 at every step, then the budget (B1-B4)
-            blend_method: BlendMethod = "aail_bounded" if method == "aail_budget" else method
-            q_impact_BPA = _impact_q(checked, q_members, layout)
-        else:  # sl, jl: the task/joint network alone
-            blend_method = "sl"
-            q_impact_BPA = np.zeros((batch, 0, n_actions))
-        temperature = request.temperature or group.nets[0].alpha or DEFAULT_TEMPERATURE
+        q_task_BA = task_q(method, q_members[0], batch, finished_B)
+        blend_method = BLEND_OF[method]
+        if blend_method == "sl":  # the task/joint network alone: no impact network evaluated
+            q_impact_BPA = np.zeros((batch, 0, checked.runtime.domain.n_actions))
+        else:
+            q_impact_BPA = impact_q(checked, q_members, layout)
+        temperature = float(request.temperature or group.nets[0].alpha or DEFAULT_TEMPERATURE)
         if method == "aail_budget":  # R1's ε at every step: no oracle sets it to 0
             epsilon_B = np.full(batch, budget_epsilon(request, group))
         # every partner slot is used, one temperature for all rows
+        mask_BP = constant(plans, q_impact_BPA.shape[:2], True)
+        temperature_B = constant(plans, (batch,), temperature)
+        standardise = checked.runtime.domain.blend_normalisation == "standardise"
         try:
             blended = blend_checked(
                 blend_method,
                 q_task_BA,
                 q_impact_BPA,
-                _constant(q_impact_BPA.shape[:2], True),
-                _constant((batch,), float(temperature)),
-                domain.blend_normalisation == "standardise",
+                mask_BP,
+                temperature_B,
+                standardise,
                 epsilon_B,
             )
         except FloatingPointError:  # float32 outputs overflowed: on huge observations, or ...
             raise overflow_error(group, checked.obs_BD, "observations") from None
-        partner_weights_BP = blended.partner_weights_BP
-        if blend_method == "sl":  # no impact network was evaluated: every partner weighs 0
-            partner_weights_BP = np.zeros((batch, len(checked.partners)))
-        rng = self._rng if request.seed is None else np.random.default_rng(request.seed)
-        probs_BA = blended.probs_BA
+        probs_BA, spent_B, total_B = blended.probs_BA, None, None
         kept_BA = goal_kept_of(request, checked, epsilon_B)
         if kept_BA is not None:  # R4: no action that loses the reached goal where one keeps it
             probs_BA = keep_goal_rows(probs_BA, kept_BA)
-        spent_B = total_B = None
         if method == "aail_budget":
             probs_BA, spent_B, total_B = spend_budget(
-                request, checked, q_task_BA, q_impact_BPA, probs_BA, float(temperature)
+                request, checked, q_task_BA, q_impact_BPA, probs_BA, temperature
             )
         # one uniform per row, in order: row r of a batch is not row 1 of a single request
+        rng = self._rng if request.seed is None else np.random.default_rng(request.seed)
         actions_B, greedy_B = sample_rows(probs_BA, rng.random((batch,)))
         return ActColumns(
             method=method,
@@ -245,37 +244,33 @@ class InferenceEngine:
             greedy_actions=greedy_B,
             task_entropies=blended.task_entropy_B,
             task_weights=blended.task_weight_B,
-            partner_weights=partner_weights_BP,
+            # sl and jl evaluated no impact network: every partner weighs 0
+            partner_weights=np.zeros((batch, len(checked.partners)))
+            if blend_method == "sl"
+            else blended.partner_weights_BP,
             budget_spent=spent_B,
             budget_total=total_B,
         )
 
     def _resolve_members(
-        self, request: ActRequest, checked: CheckedRequest, *, check_pins: bool = False
+        self, request: ActRequest, checked: CheckedRequest, plans: Plans, *, check_pins: bool
     ) -> tuple[tuple[Member, ...], StackedGroup]:
-        """The networks the request needs (`_plan_members`) and their stacked group, resolved in
-        order (so the first missing one is the one reported). A cached plan is the same tuple
-        each time, so the cache resolves it as one fixed set (`ModelCache.resolve_group`).
-        `check_pins`: a pinned version of a model the request does not use is an error (a pin
-        that silently does nothing hides a typo)."""
-        key = (
+        """The networks the request needs (`planning.plan_members`) and their stacked group,
+        resolved in order (so the first missing one is the one reported). A remembered plan is
+        the same tuple each time, so the cache resolves it as one fixed set
+        (`ModelCache.resolve_group`). `check_pins`: a pinned version of a model the request
+        does not use is an error (a pin that silently does nothing hides a typo)."""
+        shape = (
             checked.runtime.domain.name,
             request.method,
             request.ego_goal,
             checked.partners_key,
         )
-        plan = self._member_plans.get(key)
-        if plan is None:
-            plan = _plan_members(request, checked)
-            if len(self._member_plans) >= MEMBER_PLANS_MAX:
-                self._member_plans.clear()
-                self._shapes_seen.clear()  # keyed by the plans' ids
-            self._member_plans[key] = plan
-        members, needs = plan
+        members, needs = plans.remember(("members", *shape), plan_members, request, checked)
         if check_pins and request.versions:
             _check_pins_used(request.versions, needs)
-        if _with_distributions(request, checked):
-            served = self._distributions_group(request, checked, members, needs)
+        if self._with_distributions(request, checked):
+            served = self._distributions_group(request, checked, plans, shape, members, needs)
             if served is not None:
                 return served
         _, group = self.cache.resolve_group(
@@ -283,12 +278,25 @@ class InferenceEngine:
         )
         return members, group
 
+    def _with_distributions(self, request: ActRequest, checked: CheckedRequest) -> bool:
+        """Whether every goal's group may serve the request (module docstring, "Goal
+        distributions"): a blend of impact networks, a partner given as a goal distribution,
+        no pinned version, and rows that are independent (`rows_independent`)."""
+        for partner in checked.partners:  # a loop, not any(): most requests announce every goal
+            if partner.probs is not None:
+                break
+        else:
+            return False
+        return BLEND_OF[request.method] != "sl" and not request.versions and self.rows_independent
+
     def _distributions_group(
         self,
         request: ActRequest,
         checked: CheckedRequest,
+        plans: Plans,
+        shape: tuple[object, ...],
         members: tuple[Member, ...],
-        needs: tuple[tuple[str, str, str], ...],
+        needs: Needs,
     ) -> tuple[tuple[Member, ...], StackedGroup] | None:
         """Where a request with a partner given as a goal distribution is served from (module
         docstring, "Goal distributions"): its own group when that is stacked; else every
@@ -297,43 +305,35 @@ class InferenceEngine:
         group = self.cache.cached_group(needs, request.alias, members)
         if group is not None:
             return members, group
-        seen = self._shapes_seen.get(id(needs))  # None, "seen" or "stacked"
+        seen = plans.get(("seen", *shape))  # None, "seen" or "stacked"
         small = len(members) - 1 <= len(checked.runtime.domain.goals) // 4
         if seen == "seen" and small:  # asked for again: its own forward is worth a stack
-            self._shapes_seen[id(needs)] = "stacked"
+            plans.put(("seen", *shape), "stacked")
             return None
-        self._shapes_seen.setdefault(id(needs), "seen")
-        return self._catalogue_group(request, checked, len(members))
+        if seen is None:
+            plans.put(("seen", *shape), "seen")
+        return self._catalogue_group(request, checked, plans, len(members))
 
     def _catalogue_group(
-        self, request: ActRequest, checked: CheckedRequest, own_members: int
+        self, request: ActRequest, checked: CheckedRequest, plans: Plans, own_members: int
     ) -> tuple[tuple[Member, ...], StackedGroup] | None:
         """The stacked group of the task network and EVERY goal's impact network, or None:
         the request's own networks are those already, or one of every goal's is missing or
-        cannot be loaded (then not tried again until the store changes)."""
+        cannot be loaded (then not tried again in this store generation)."""
         domain = checked.runtime.domain
-        key = (domain.name, request.method, request.ego_goal, request.alias)
-        plan = self._catalogue_plans.get(key)
-        if plan is None or (plan[2] is not None and plan[2] != self.stats.refreshes):
-            goals = tuple(domain.goals)
-            every = CheckedPartner(0, goals, tuple(1.0 for _ in goals))
-            members, needs = _plan_members(request, replace(checked, partners=(every,)))
-            plan = (members, needs, None)
-            if len(self._catalogue_plans) >= MEMBER_PLANS_MAX:
-                self._catalogue_plans.clear()
-            self._catalogue_plans[key] = plan
-        members, needs, failed_at = plan
-        if failed_at is not None or own_members == len(members):  # missing, or the same group
+        key = ("catalogue", domain.name, request.method, request.ego_goal, request.alias)
+        plan = plans.remember(key, catalogue_plan, request, checked)
+        if plan.missing or own_members == len(plan.members):  # missing, or the same group
             return None
         try:
-            _, group = self.cache.resolve_group(needs, request.alias, {}, members, domain)
+            _, group = self.cache.resolve_group(plan.needs, request.alias, {}, plan.members, domain)
         except (ModelNotFound, ModelUnavailable):  # the request's own networks may serve:
             # not tried again before the store changes (a failing load per request would cost
             # more than the groups it saves; the request's own path reports its own errors)
-            self._catalogue_plans[key] = (members, needs, self.stats.refreshes)
+            plans.put(key, plan._replace(missing=True))
             return None
         self.stats.catalogue_group_acts += 1
-        return members, group
+        return plan.members, group
 
     # --- goal inference (`goal_inference`) --------------------------------------------------
     def goal_log_likelihoods(
@@ -423,12 +423,6 @@ class InferenceEngine:
         self.stop()
 
 
-MemberPlan = tuple[tuple[Member, ...], tuple[tuple[str, str, str], ...]]
-# every goal's plan, and the store generation at which one of its networks was missing
-CataloguePlan = tuple[tuple[Member, ...], tuple[tuple[str, str, str], ...], int | None]
-Slots = dict[tuple[int, str], tuple[int, int]]
-
-
 def _check_pins_used(pinned: Mapping[str, int], needs: Sequence[tuple[str, str, str]]) -> None:
     used = [name for name, _, _ in needs]
     for name in pinned:
@@ -440,233 +434,19 @@ def _check_pins_used(pinned: Mapping[str, int], needs: Sequence[tuple[str, str, 
             )
 
 
-def _with_distributions(request: ActRequest, checked: CheckedRequest) -> bool:
-    """Whether every goal's group may serve the request (module docstring, "Goal
-    distributions"): a blend of impact networks, a partner given as a goal distribution, no
-    pinned version, and the compiled forward (whose rows are independent: the same Q-values,
-    bit for bit, from any group holding the networks)."""
-    for partner in checked.partners:  # a loop, not any(): most requests announce every goal
-        if partner.probs is not None:
-            break
-    else:
-        return False
-    return (
-        request.method in ("nail", "aail", "aail_bounded", "aail_budget")
-        and not request.versions
-        and networks.ROW_FORWARD  # read at call time: tests switch it
-    )
-
-
-def _plan_members(request: ActRequest, checked: CheckedRequest) -> MemberPlan:
-    """The networks a request needs, as members and (model name, field to blame, why needed):
-    the task (or joint) network first, then the impact networks sorted by name (so that the
-    order in which partners are listed does not change the stacked group)."""
-    runtime = checked.runtime
-    if request.method == "jl":
-        goals = [
-            request.ego_goal,
-            *(p.goals[0] for p in sorted(checked.partners, key=lambda p: p.index)),
-        ]
-        try:
-            name = joint_model_name(runtime.domain.name, goals[0], goals[1:])
-        except InvalidArgument:  # a goal no model name can hold: there is no such network
-            name = f"{runtime.domain.name}/joint/{'+'.join(goals)}"
-        why = "jl needs the joint network of this goal combination"
-        return (("joint", request.ego_goal),), ((name, "method", why),)
-    members: list[Member] = [("task", request.ego_goal)]
-    needs = [(runtime.task_names[request.ego_goal], "ego_goal", "no task network")]
-    if request.method == "sl":
-        return tuple(members), tuple(needs)
-    field_of: dict[str, str] = {}  # goal -> the first partner field that asks for it
-    for i, partner in enumerate(checked.partners):
-        suffix = "goal" if partner.probs is None else "goal_probs"
-        for goal in partner.goals:
-            field_of.setdefault(goal, f"partners[{i}].{suffix}")
-    for goal in sorted(field_of, key=runtime.impact_names.__getitem__):
-        needs.append((runtime.impact_names[goal], field_of[goal], "no impact network"))
-        members.append(("impact", goal))
-    return tuple(members), tuple(needs)
-
-
-class Layout(NamedTuple):
-    """What a request layout (members, partners' indices and goals) fixes, per stacked group."""
-
-    # the impact members in order, as runs of consecutive members serving the same partners:
-    # (the partners' positions, in order; how many members); one run for a belief's group,
-    # whose members all take the same input rows
-    position_runs: tuple[tuple[tuple[int, ...], int], ...]
-    slots: Slots  # (partner position, goal) -> (member, block)
-    models: tuple[ModelUsed, ...]  # the models used, the same objects on every call
-    # the goal distributions' mixes (`_impact_q`): per goal count, the partners' positions and
-    # (P', G) rows of their goals' Q-values among the impact members' rows at batch 1 (member j
-    # has one row per partner it serves; at batch B each row is B rows)
-    mixes: tuple[tuple[tuple[int, ...], np.ndarray], ...]
-
-
-def _layout(checked: CheckedRequest, members: Sequence[Member], group: StackedGroup) -> Layout:
-    """The layout of this request's partners over the group's members, remembered on the
-    group (with a belief over 35 goals and 4 partners: 140 slots and 141 models)."""
-    # an announced goal is not a distribution over it (`partners_key` tells them apart)
-    key = ("layout", tuple(members), checked.partners_key)
-    layout: Layout | None = group.memo.get(key)
-    if layout is not None:
-        return layout
-    member_of = {goal: j for j, (role, goal) in enumerate(members) if role == "impact"}
-    served: list[list[int]] = [[] for _ in members]
-    slots: Slots = {}
-    partners = checked.partners if len(members) > 1 else ()
-    # over a group holding every goal's network: every impact member on the rows of every
-    # partner given as a distribution, so that they share one input and one forward call
-    # whichever goals each partner keeps (an announced partner's goal also on that partner's
-    # row); the compiled forward's rows are independent: the same bits as from any group
-    distributions = [k for k, partner in enumerate(partners) if partner.probs is not None]
-    if distributions and len(members) - 1 == len(checked.runtime.domain.goals):
-        served[1:] = [list(distributions) for _ in members[1:]]
-        for position, partner in enumerate(partners):
-            if partner.probs is None:
-                bisect.insort(served[member_of[partner.goals[0]]], position)
-        for position, partner in enumerate(partners):
-            for goal in partner.goals:
-                j = member_of[goal]
-                slots[(position, goal)] = (j, served[j].index(position))
-    else:  # each member on the rows of the partners that need it, in order
-        for position, partner in enumerate(partners):
-            for goal in partner.goals:
-                j = member_of[goal]
-                slots[(position, goal)] = (j, len(served[j]))
-                served[j].append(position)
-    first_unit = np.cumsum([0] + [len(rows) for rows in served[1:]])  # per member j-1
-    by_count: dict[int, list[int]] = {}
-    for position, partner in enumerate(partners):
-        if partner.probs is not None:
-            by_count.setdefault(len(partner.goals), []).append(position)
-    mixes = tuple(
-        (
-            tuple(positions),
-            np.array(
-                [
-                    [
-                        first_unit[slots[(k, goal)][0] - 1] + slots[(k, goal)][1]
-                        for goal in checked.partners[k].goals
-                    ]
-                    for k in positions
-                ],
-                dtype=np.intp,
-            ),
-        )
-        for positions in by_count.values()
-    )
-    runs = tuple((tuple(rows), len(list(same))) for rows, same in itertools.groupby(served[1:]))
-    layout = Layout(runs, slots, _models_used(checked, members, group), mixes)
-    if len(group.memo) >= LAYOUTS_MAX:
-        group.memo.clear()
-    group.memo[key] = layout
-    return layout
-
-
-def _models_used(
-    checked: CheckedRequest, members: Sequence[Member], group: StackedGroup
-) -> tuple[ModelUsed, ...]:
-    """The task (or joint) network, then per partner (in request order) each goal's impact net."""
-    first = group.nets[0]
-    used = [ModelUsed(members[0][0], first.name, first.version, first.sha256, None, members[0][1])]
-    if len(members) > 1:
-        net_of = {goal: group.nets[j] for j, (role, goal) in enumerate(members) if role == "impact"}
-        for partner in checked.partners:
-            for goal in partner.goals:
-                net = net_of[goal]
-                used.append(
-                    ModelUsed("impact", net.name, net.version, net.sha256, partner.index, goal)
-                )
-    return tuple(used)
-
-
-def _inputs(
-    checked: CheckedRequest, members: Sequence[Member], group: StackedGroup, layout: Layout
-) -> list[np.ndarray]:
-    """Each member's input rows (module docstring, second table)."""
-    obs_BD, n_agents, domain = checked.obs_BD, checked.n_agents, checked.runtime.domain
-    if members[0][0] == "joint":
-        joint = group.nets[0]
-        if joint.spec.obs_dim != obs_BD.shape[1]:
-            raise InvalidRequest(
-                "observations",
-                f"the joint network {joint.name} takes {joint.spec.obs_dim} features, "
-                f"the observations have {obs_BD.shape[1]} (a joint network knows no bystanders)",
-            )
-        return [obs_BD]
-    views_BKP = domain.task_views(obs_BD, n_agents)
-    inputs = [views_BKP.reshape(-1, views_BKP.shape[-1])]
-    if len(members) == 1:
-        return inputs
-    # partner p's impact view is the task view of agent p (`Domain.impact_view`)
-    partners = checked.partners
-    joined: dict[tuple[int, ...], np.ndarray] = {}  # members serving the same partners share
-    for positions, count in layout.position_runs:
-        rows = joined.get(positions)
-        if rows is None:
-            if len(positions) == 1:
-                rows = views_BKP[:, partners[positions[0]].index - 1]
-            else:  # partner after partner, B rows each
-                columns = [partners[position].index - 1 for position in positions]
-                rows_PBF = views_BKP[:, columns].transpose(1, 0, 2)
-                rows = rows_PBF.reshape(-1, views_BKP.shape[-1])
-            joined[positions] = rows
-        inputs += [rows] * count
-    return inputs
-
-
-def _impact_q(checked: CheckedRequest, q_members: MemberQ, layout: Layout) -> np.ndarray:
-    """One impact Q-vector per partner, (B, P, A) float64; a goal distribution is mixed by its
-    probabilities (§3.2: the expected impact Q, `policy.blend.mix_goal_beliefs`' einsum without
-    its checks: a non-finite Q goes on to the caller's overflow check). Distributions over
-    equally many goals (a session's whole beliefs) share one mix (`compiled_mix_goals`, else
-    numpy's einsum), on the impact members' rows as the forward left them
-    (`MemberQ.rows_from`): a numpy call costs more than its arithmetic at a few rows."""
-    batch, n_actions = checked.obs_BD.shape[0], checked.runtime.domain.n_actions
-    partners = checked.partners
-    if not partners:
-        return np.zeros((batch, 0, n_actions))
-    per_partner: list[np.ndarray | None] = [None] * len(partners)
-    for position, partner in enumerate(partners):
-        if partner.probs is None:
-            j, block = layout.slots[(position, partner.goals[0])]
-            per_partner[position] = q_members[j][block * batch : (block + 1) * batch]
-    if layout.mixes:
-        q_all = q_members.rows_from(1)  # the impact members' rows, one after the other
-        for positions, units_PG in layout.mixes:
-            probs = [partners[k].probs or () for k in positions]  # all distributions here
-            q_BPA = compiled_mix_goals(q_all, units_PG, probs, batch)
-            if q_BPA is None:  # the numpy reference
-                rows_PGB = units_PG[:, :, None] * batch + np.arange(batch)
-                q_PGBA = q_all[rows_PGB].astype(np.float64)
-                q_BPA = np.einsum("pg,pgba->bpa", np.array(probs, np.float64), q_PGBA)
-            if len(positions) == len(partners):  # every partner mixed (a session's beliefs)
-                return np.ascontiguousarray(q_BPA)
-            for i, position in enumerate(positions):
-                per_partner[position] = q_BPA[:, i]
-    # np.stack(per_partner, axis=1)'s values from one np.array (np.stack's Python steps cost
-    # more than the arithmetic at a few rows); a copy only where B > 1 makes the transpose strided
-    q_PBA = np.array(per_partner, dtype=np.float64)
-    return np.ascontiguousarray(q_PBA.transpose(1, 0, 2))
-
-
-_CONSTANTS: dict[tuple[tuple[int, ...], bool | float, type], np.ndarray] = {}
-
-
-def _constant(shape: tuple[int, ...], value: bool | float) -> np.ndarray:
-    """A read-only array of `shape` filled with `value` (bool or float64), made once per shape
-    and value: the blend's mask and temperatures are the same for every request of a shape,
-    and building them took four numpy calls per act."""
-    key = (shape, value, type(value))  # the type too: True == 1.0 as keys
-    array = _CONSTANTS.get(key)
-    if array is None:
-        array = np.full(shape, value, dtype=bool if type(value) is bool else np.float64)
-        array.flags.writeable = False
-        if len(_CONSTANTS) >= CONSTANTS_MAX:
-            _CONSTANTS.clear()
-        _CONSTANTS[key] = array
-    return array
+def task_q(
+    method: str, q_task_RA: np.ndarray, batch: int, finished_B: np.ndarray | None
+) -> np.ndarray:
+    """The task Q, (B, A) float64: the joint network's own (jl), else the task network's
+    averaged over the K task views of each row (one per other agent); flat on the rows whose
+    goal is reached for good (`finished_B`, R3: nothing left to earn)."""
+    if method == "jl":
+        return q_task_RA.astype(np.float64)
+    q_task_BA = mean_views(q_task_RA, q_task_RA.shape[0] // batch)
+    if finished_B is not None:
+        flat_BA = np.broadcast_to(q_task_BA.mean(axis=1, keepdims=True), q_task_BA.shape)
+        q_task_BA = np.where(finished_B[:, None], flat_BA, q_task_BA)
+    return q_task_BA
 
 
 def aail_bounded_guard(

@@ -59,12 +59,11 @@ from policy.row_forward import COMPILED as ROW_FORWARD
 from policy.row_forward import row_forward
 from services.engine.environments import EnvRuntime, env_runtime
 from services.engine.errors import EngineError, InvalidRequest
-from services.engine.messages import DEFAULT_TEMPERATURE, Member
+from services.engine.messages import Member
 from services.engine.model_cache import ModelCache
 from services.engine.networks import StackedGroup, overflow_error
 from services.engine.validation import check_alias, check_observations, check_versions
 
-ALPHA_MEMO_KEY = ("goal_inference", "alpha_G")  # the group's per-goal tempered α, memoised
 LIKELIHOOD_TEMPERING = 2.0  # the default likelihood's α over each network's training α
 # whether a pass's rows are each what a pass of that row alone gives, bit for bit (then any
 # subset of a table's partners can be served): the compiled forward computes each row alone;
@@ -142,15 +141,8 @@ def _forward_all(group: StackedGroup, x_1PF: np.ndarray) -> np.ndarray:
 def _training_alphas(group: StackedGroup) -> tuple[np.ndarray, bool]:
     """Each member's likelihood temperature (`LIKELIHOOD_TEMPERING` × its training α), (G, 1, 1)
     to divide (G, P, A) Q-values by goal, and whether one is below `TINY_ALPHA`."""
-    memo = group.memo.get(ALPHA_MEMO_KEY)
-    if memo is None:
-        alpha_G = LIKELIHOOD_TEMPERING * np.array(
-            [net.alpha or DEFAULT_TEMPERATURE for net in group.nets]
-        )
-        memo = (alpha_G[:, None, None], bool(alpha_G.min() < TINY_ALPHA))
-        group.memo[ALPHA_MEMO_KEY] = memo  # immutable group: never stale
-    alphas: tuple[np.ndarray, bool] = memo
-    return alphas
+    alpha_G = LIKELIHOOD_TEMPERING * group.alpha_G
+    return alpha_G[:, None, None], bool(alpha_G.min() < TINY_ALPHA)
 
 
 def _scaled(

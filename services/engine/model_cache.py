@@ -78,6 +78,9 @@ class ModelCache:
         self._swap_lock = threading.Lock()
         self._refresh_lock = threading.Lock()
         self.last_token: str | None = None
+        # the store's generation: moves whenever `refresh()` sees a new change token (what the
+        # engine derived from the store before then may be stale: `planning.PlanCache`)
+        self.generation = 0
         try:
             self.last_token = store.change_token()
         except ModelStoreError as exc:  # the store may come up later; refresh() will retry
@@ -253,6 +256,7 @@ class ModelCache:
                 if token == self.last_token:
                     return False
                 self.stats.refreshes += 1
+                self.generation += 1
                 moved, complete = self._reresolve()
             except ModelStoreError as exc:
                 self.stats.refresh_errors += 1

@@ -50,6 +50,7 @@ from policy.qnet import QNetSpec, stack_numpy, tensors_from_safetensors
 from policy.row_forward import COMPILED as ROW_FORWARD
 from policy.row_forward import numpy_row_forward, row_forward
 from services.engine.errors import EngineError, InvalidRequest, ModelUnavailable
+from services.engine.messages import DEFAULT_TEMPERATURE
 
 K = TypeVar("K", bound=Hashable)
 V = TypeVar("V")
@@ -232,8 +233,9 @@ class Partition:
 class StackedGroup:
     nets: tuple[LoadedNet, ...]
     partitions: tuple[Partition, ...]
-    # per request layout: derived look-up tables (`services.engine.engine`), bounded
-    memo: dict[Hashable, Any] = field(default_factory=dict, repr=False)
+    key: tuple[tuple[str, int], ...]  # the members' (name, version), in order
+    # each member's training temperature (`DEFAULT_TEMPERATURE` where its lineage has none)
+    alpha_G: np.ndarray = field(repr=False)
 
 
 def _row_layers(net: LoadedNet) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
@@ -257,14 +259,19 @@ def build_group(nets: Sequence[LoadedNet]) -> StackedGroup:
     for j, net in enumerate(nets):
         by_spec.setdefault(net.spec, []).append(j)
     partitions = tuple(_partition(nets, members, spec) for spec, members in by_spec.items())
-    return StackedGroup(tuple(nets), partitions)
+    alpha_G = np.array([net.alpha or DEFAULT_TEMPERATURE for net in nets], dtype=np.float64)
+    alpha_G.flags.writeable = False
+    key = tuple((net.name, net.version) for net in nets)
+    return StackedGroup(tuple(nets), partitions, key, alpha_G)
 
 
-def _forward_members(part: Partition, x_XRD: np.ndarray, start: int, count: int) -> np.ndarray:
+def _forward_members(
+    part: Partition, x_XRD: np.ndarray, start: int, count: int, numpy_forward: bool
+) -> np.ndarray:
     """Members `start` .. `start + count - 1` of the partition on x (count or 1, R, D): each
     member on its own rows, or all of them on the same rows (X = 1)."""
     rows, activation = x_XRD.shape[1], part.spec.activation
-    if ROW_FORWARD:
+    if ROW_FORWARD and not numpy_forward:
         return row_forward(x_XRD, part.row_weights, start, count, activation)
     if rows <= STACK_MAX_ROWS:
         return numpy_row_forward(x_XRD, part.row_weights, start, count, activation)
@@ -356,9 +363,13 @@ class MemberQ(Sequence[np.ndarray]):
         return np.concatenate(self[first:])
 
 
-def forward_group(group: StackedGroup, inputs: Sequence[np.ndarray]) -> MemberQ:
+def forward_group(
+    group: StackedGroup, inputs: Sequence[np.ndarray], *, numpy_forward: bool = False
+) -> MemberQ:
     """Q-values (rows_j, A) float32 of every member j on its input (rows_j, obs_dim of its spec),
-    as a `MemberQ`: per partition, in runs of members evaluated together (`_runs`)."""
+    as a `MemberQ`: per partition, in runs of members evaluated together (`_runs`).
+    `numpy_forward`: numpy's matmul even where the compiled forward is built (an install
+    without a C compiler, the tests' and benchmarks' reference)."""
     outputs = MemberQ(len(group.nets))
     for part in group.partitions:
         for g, end, shared in _runs(part, inputs):
@@ -368,7 +379,7 @@ def forward_group(group: StackedGroup, inputs: Sequence[np.ndarray]) -> MemberQ:
             else:  # np.stack's result, from one concatenate (np.stack's Python steps cost more)
                 rows = inputs[same[0]].shape[0]
                 x_XRD = np.concatenate([inputs[j] for j in same]).reshape(len(same), rows, -1)
-            q_GRA = _forward_members(part, x_XRD, g, end - g)
+            q_GRA = _forward_members(part, x_XRD, g, end - g, numpy_forward)
             if same[-1] - same[0] == len(same) - 1:  # consecutive members: found by their call
                 outputs.calls.append((same[0], same[-1] + 1, q_GRA))
             else:

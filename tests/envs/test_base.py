@@ -1,6 +1,6 @@
 """envs.base: what every registered domain promises the engine beyond the types, checked on
 each one: one task view per other agent (the engine reads partner p's impact view out of the
-task views, `services.engine.engine._inputs`)."""
+task views, `services.engine.planning.member_inputs`)."""
 
 from __future__ import annotations
 

@@ -121,19 +121,17 @@ def test_a_vector_width_the_cpu_lacks_is_refused() -> None:
             row_forward(x, layers, 0, 1, "relu", lanes=lanes)
 
 
-def test_a_vector_width_is_refused_where_nothing_is_compiled(
-    monkeypatch: pytest.MonkeyPatch,
-) -> None:
-    """The numpy reference has no width: asking for one is an error, not silently ignored."""
-    monkeypatch.setattr(rf, "COMPILED", False)
-    assert rf.vector_widths() == ()
+def test_a_vector_width_is_refused_for_the_numpy_forward() -> None:
+    """The numpy reference (an install without a C compiler, or asked for) has no width:
+    asking for one is an error, not silently ignored."""
     rng = np.random.default_rng(5)
     layers = stack(rng, (4, 8, 3), 1)
     x = rng.standard_normal((1, 2, 4)).astype(np.float32)
     with pytest.raises(ValueError, match="lanes: expected 0"):
-        row_forward(x, layers, 0, 1, "relu", lanes=8)
+        row_forward(x, layers, 0, 1, "relu", lanes=8, numpy=True)
     np.testing.assert_array_equal(
-        row_forward(x, layers, 0, 1, "relu"), numpy_row_forward(x, layers, 0, 1, "relu")
+        row_forward(x, layers, 0, 1, "relu", numpy=True),
+        numpy_row_forward(x, layers, 0, 1, "relu"),
     )
 
 

@@ -20,7 +20,7 @@ from model_store import impact_model_name, task_model_name
 from model_store.entities import Lineage
 from model_store.sql import SqlModelStore
 from model_store.testing import qnet_spec, qnet_tensors
-from services.engine import ActRequest, InferenceEngine, PartnerSpec, networks
+from services.engine import ActRequest, InferenceEngine, PartnerSpec
 from services.sessions import Observed, Session, SessionPartner, SessionSettings
 
 
@@ -86,15 +86,12 @@ def test_a_large_distribution_stays_on_every_goals_group(store) -> None:
         assert a.models[1:] == b.models[1:]  # the impact networks, in the partners' order
 
 
-def test_announced_goals_alone_and_the_numpy_forward_keep_their_own_group(
-    store, monkeypatch
-) -> None:
-    engine = InferenceEngine(store)
+def test_announced_goals_alone_and_the_numpy_forward_keep_their_own_group(store) -> None:
+    engine, numpy_engine = InferenceEngine(store), InferenceEngine(store, numpy_forward=True)
     obs = random_observation(np.random.default_rng(2), n_agents=3)[None]
     engine.act(_request(obs, (PartnerSpec(1, goal="b3"), PartnerSpec(2, goal="e0"))))
-    monkeypatch.setattr(networks, "ROW_FORWARD", False)
-    engine.act(_request(obs, (PartnerSpec(1, goal_probs={"b3": 0.5, "c1": 0.5}),)))
-    assert engine.stats.catalogue_group_acts == 0
+    numpy_engine.act(_request(obs, (PartnerSpec(1, goal_probs={"b3": 0.5, "c1": 0.5}),)))
+    assert engine.stats.catalogue_group_acts == numpy_engine.stats.catalogue_group_acts == 0
 
 
 @pytest.mark.parametrize("announced_first", [True, False])

@@ -68,25 +68,20 @@ def test_general_path_layouts_are_remembered(tiny_zoo) -> None:
 @pytest.mark.parametrize("announced", [True, False])
 @pytest.mark.parametrize("batch", [1, 3])
 def test_goal_distributions_mix_as_mix_goal_beliefs_does(
-    tiny_zoo,
-    batch: int,
-    announced: bool,
-    numpy_forward: bool,
-    monkeypatch: pytest.MonkeyPatch,
+    tiny_zoo, batch: int, announced: bool, numpy_forward: bool
 ) -> None:
-    """`_impact_q` mixes equal-size distributions in one pass over the impact members' rows
-    (`policy.belief_compiled.compiled_mix_goals`): each partner's expected Q is `mix_goal_beliefs` of its own
-    goals' Q-values (with an announced partner and a distribution of another size beside them,
-    or every partner a distribution over the same goals, as a session's beliefs), also on
-    the Q-values of the numpy forward (an install without a C compiler)."""
+    """`planning.impact_q` mixes equal-size distributions in one pass over the impact members'
+    rows (`policy.belief_compiled.compiled_mix_goals`): each partner's expected Q is
+    `mix_goal_beliefs` of its own goals' Q-values (with an announced partner and a distribution
+    of another size beside them, or every partner a distribution over the same goals, as a
+    session's beliefs), also on the Q-values of the numpy forward (an install without a C
+    compiler)."""
     from policy.blend import mix_goal_beliefs
     from services.engine import ActRequest, InferenceEngine, PartnerSpec
-    from services.engine.engine import _impact_q, _inputs, _layout
     from services.engine.networks import forward_group
+    from services.engine.planning import impact_q, layout_of, member_inputs, plan_members
     from services.engine.validation import check_request
 
-    if numpy_forward:
-        monkeypatch.setattr("services.engine.networks.ROW_FORWARD", False)
     engine = InferenceEngine(tiny_zoo.store)
     rng = np.random.default_rng(batch)
     goals = ["b3", "c1"]
@@ -104,10 +99,13 @@ def test_goal_distributions_mix_as_mix_goal_beliefs_does(
     )
     request = ActRequest("particle", "a2", rng.random((batch, 20)), partners)
     checked = check_request(request, 4096)
-    members, group = engine._resolve_members(request, checked)
-    layout = _layout(checked, members, group)
-    q_members = forward_group(group, _inputs(checked, members, group, layout))
-    got = _impact_q(checked, q_members, layout)
+    members, needs = plan_members(request, checked)
+    domain = checked.runtime.domain
+    _, group = engine.cache.resolve_group(needs, "production", {}, members, domain)
+    layout = layout_of(checked, members, group)
+    inputs = member_inputs(checked, members, group, layout)
+    q_members = forward_group(group, inputs, numpy_forward=numpy_forward)
+    got = impact_q(checked, q_members, layout)
     assert got.shape == (batch, 4, 5) and got.flags.c_contiguous
     for position, partner in enumerate(checked.partners):
         blocks = [layout.slots[(position, goal)] for goal in partner.goals]

@@ -1,7 +1,7 @@
 """The engine's one path on every request layout (single rows and batches, announced goals and
 distributions, impact networks shared between partners, mixed architectures) against the
 naive reference of tests/services/engine/test_engine_reference.py; the same errors and
-counters; the layout memo's bound; thread safety."""
+counters; the plan cache's bound and generation; thread safety."""
 
 from __future__ import annotations
 
@@ -15,7 +15,6 @@ import pytest
 from hypothesis import HealthCheck, given, note, settings
 from hypothesis import strategies as st
 
-import services.engine.engine as engine_module
 from services.engine import (
     DEFAULT_TEMPERATURE,
     ActRequest,
@@ -23,9 +22,11 @@ from services.engine import (
     InvalidRequest,
     PartnerSpec,
 )
+from services.engine.planning import PlanCache
 
 sys.path.insert(0, str(Path(__file__).parent))
 from test_engine_reference import _check_row, reference
+from zoo_fixtures import PAIR_SPEC
 
 GOALS = ("b3", "c1", "d4", "e0", "c")
 
@@ -94,32 +95,43 @@ def test_same_errors_and_counters(tiny_zoo) -> None:
     assert (stats.stack_misses, stats.loads) == (2, 3)  # two groups, three networks
 
 
-def test_layout_memo_is_bounded(tiny_zoo, monkeypatch) -> None:
-    builds: list[int] = []
-    layout_of = engine_module.Layout
-
-    def counting(*args: Any) -> Any:
-        builds.append(1)
-        return layout_of(*args)
-
-    monkeypatch.setattr(engine_module, "Layout", counting)
-    monkeypatch.setattr(engine_module, "LAYOUTS_MAX", 2)
-    engine = InferenceEngine(tiny_zoo.store)
+def test_the_plan_cache_is_bounded(tiny_zoo) -> None:
+    """A cache too small for a request's plan and layout forgets and makes them again: the
+    same answers, never more entries than its capacity; a large one makes them once."""
     obs = np.random.default_rng(3).random((1, 20))
-    rounds = [
-        [
-            engine.act(ActRequest("particle", "a2", obs, (PartnerSpec(i, goal="b3"),), seed=0))
-            for i in (1, 2, 3, 4)  # four layouts of one stacked group
-        ]
-        for _ in range(2)
-    ]
-    assert rounds[0] == rounds[1]
-    assert len(builds) == 8  # two kept at most: every layout was built again in round two
-    monkeypatch.setattr(engine_module, "LAYOUTS_MAX", 256)
-    builds.clear()
-    for _ in range(2):
-        engine.act(ActRequest("particle", "a2", obs, (PartnerSpec(1, goal="d4"),), seed=0))
-    assert len(builds) == 1
+
+    def acts(engine: InferenceEngine, sizes: list[int]) -> list[Any]:
+        answers = []
+        for i in (1, 2, 3, 4):  # four layouts of one stacked group
+            partners = (PartnerSpec(i, goal="b3"),)
+            answers.append(engine.act(ActRequest("particle", "a2", obs, partners, seed=0)))
+            sizes.append(len(engine.plans))
+        return answers
+
+    sizes: list[int] = []
+    small = InferenceEngine(tiny_zoo.store, plans=PlanCache(capacity=3))
+    rounds = [acts(small, sizes) for _ in range(2)]
+    assert rounds[0] == rounds[1] and max(sizes) <= 3
+    large = InferenceEngine(tiny_zoo.store)
+    assert acts(large, sizes) == rounds[0]
+    grown = len(large.plans)
+    assert acts(large, sizes) == rounds[0] and len(large.plans) == grown  # nothing new made
+
+
+def test_a_store_generation_starts_an_empty_plan_cache(tiny_zoo) -> None:
+    """The cache's one rule: what it holds belongs to the store generation it was made in."""
+    plans = PlanCache()
+    engine = InferenceEngine(tiny_zoo.store, plans=plans)
+    obs = np.random.default_rng(4).random((1, 12))
+    request = ActRequest("particle", "a2", obs, (PartnerSpec(1, goal="b3"),), seed=0)
+    first = engine.act(request)
+    before = plans.at(engine.cache.generation)
+    assert len(before) > 0
+    tiny_zoo.register("particle/impact/e0", "impact", ("e0",), PAIR_SPEC, 77)  # a change
+    engine.refresh()
+    assert engine.cache.generation == 1
+    assert engine.act(request) == first
+    assert plans.at(engine.cache.generation) is not before and len(plans) == len(before)
 
 
 def test_concurrent_requests_match_sequential_ones(tiny_zoo) -> None:

@@ -72,7 +72,7 @@ def test_default_steps_reuse_one_group_and_layout(engine: InferenceEngine) -> No
     rng = np.random.default_rng(2)
     session.step(random_observation(rng))
     session.step(random_observation(rng), [Observed(1, 0)])
-    stats, plans = engine.stats.snapshot(), len(engine._member_plans)
+    stats, plans = engine.stats.snapshot(), len(engine.plans)
     tops = set()
     for t in range(30):
         answer = session.step(random_observation(rng), [Observed(1, t % 5)])
@@ -80,7 +80,7 @@ def test_default_steps_reuse_one_group_and_layout(engine: InferenceEngine) -> No
     assert len(tops) > 1  # the belief did move
     assert (engine.stats.stack_misses, engine.stats.loads) == (stats.stack_misses, stats.loads)
     assert engine.stats.stack_hits == stats.stack_hits + 2 * 30
-    assert len(engine._member_plans) == plans
+    assert len(engine.plans) == plans
 
 
 def test_a_truncated_blend_is_still_an_option(engine: InferenceEngine) -> None:
