@@ -34,7 +34,7 @@ from rich.table import Table
 
 if TYPE_CHECKING:
     from model_store.entities import RegisteredModel
-    from model_store.sql import SqlModelStore
+    from model_store.store import ModelStore
 
 app = typer.Typer(
     help="List, inspect, promote, export and import registered models.", no_args_is_help=True
@@ -69,7 +69,7 @@ Server = Annotated[
 @contextmanager
 def _store(
     url: str | None, server: str | None = None, *, create: bool = False
-) -> Iterator[SqlModelStore]:
+) -> Iterator[ModelStore]:
     """Open the store (or, with `server`, the server's registry behind the same methods);
     domain errors become a one-line message and an exit code. Only `create` (the commands that
     write a first model or the schema) makes a SQLite file that does not exist: a mistyped path
@@ -331,4 +331,6 @@ def import_(
 def migrate(store_url: StoreUrl = None) -> None:
     """Create or upgrade the store's database schema to this version of coexist."""
     with _store(store_url, create=True) as store:
-        _console().print(f"{store!r}: schema at {store.schema_revision}")
+        # a backend without a schema (a plugin's) has nothing to migrate: opening it is all
+        revision = getattr(store, "schema_revision", "(no schema revision: nothing to migrate)")
+        _console().print(f"{store!r}: schema at {revision}")

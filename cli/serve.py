@@ -62,8 +62,8 @@ def serve(
         os.environ["COEXIST_STORE_URL"] = store_url
     os.environ["COEXIST_CREATE_STORE"] = "true" if create_store else "false"
 
+    from model_store.defaults import check_store_url
     from model_store.errors import InvalidArgument
-    from model_store.sql.engine import check_store_exists, create_store_engine, sqlite_file
     from services.http_protocol import GuardedHttpProtocol
     from services.http_server import serve as serve_http
     from services.logging import log_config
@@ -75,12 +75,8 @@ def serve(
     except InsecureSettings as err:
         typer.echo(f"error: {err}", err=True)
         raise typer.Exit(2) from None
-    try:  # a mistyped path or a missing driver, named before anything starts
-        url = settings.resolved_store_url()
-        if sqlite_file(url) is None:
-            create_store_engine(url).dispose()  # imports the driver; connects nowhere yet
-        elif not settings.creates_store:
-            check_store_exists(url)
+    try:  # a mistyped path, a missing driver or an unknown scheme, named before anything starts
+        check_store_url(settings.resolved_store_url(), create=settings.creates_store)
     except InvalidArgument as err:
         typer.echo(f"error: {err}", err=True)
         raise typer.Exit(2) from None

@@ -123,8 +123,10 @@ class EnvPlugin:
 
     domain: Domain
     make_env: Callable[..., ParallelEnv]
-    """`make_env(goals=[...], **kwargs)` -> a PettingZoo `ParallelEnv` with one agent per goal;
-    `max_steps=` is passed where an episode length is asked for."""
+    """`make_env(goals=[...], **kwargs)` -> a PettingZoo `ParallelEnv` with one agent per goal
+    (a ValueError for goals it cannot host together); coexist passes `max_steps=` (the episode
+    length; the env truncates there), and `render_mode="rgb_array"` only where frames are
+    recorded (`coexist run --gif`)."""
     training: str | object | None = None
     drawing: Drawing | None = None
     """How the console draws it; None: `PlainDrawing`."""

@@ -136,6 +136,13 @@ class ModelStore(ABC):
         """Events with id > `since_id`, oldest first, at most `limit` (1..1000)."""
 
     # --- lifecycle -------------------------------------------------------------------------
+    def reopen_url(self) -> str | None:
+        """The URL by which another process (a training job's subprocess, a Ray worker) opens
+        this same store through `model_store.defaults.open_store`, secrets included: it goes
+        into that process's environment, never onto a command line, into a log or an answer.
+        None where no other process can reach it (the default: an in-process store)."""
+        return None
+
     def close(self) -> None:  # noqa: B027 - optional hook, most stores hold nothing
         """Release connections; the store must not be used afterwards."""
 

@@ -175,9 +175,9 @@ def _run_one(
     max_steps: int,
     record: bool,
 ) -> EpisodeResult:
-    env = make_env(
-        env_name, goals, max_steps=max_steps, render_mode="rgb_array" if record else None
-    )
+    # render_mode only when frames are recorded: a plugin's factory need not take it otherwise
+    rendering = {"render_mode": "rgb_array"} if record else {}
+    env = make_env(env_name, goals, max_steps=max_steps, **rendering)
     domain, agents = get_domain(env_name), env.possible_agents
     observations, _ = env.reset(**reset)
     frames = [env.render()] if record else []

@@ -76,26 +76,29 @@ class JobRequest(RequestBody):
     )
 
 
-def _store_url(app: FastAPI) -> str:
-    """The store's URL for a subprocess in another directory (SQLite paths made absolute),
-    password included: it goes only to the job table's engine and into the trainer's
-    environment (`JobRunner`), never onto a command line, into a log or into an answer."""
-    url = getattr(getattr(app.state, "store", None), "url", None)
-    if url is None:
+def _store_urls(app: FastAPI) -> tuple[str, str]:
+    """The job table's database URL (the store's own SQL database, SQLite paths made absolute)
+    and the URL a job's subprocess opens the store by (`ModelStore.reopen_url`: a plugin's
+    scheme stays a plugin's scheme), passwords included: they go only to the job table's engine
+    and into the trainer's environment (`JobRunner`), never onto a command line, into a log or
+    into an answer."""
+    store = getattr(app.state, "store", None)
+    url = getattr(store, "url", None)
+    if store is None or url is None:
         raise StoreUnavailable("training jobs need a SQL model store (and it is not open)")
     if url.get_backend_name() == "sqlite" and url.database:
         url = url.set(database=str(Path(url.database).absolute()))
-    rendered: str = url.render_as_string(hide_password=False)
-    return rendered
+    table_url: str = url.render_as_string(hide_password=False)
+    return table_url, store.reopen_url() or table_url
 
 
 def _open(app: FastAPI) -> tuple[JobTable, JobRunner]:
     jobs: tuple[JobTable, JobRunner] | None = getattr(app.state, "jobs", None)
     if jobs is None:
-        url = _store_url(app)
+        table_url, store_url = _store_urls(app)
         lease_s = app.state.settings.job_lease_s
-        table = JobTable(url, stale_after_s=lease_s)
-        jobs = table, JobRunner(table, store_url=url, heartbeat_s=lease_s / 6)
+        table = JobTable(table_url, stale_after_s=lease_s)
+        jobs = table, JobRunner(table, store_url=store_url, heartbeat_s=lease_s / 6)
         app.state.jobs = jobs
     return jobs
 

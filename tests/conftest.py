@@ -9,6 +9,10 @@ import torch
 
 torch.set_num_threads(1)
 
+# The plugin distribution's own tests (tests/envs/tinyline/tests) run only with it installed, as
+# its author runs them: tests/cli/test_plugin_end_to_end.py installs it and runs them.
+collect_ignore = ["envs/tinyline"]
+
 
 # --- the tiny plugin distribution of tests/envs/tinyline (an environment and a store backend) ---
 

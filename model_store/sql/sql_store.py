@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
+from pathlib import Path
 from typing import Any
 
 from sqlalchemy import delete, exists, or_, select
@@ -86,6 +87,15 @@ class SqlModelStore(VersionOps, ModelStore):
 
     def close(self) -> None:
         self._engine.dispose()
+
+    def reopen_url(self) -> str:
+        """`ModelStore.reopen_url`: this URL, a SQLite path made absolute (the other process
+        may run in another directory)."""
+        url = self.url
+        if url.get_backend_name() == "sqlite" and url.database:
+            url = url.set(database=str(Path(url.database).absolute()))
+        rendered: str = url.render_as_string(hide_password=False)
+        return rendered
 
     def _where(self) -> str:
         return f"model store database {self.url.render_as_string(hide_password=True)} unavailable"

@@ -2,13 +2,22 @@
 
 from __future__ import annotations
 
+from importlib.metadata import EntryPoint
 from pathlib import Path
 
 import pytest
 
-from model_store.defaults import default_store_url, open_store
+from model_store import defaults
+from model_store.defaults import (
+    check_store_url,
+    default_store_url,
+    open_store,
+    store_factory,
+    store_schemes,
+)
 from model_store.errors import InvalidArgument
 from model_store.lineage import code_version
+from model_store.sql import SqlModelStore
 from model_store.sql.engine import normalise_url
 
 
@@ -45,3 +54,35 @@ def test_urls_are_normalised_to_psycopg_and_bad_ones_refused() -> None:
 def test_code_version_is_a_non_empty_string() -> None:
     version = code_version()
     assert isinstance(version, str) and version
+
+
+def test_the_scheme_picks_the_backend(tmp_path: Path) -> None:
+    """coexist's SQL store under its schemes (a dialect's `+driver` falls back to the scheme);
+    an unknown scheme or none is `InvalidArgument` on `store_url` naming the installed ones."""
+    assert {"sqlite", "postgresql", "postgres"} <= set(store_schemes())
+    assert store_factory("sqlite:///x.db") is SqlModelStore
+    assert store_factory("postgresql+psycopg://u@h/d") is SqlModelStore
+    with open_store(f"sqlite:///{tmp_path / 'm.db'}", create=True) as store:
+        assert isinstance(store, SqlModelStore)
+        assert store.reopen_url() == f"sqlite:///{tmp_path / 'm.db'}"
+    for bad, shown in (("nosuch://x", "scheme 'nosuch'"), ("models.db", "no scheme")):
+        with pytest.raises(InvalidArgument) as err:
+            open_store(bad)
+        assert err.value.field == "store_url"
+        assert shown in str(err.value) and "installed: " in str(err.value)
+        assert "postgresql" in str(err.value)
+
+
+def test_a_backend_that_fails_to_load_is_named(monkeypatch: pytest.MonkeyPatch) -> None:
+    broken = [EntryPoint("broken", "no_such_backend:open", defaults.ENTRY_POINT_GROUP)]
+    monkeypatch.setattr(defaults, "entry_points", lambda group: broken)
+    with pytest.raises(InvalidArgument, match=r"scheme 'broken' \(no_such_backend:open\) failed"):
+        open_store("broken://x")
+
+
+def test_check_store_url_names_what_opening_would_refuse(tmp_path: Path) -> None:
+    with pytest.raises(InvalidArgument, match="no SQLite database"):
+        check_store_url(f"sqlite:///{tmp_path / 'missing.db'}", create=False)
+    check_store_url(f"sqlite:///{tmp_path / 'missing.db'}", create=True)
+    with pytest.raises(InvalidArgument, match="scheme 'nosuch'"):
+        check_store_url("nosuch://x", create=True)
