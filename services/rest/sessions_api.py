@@ -219,8 +219,10 @@ def _session_json(info: SessionInfo) -> dict[str, Any]:
     }
 
 
-def _observation(env: str, body: SessionStepBody) -> tuple[np.ndarray | list[float], bool]:
-    """The step's ego observation and whether it came as a state."""
+def _observation(
+    settings: SessionSettings | None, body: SessionStepBody
+) -> tuple[np.ndarray | list[float], bool]:
+    """The step's ego observation and whether it came as a state (`settings` given then)."""
     if (body.observation is None) == (body.state is None):
         raise InvalidRequest(
             "observation", "give exactly one of observation and state (with ego_index)"
@@ -231,6 +233,8 @@ def _observation(env: str, body: SessionStepBody) -> tuple[np.ndarray | list[flo
         return body.observation or [], False
     if body.ego_index is None:
         raise InvalidRequest("ego_index", "required with state")
+    assert settings is not None
+    env = settings.env
     return observations_from_states(env, [body.state], body.ego_index, field="state")[0], True
 
 
@@ -242,8 +246,10 @@ async def step_session(session_id: str, body: SessionStepBody, request: Request)
     """One step: the partners' actions since the previous step update the beliefs, then the
     blended action for this observation."""
     store = session_store(request)
-    settings = store.settings(session_id)
-    observation, from_state = _observation(settings.env, body)
+    # the settings before the step only for a state (its env turns it into an observation):
+    # after it, a shared store has them from the session it just stepped, with no round trip
+    settings = store.settings(session_id) if body.state is not None else None
+    observation, from_state = _observation(settings, body)
     observed = [Observed(o.index, o.action) for o in body.observed]
     try:
         answer = store.step(session_id, observation, observed, body.expected_step)
@@ -251,7 +257,7 @@ async def step_session(session_id: str, body: SessionStepBody, request: Request)
         if from_state and err.field == "observation":
             raise err.renamed("state") from None
         raise
-    response = _json(_step_json(settings, answer))
+    response = _json(_step_json(settings or store.settings(session_id), answer))
     if store.prefetch:  # after the answer is sent, on this event loop (no thread hop)
         response.background = BackgroundTask(_prepare_next, store, session_id)
     return response
