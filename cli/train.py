@@ -206,14 +206,21 @@ def _on_ray(
         )
     from trainer.backends.ray_cluster import job_id_for, run_on_ray
 
-    if address and store.url.get_backend_name() == "sqlite":
+    sql_url = getattr(store, "url", None)  # a plugin's backend may have none
+    if address and sql_url is not None and sql_url.get_backend_name() == "sqlite":
         typer.echo(
             "warning: the store is a SQLite file, which Ray workers on other machines cannot "
             "reach: use a PostgreSQL --store-url for a cluster",
             err=True,
         )
+    worker_url = store.reopen_url()  # how the workers open the same store
+    if worker_url is None:
+        raise typer.BadParameter(
+            f"{store!r} cannot be opened by another process: Ray workers need one that can",
+            param_hint="--store-url",
+        )
     return run_on_ray(
-        store.url.render_as_string(hide_password=False),
+        worker_url,
         stages,
         run=run,
         job_id=job_id_for(run_dir, resume),

@@ -130,3 +130,18 @@ def test_check_train_serve_run_job_and_console(installed: dict[str, str]) -> Non
     commands = {" ".join(line.split()[1:3]) for line in opened}
     # the CLI, the server and the job's subprocess each picked the backend by the scheme
     assert {"train zoo", "serve --no-bootstrap", "train task"} <= commands, opened
+
+
+def test_ray_workers_open_the_store_by_its_scheme(installed: dict[str, str]) -> None:
+    root = Path(installed["ROOT"])
+    opened = root / "data" / "models.db.opened"
+    before = opened.read_text().splitlines() if opened.exists() else []
+    trained = _run(
+        installed, "train", "task", "--env", "tinyline", "--goals", "c4", "--steps", "50",
+        "--backend", "ray", "--run-dir", str(root / "ray"),
+    )  # fmt: skip
+    assert trained.returncode in (0, 4), trained.stdout[-3000:] + trained.stderr[-3000:]
+    new = opened.read_text().splitlines()[len(before) :]
+    # the CLI itself, and a Ray worker process (not a `coexist` command line)
+    assert any(" train task" in line for line in new), new
+    assert any(not line.split(" ", 1)[1].startswith(("train", "serve")) for line in new), new

@@ -118,9 +118,12 @@ def publish_once(
 ) -> list[ModelVersion]:
     """`publish_batch` with the job marker, under the publish lock, skipping marked members.
 
-    `store_url` must name the database `store` writes to (the lock lives there)."""
+    The lock lives in the database `store` writes to: its SQL `url` (a plugin backend over a
+    SQL database has one too), else `store_url`, which must then name that database."""
     once = cast(ModelStore, _RegisterOnce(store, job_key, on_register))
-    with publish_lock(store_url, job_key):
+    sql_url = getattr(store, "url", None)
+    lock_url = sql_url.render_as_string(hide_password=False) if sql_url is not None else store_url
+    with publish_lock(lock_url, job_key):
         return publish_batch(
             once,
             batch,

@@ -32,8 +32,9 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from model_store.defaults import open_store
+from model_store.defaults import open_store, store_factory
 from model_store.errors import StoreUnavailable
+from model_store.sql import SqlModelStore
 from model_store.sql.engine import is_sqlite, normalise_url
 from trainer.config import SoftQConfig
 from trainer.zoo import RunState, goals_without
@@ -67,7 +68,10 @@ def job_id_for(run_dir: Path, resume: bool) -> str:
 
 
 def portable_store_url(store_url: str) -> str:
-    """The URL as a worker must see it: a SQLite path made absolute (workers' cwd differs)."""
+    """The URL as a worker must see it: a SQLite path made absolute (workers' cwd differs); a
+    plugin backend's URL as given (its `ModelStore.reopen_url`, which any process can open)."""
+    if store_factory(store_url) is not SqlModelStore:
+        return store_url
     url = normalise_url(store_url)
     if is_sqlite(url):
         url = url.set(database=str(Path(url.database or "").expanduser().absolute()))
