@@ -15,7 +15,8 @@ every worker and replica reaches; without it they live in one process's memory, 
 
 Routes: `/v1/act`, `/v1/act:batch`, `/v1/envs`, `/v1/sessions` (services.rest), the registry under
 `/v1/registry` (services.registry), `/v1/jobs`, `/healthz` (liveness), `/readyz` (models loaded,
-store reachable), `/metrics` (Prometheus), the OpenAPI docs at `/docs` and, after all of them,
+store reachable), `/metrics` (Prometheus), the OpenAPI docs at `/docs`, the pages of the error
+answers' problem types at `/problems/...` (services.problems) and, after all of them,
 the web console at `/console/` (services.console; `/` redirects there); with a read token
 required, all of them but `/healthz` and the console's page behind it (`services.auth`). Every response carries
 `X-Request-ID` (the request's own, else a new one) and every log line written while serving it
@@ -57,6 +58,9 @@ from services.metrics import (
 )
 from services.oip.rest import V2ErrorBodies
 from services.oip.rest import router as v2_router
+from services.problems import is_public as problem_is_public
+from services.problems import router as problems_router
+from services.problems import with_problem_responses
 from services.registry import router as registry_router
 from services.registry.errors import install_error_handlers as install_registry_errors
 from services.registry.errors import unexpected_response
@@ -74,7 +78,14 @@ from services.warmup import warm_up
 
 log = logging.getLogger("coexist.server")
 
-ROUTERS: list[APIRouter] = [act_router, sessions_router, registry_router, jobs_router, v2_router]
+ROUTERS: list[APIRouter] = [
+    act_router,
+    sessions_router,
+    registry_router,
+    jobs_router,
+    v2_router,
+    problems_router,
+]
 
 
 def create_app(
@@ -174,7 +185,7 @@ def create_app(
     app.state.sessions = None  # the lifespan's session store
     app.state.grpc_port = None
     # The registry's handlers first, then the inference API's (which also format request
-    # validation errors for every route): one JSON error shape everywhere.
+    # validation errors for every route): problem details everywhere (services.problems).
     install_registry_errors(app)
     install_act_errors(app)
 
@@ -197,7 +208,9 @@ def create_app(
     app.add_middleware(
         TokenGate,
         accepted=settings.accepted_tokens(),
-        is_public=lambda path: console_is_public(path) or docs_is_public(path),
+        is_public=lambda path: (
+            console_is_public(path) or docs_is_public(path) or problem_is_public(path)
+        ),
         required=settings.reads_need_token,
     )
     # outermost: the id is set before anything logs, and an error no handler took is answered
@@ -237,6 +250,7 @@ def create_app(
         app.include_router(router)
     install_docs_page(app)
     _docs_after_the_api(app)
+    _problem_details_in_openapi(app)
     install_console(app)  # last: every other route is matched before a console route is tried
     return app
 
@@ -249,6 +263,19 @@ def _docs_after_the_api(app: FastAPI) -> None:
     routes = app.router.routes
     docs = [route for route in routes if getattr(route, "path", None) in docs_paths]
     routes[:] = [route for route in routes if route not in docs] + docs
+
+
+def _problem_details_in_openapi(app: FastAPI) -> None:
+    """`/openapi.json` documents every error answer outside `/v2` as problem details, the
+    validation errors FastAPI documents itself included (`services.problems`)."""
+    build = app.openapi
+
+    def openapi() -> dict[str, Any]:
+        if app.openapi_schema is None:
+            app.openapi_schema = with_problem_responses(build())
+        return app.openapi_schema
+
+    app.openapi = openapi  # type: ignore[method-assign]
 
 
 def _without_fastapi_telemetry() -> dict[str, Any]:

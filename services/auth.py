@@ -29,7 +29,8 @@ from collections.abc import Callable
 from typing import Any
 
 import grpc
-import orjson
+
+from services.problems import MEDIA_TYPE, problem_bytes
 
 OPEN_PATHS = frozenset({"/healthz"})
 READY_PATH = "/readyz"
@@ -103,13 +104,13 @@ class TokenGate:
         elif refused is None:
             await self.app(scope, receive, send)
         else:
-            await _refuse(send, *refused)
+            await _refuse(send, *refused, instance=path)
 
 
-async def _refuse(send: Any, status: int, code: str, message: str) -> None:
-    body = orjson.dumps({"error": {"code": code, "message": message, "field": None}})
+async def _refuse(send: Any, status: int, code: str, message: str, *, instance: str) -> None:
+    body = problem_bytes(status, code, message, instance=instance)
     headers = [
-        (b"content-type", b"application/json"),
+        (b"content-type", MEDIA_TYPE.encode()),
         (b"content-length", str(len(body)).encode()),
     ]
     if status == 401:

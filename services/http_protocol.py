@@ -27,7 +27,7 @@ cannot open its file either. `GuardedHttpProtocol` adds, per connection:
 
 Closing the longest-waiting idle connection, rather than refusing the new one, keeps a server
 whose every slot is held by silent sockets answering: a real client sends its request at once and
-so is never the one that waited longest. Refusals are answered with the JSON error shape of the
+so is never the one that waited longest. Refusals are answered with the problem details of the
 API; after a 431 the server drops what the client still sends for `LINGER_S` before it closes,
 so a client that is still sending reads the answer rather than a reset.
 
@@ -43,7 +43,6 @@ a process: uvicorn builds the protocol itself, in each worker.
 from __future__ import annotations
 
 import fcntl
-import json
 import logging
 import resource
 import struct
@@ -54,6 +53,7 @@ from typing import Any, ClassVar
 
 from uvicorn.protocols.http.httptools_impl import STATUS_LINE, HttpToolsProtocol
 
+from services.problems import MEDIA_TYPE, problem_bytes
 from services.settings import Settings, get_settings
 
 log = logging.getLogger("coexist.server")
@@ -223,17 +223,18 @@ class GuardedHttpProtocol(HttpToolsProtocol):
         self.loop.call_at(deadline, self._check)
 
     def _refuse(self, status: int, code: str, message: str, field: str | None = None) -> None:
-        """Answer `status` with the API's error shape and half-close; whatever the client still
-        sends is dropped. The caller closes the connection."""
+        """Answer `status` with problem details (the API's error shape, `services.problems`) and
+        half-close; whatever the client still sends is dropped. The caller closes the
+        connection."""
         self._refused = True
         self._unset_keepalive_if_required()
         if self._awaiting_head():  # never into the middle of another answer
-            body = json.dumps({"error": {"code": code, "field": field, "message": message}})
+            body = problem_bytes(status, code, message, field)
             head = (
-                f"content-type: application/json\r\ncontent-length: {len(body)}\r\n"
+                f"content-type: {MEDIA_TYPE}\r\ncontent-length: {len(body)}\r\n"
                 "connection: close\r\n\r\n"
             )
-            self.transport.write(STATUS_LINE[status] + head.encode() + body.encode())
+            self.transport.write(STATUS_LINE[status] + head.encode() + body)
             if self.transport.can_write_eof():
                 self.transport.write_eof()
 

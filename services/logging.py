@@ -154,7 +154,7 @@ class RequestIdMiddleware:
     with `record`, the request's count and latency for the metrics; with `tracer`, one span.
 
     All of a request's observability in one pure ASGI layer: one wrapper of `send`, one clock
-    read at each end, the route template looked up once. `on_error(exc)`, when given, answers an
+    read at each end, the route template looked up once. `on_error(exc, path)`, when given, answers an
     exception that escaped the app before its response started (an ASGI response, e.g. the 500
     error body): here, inside the server's own error layer, the answer still carries the request
     id and the connection stays open. `tracer` (`services.tracing.Tracer`, None when tracing is
@@ -164,7 +164,7 @@ class RequestIdMiddleware:
     def __init__(
         self,
         app: Any,
-        on_error: Callable[[Exception], Any] | None = None,
+        on_error: Callable[[Exception, str], Any] | None = None,
         record: Recorder | None = None,
         tracer: Any = None,
     ) -> None:
@@ -217,7 +217,7 @@ class RequestIdMiddleware:
                 if span is not None:
                     span.fail(exc)
                 raise
-            await self.on_error(exc)(scope, receive, send_with_id)
+            await self.on_error(exc, scope.get("path", ""))(scope, receive, send_with_id)
         finally:
             if started:
                 record_once()  # a response cut off before its last byte still counts

@@ -164,14 +164,37 @@ def answer(response: httpx.Response, raw: bool = False) -> Any:
         if raw:
             return Raw(response.content, dict(response.headers))
         return response.json() if response.content else None  # 204: no body
-    try:
-        error = response.json()["error"]
-        message, field_name = str(error["message"]), error.get("field")
-    except (ValueError, KeyError, TypeError):
-        message, field_name = f"HTTP {response.status_code}: {response.text[:500]}", None
+    message, field_name = error_message(response)
     err = error_for_http(response.status_code, message, field_name)
     err.unsent = response.status_code == 503
     raise err
+
+
+def error_message(response: httpx.Response) -> tuple[str, str | None]:
+    """(message, field at fault) of an error answer. The server answers RFC 9457 problem
+    details (`{"type", "title", "status", "detail", "code", "field", ...}`); servers before them
+    answered `{"error": {"code", "message", "field"}}`, read too for one release. Anything
+    else (a proxy's page) is told by its status and its first 500 characters."""
+    try:
+        body = response.json()
+    except ValueError:
+        body = None
+    if isinstance(body, dict):
+        error = body.get("error")
+        if isinstance(error, dict) and isinstance(error.get("message"), str):  # the older shape
+            return error["message"], _text_or_none(error.get("field"))
+        detail = body.get("detail")
+        if isinstance(detail, str):  # problem details
+            return detail, _text_or_none(body.get("field"))
+        if isinstance(body.get("title"), str):  # problem details without a detail
+            return body["title"], _text_or_none(body.get("field"))
+        if isinstance(error, str):  # the Open Inference Protocol's `{"error": "<message>"}`
+            return error, None
+    return f"HTTP {response.status_code}: {response.text[:500]}", None
+
+
+def _text_or_none(value: Any) -> str | None:
+    return value if isinstance(value, str) else None
 
 
 def grpc_error(err: grpc.RpcError) -> CoexistError:

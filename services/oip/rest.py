@@ -370,8 +370,9 @@ def _protocol_error(status: int, body: bytes) -> tuple[int, bytes]:
         error = parsed.get("error")
         if isinstance(error, str):
             return status, body  # already the protocol's
-        if isinstance(error, dict):  # `/v1`'s shape
+        if isinstance(error, dict):  # an older `{"error": {"message": ...}}`
             message = error.get("message")
+        # problem details (services.problems), FastAPI's `{"detail": ...}`
         message = message or parsed.get("detail") or parsed.get("title")
     if not isinstance(message, str):
         message = body.decode("utf-8", "replace").strip() if 0 < len(body) <= 2000 else ""

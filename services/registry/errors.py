@@ -1,10 +1,11 @@
 """One error shape for every HTTP error, and the one table mapping domain errors to statuses.
 
-Every 4xx/5xx body is `{"error": {"code": str, "message": str, "field": str | null}}`; request
-validation errors also carry `details` (FastAPI's list, the first `MAX_DETAILS`). Messages and
-fields are clipped (`error_response`), so no answer echoes a request without bound. No error
-leaves as a bare 500 page: the model store turns database failures into `StoreUnavailable`
-(503), and anything unforeseen is still answered in this shape.
+Every 4xx/5xx body is an RFC 9457 problem details object (`application/problem+json`,
+`services.problems`): `type`, `title`, `status`, `detail`, `instance`, and the extension
+members `code` and `field`; request validation errors also carry `errors` (FastAPI's list, the
+first `MAX_DETAILS`). Messages and fields are clipped, so no answer echoes a request without
+bound. No error leaves as a bare 500 page: the model store turns database failures into
+`StoreUnavailable` (503), and anything unforeseen is still answered in this shape.
 
 | domain error (model_store.errors) | status |
 |-----------------------------------|--------|
@@ -25,7 +26,6 @@ from typing import Any
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
-from pydantic import BaseModel
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from model_store.errors import (
@@ -37,13 +37,12 @@ from model_store.errors import (
     NotFound,
     SchemaTooNew,
     StoreUnavailable,
-    clip,
 )
+from services.problems import MAX_DETAILS, ProblemResponse, documented, problem
 
 log = logging.getLogger(__name__)
 
-FIELD_CHARS = 200  # field names hold request keys (`versions[...]`): clipped like messages
-MAX_DETAILS = 20  # validation details answered (the message names the first)
+__all__ = ["MAX_DETAILS", "ApiError", "error_response", "install_error_handlers"]
 
 # Most specific first: the first class the error is an instance of decides.
 DOMAIN_STATUS: tuple[tuple[type[ModelStoreError], int], ...] = (
@@ -56,18 +55,6 @@ DOMAIN_STATUS: tuple[tuple[type[ModelStoreError], int], ...] = (
     (StoreUnavailable, 503),
     (ModelStoreError, 503),
 )
-
-
-class ErrorBody(BaseModel):
-    code: str
-    message: str
-    field: str | None = None
-
-
-class ErrorResponse(BaseModel):
-    """The body of every error response."""
-
-    error: ErrorBody
 
 
 class ApiError(Exception):
@@ -95,40 +82,38 @@ def error_response(
     *,
     headers: dict[str, str] | None = None,
     details: list[dict[str, str]] | None = None,
+    request: Request | None = None,
+    instance: str | None = None,
 ) -> JSONResponse:
-    """The error body; the message, the field and at most `MAX_DETAILS` details, each clipped:
-    whatever a request held, the answer stays small."""
-    error: dict[str, Any] = {
-        "code": code,
-        "message": clip(message),
-        "field": None if field is None else clip(field, FIELD_CHARS),
-    }
-    if details is not None:
-        error["details"] = [
-            {"field": clip(d["field"], FIELD_CHARS), "message": clip(d["message"])}
-            for d in details[:MAX_DETAILS]
-        ]
-    return JSONResponse({"error": error}, status_code=status, headers=headers)
+    """The problem details answer: `message` is its `detail`, the `instance` the path of
+    `request` (or `instance`); the message, the field and at most `MAX_DETAILS` details are
+    clipped: whatever a request held, the answer stays small."""
+    if request is not None:
+        instance = request.url.path
+    body = problem(status, code, message, field, instance=instance, details=details)
+    return ProblemResponse(body, status_code=status, headers=headers)
 
 
 def status_of(exc: ModelStoreError) -> int:
     return next(status for cls, status in DOMAIN_STATUS if isinstance(exc, cls))
 
 
-async def _domain_error(_request: Request, exc: Exception) -> JSONResponse:
+async def _domain_error(request: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, ModelStoreError)
     status = status_of(exc)
     if status >= 500:
         log.warning("model store error: %s", exc)
-    return error_response(status, exc.code, exc.message, exc.field)
+    return error_response(status, exc.code, exc.message, exc.field, request=request)
 
 
-async def _api_error(_request: Request, exc: Exception) -> JSONResponse:
+async def _api_error(request: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, ApiError)
-    return error_response(exc.status, exc.code, exc.message, exc.field, headers=exc.headers)
+    return error_response(
+        exc.status, exc.code, exc.message, exc.field, headers=exc.headers, request=request
+    )
 
 
-async def _validation_error(_request: Request, exc: Exception) -> JSONResponse:
+async def _validation_error(request: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, RequestValidationError)
     errors = list(exc.errors())[:MAX_DETAILS]
     first = errors[0] if errors else {"loc": (), "msg": "invalid request"}
@@ -139,24 +124,26 @@ async def _validation_error(_request: Request, exc: Exception) -> JSONResponse:
         for e in errors
     ]
     message = f"{field}: {first.get('msg')}" if field else str(first.get("msg"))
-    return error_response(422, "invalid_request", message, field, details=details)
+    return error_response(422, "invalid_request", message, field, details=details, request=request)
 
 
-async def _http_error(_request: Request, exc: Exception) -> JSONResponse:
+async def _http_error(request: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, StarletteHTTPException)
     code = {404: "not_found", 405: "method_not_allowed"}.get(exc.status_code, "http_error")
     headers = dict(exc.headers) if exc.headers else None
-    return error_response(exc.status_code, code, str(exc.detail), headers=headers)
+    return error_response(exc.status_code, code, str(exc.detail), headers=headers, request=request)
 
 
-async def _unexpected(_request: Request, exc: Exception) -> JSONResponse:
-    return unexpected_response(exc)
+async def _unexpected(request: Request, exc: Exception) -> JSONResponse:
+    return unexpected_response(exc, request.url.path)
 
 
-def unexpected_response(exc: Exception) -> JSONResponse:
-    """The 500 answer to an error nothing else handled (logged with its traceback)."""
+def unexpected_response(exc: Exception, path: str | None = None) -> JSONResponse:
+    """The 500 answer to an error nothing else handled (logged with its traceback; the answer
+    names the exception's class, never its words)."""
     log.exception("unhandled error", exc_info=exc)
-    return error_response(500, "internal", f"internal error ({type(exc).__name__}); see the logs")
+    message = f"internal error ({type(exc).__name__}); see the logs"
+    return error_response(500, "internal", message, instance=path)
 
 
 def install_error_handlers(app: FastAPI) -> None:
@@ -169,7 +156,7 @@ def install_error_handlers(app: FastAPI) -> None:
 
 # For the `responses=` of routes: documents the error shape in OpenAPI.
 ERROR_RESPONSES: dict[int | str, dict[str, Any]] = {
-    status: {"model": ErrorResponse, "description": description}
+    status: documented(description)
     for status, description in (
         (401, "no bearer token"),
         (403, "wrong bearer token"),

@@ -16,16 +16,16 @@ the headers):
 
 Two limits: `upload_max_bytes` for a version upload (`POST .../-/versions`, multipart: the
 weights' limit plus the form's overhead, `services.registry.versions_routes`), `max_bytes` for
-every other route (JSON; `COEXIST_MAX_BODY_BYTES`). The 413 is the usual error body naming
-the limit and the setting: code `body_too_large`, field `body` (an upload: the route's own
-`artifact_too_large`, field `weights`).
+every other route (JSON; `COEXIST_MAX_BODY_BYTES`). The 413 is the usual problem details body
+(`services.problems`) naming the limit and the setting: code `body_too_large`, field `body` (an
+upload: the route's own `artifact_too_large`, field `weights`).
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-import orjson
+from services.problems import MEDIA_TYPE, problem_bytes
 
 UPLOAD_SUFFIX = "/-/versions"
 Message = dict[str, Any]
@@ -46,7 +46,7 @@ class BodyLimit:
         for name, value in scope["headers"]:
             if name == b"content-length":
                 if value.isdigit() and int(value) > limit:
-                    await _refuse(send, f"{int(value)} bytes is over", limit, upload)
+                    await _refuse(scope, send, f"{int(value)} bytes is over", limit, upload)
                     return
                 break  # within the limit: the server delivers no more than it declared
             if name == b"transfer-encoding":
@@ -72,7 +72,7 @@ class BodyLimit:
                 if received > limit:
                     refused = True
                     if not started:
-                        await _refuse(send, "the streamed body went", limit, upload)
+                        await _refuse(scope, send, "the streamed body went", limit, upload)
                     return {"type": "http.disconnect"}
             return message
 
@@ -90,16 +90,15 @@ class BodyLimit:
                 raise  # a failure of its own, not the disconnect the app was handed
 
 
-async def _refuse(send: Any, what: str, limit: int, upload: bool) -> None:
+async def _refuse(scope: dict[str, Any], send: Any, what: str, limit: int, upload: bool) -> None:
     if upload:  # as the upload route itself says it (`ArtifactTooLarge`)
         code, field, setting = "artifact_too_large", "weights", "COEXIST_MAX_ARTIFACT_BYTES + 1 MiB"
     else:
         code, field, setting = "body_too_large", "body", "COEXIST_MAX_BODY_BYTES"
     message = f"body: {what} the limit of {limit} bytes ({setting})"
-    error = {"code": code, "message": message, "field": field}
-    body = orjson.dumps({"error": error})
+    body = problem_bytes(413, code, message, field, instance=scope.get("path"))
     headers = [
-        (b"content-type", b"application/json"),
+        (b"content-type", MEDIA_TYPE.encode()),
         (b"content-length", str(len(body)).encode()),
         (b"connection", b"close"),
     ]

@@ -1,9 +1,11 @@
-"""Engine errors and request-validation errors as JSON 4xx, in the registry's error shape.
+"""Engine errors and request-validation errors as 4xx problem details, in the registry's shape.
 
-Every error body is `{"error": {"code": str, "message": str, "field": str | null}}` (the shape of
-`services.registry.errors`, whose `error_response` writes it); validation errors add `details`,
-one `{field, message}` per problem. Fields use the engine's naming: `partners[0].goal`,
-`observation`, `versions[particle/task/a2]`; malformed JSON is blamed on `body`.
+Every error body is an RFC 9457 problem details object (`application/problem+json`, written by
+`services.registry.errors.error_response`, described in `services.problems`): `detail` says what
+is wrong, the extension members `code` (below) and `field` name the problem and the field at
+fault; validation errors add `errors`, one `{field, detail}` per problem. Fields use the
+engine's naming: `partners[0].goal`, `observation`, `versions[particle/task/a2]`; malformed JSON
+is blamed on `body`.
 
 | error                              | status | code              |
 |------------------------------------|--------|-------------------|
@@ -36,7 +38,8 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 
 from services.engine.errors import EngineError, InvalidRequest, ModelNotFound, ModelUnavailable
-from services.registry.errors import MAX_DETAILS, ErrorResponse, error_response
+from services.problems import documented
+from services.registry.errors import MAX_DETAILS, error_response
 from services.sessions.errors import (
     SessionLimitReached,
     SessionNotFound,
@@ -61,37 +64,28 @@ ENGINE_STATUS: tuple[tuple[type[EngineError], int], ...] = (
     (EngineError, 422),
 )
 
-# For the `responses=` of routes: documents the error shape in OpenAPI.
+# For the `responses=` of routes: documents the problem details in OpenAPI.
 ACT_ERROR_RESPONSES: dict[int | str, dict[str, Any]] = {
-    400: {"model": ErrorResponse, "description": "the body cannot be decoded (not UTF-8)"},
-    404: {"model": ErrorResponse, "description": "no network for a goal, alias or version"},
-    422: {"model": ErrorResponse, "description": "invalid request; `field` names it"},
-    503: {"model": ErrorResponse, "description": "model store unavailable or model unusable"},
+    400: documented("the body cannot be decoded (not UTF-8)"),
+    404: documented("no network for a goal, alias or version"),
+    422: documented("invalid request; `field` names it"),
+    503: documented("model store unavailable or model unusable"),
 }
 
 # The session routes: the same, plus the session store's errors.
 SESSION_ERROR_RESPONSES: dict[int | str, dict[str, Any]] = {
     **ACT_ERROR_RESPONSES,
-    404: {
-        "model": ErrorResponse,
-        "description": "no such session (expired, deleted, made by another process) or no "
-        "network for a goal",
-    },
-    409: {"model": ErrorResponse, "description": "`expected_step` is not the next step"},
-    429: {
-        "model": ErrorResponse,
-        "description": "the server, or this client, holds its maximum of sessions; "
-        "`Retry-After` says when the first could expire",
-    },
-    410: {
-        "model": ErrorResponse,
-        "description": "the shared store's record of the session fails its signature or format",
-    },
-    501: {"model": ErrorResponse, "description": "this server cannot keep sessions (workers > 1)"},
-    503: {
-        "model": ErrorResponse,
-        "description": "model store, model, or the shared session store unavailable",
-    },
+    404: documented(
+        "no such session (expired, deleted, made by another process) or no network for a goal"
+    ),
+    409: documented("`expected_step` is not the next step"),
+    429: documented(
+        "the server, or this client, holds its maximum of sessions; `Retry-After` says when "
+        "the first could expire"
+    ),
+    410: documented("the shared store's record of the session fails its signature or format"),
+    501: documented("this server cannot keep sessions (workers > 1)"),
+    503: documented("model store, model, or the shared session store unavailable"),
 }
 
 
@@ -108,7 +102,7 @@ def field_path(loc: Sequence[int | str]) -> str:
     return path or "body"
 
 
-async def _engine_error(_request: Request, exc: Exception) -> JSONResponse:
+async def _engine_error(request: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, EngineError)
     status = engine_status(exc)
     if status >= 500:
@@ -116,10 +110,10 @@ async def _engine_error(_request: Request, exc: Exception) -> JSONResponse:
     headers = None
     if isinstance(exc, SessionLimitReached):  # whole seconds, at least 1 (RFC 9110)
         headers = {"Retry-After": str(max(1, math.ceil(exc.retry_after_s)))}
-    return error_response(status, exc.code, str(exc), exc.field, headers=headers)
+    return error_response(status, exc.code, str(exc), exc.field, headers=headers, request=request)
 
 
-async def _validation_error(_request: Request, exc: Exception) -> JSONResponse:
+async def _validation_error(request: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, RequestValidationError)
     details = []
     for error in exc.errors()[:MAX_DETAILS]:
@@ -131,10 +125,12 @@ async def _validation_error(_request: Request, exc: Exception) -> JSONResponse:
             details.append({"field": field_path(error.get("loc", ())), "message": error["msg"]})
     first = details[0] if details else {"field": "body", "message": "invalid request"}
     message = f"{first['field']}: {first['message']}"
-    return error_response(422, "invalid_request", message, first["field"], details=details)
+    return error_response(
+        422, "invalid_request", message, first["field"], details=details, request=request
+    )
 
 
 def install_error_handlers(app: FastAPI) -> None:
-    """Map `EngineError` and request-validation errors to the JSON error shape."""
+    """Map `EngineError` and request-validation errors to problem details."""
     app.add_exception_handler(EngineError, _engine_error)
     app.add_exception_handler(RequestValidationError, _validation_error)

@@ -124,6 +124,41 @@ def test_errors_are_typed_and_name_the_field(client: CoexistClient) -> None:
     assert info.value.field == "observation"
 
 
+# The same refusal in the server's two shapes: RFC 9457 problem details, and the shape before
+# them (`{"error": {...}}`), which the SDK reads for one release more.
+MESSAGE = "observation: 7 numbers, the env's observations have 8"
+PROBLEM = {
+    "type": "/problems/invalid_request",
+    "title": "Invalid request",
+    "status": 422,
+    "detail": MESSAGE,
+    "instance": "/v1/act",
+    "code": "invalid_request",
+    "field": "observation",
+}
+OLDER = {"error": {"code": "invalid_request", "message": MESSAGE, "field": "observation"}}
+
+
+@pytest.mark.parametrize("body", [PROBLEM, OLDER], ids=["problem details", "older shape"])
+def test_both_error_shapes_give_the_message_and_the_field(body: dict[str, Any]) -> None:
+    with _mock_client(422, body) as client, pytest.raises(InvalidArgument) as info:
+        client.act("particle", "a2", OBS_2)
+    assert (info.value.message, info.value.field) == (MESSAGE, "observation")
+    assert info.value.code == "invalid_argument"
+
+
+def test_the_server_answers_problem_details_the_sdk_reads(base_url: str) -> None:
+    answer = httpx.post(f"{base_url}/v1/act", json={"env": "particle", "ego_goal": "a2"})
+    assert answer.status_code == 422
+    assert answer.headers["content-type"] == "application/problem+json"
+    problem = answer.json()
+    assert problem["type"] == "/problems/invalid_request" and problem["status"] == 422
+    assert problem["field"] == "observation" and "error" not in problem
+    with CoexistClient(base_url) as client, pytest.raises(InvalidArgument) as info:
+        client.act("particle", "a2", OBS_2[:7])
+    assert info.value.field == "observation" and info.value.message.startswith("observation: ")
+
+
 def _mock_client(status: int, body: Any) -> CoexistClient:
     def handler(request: httpx.Request) -> httpx.Response:
         if isinstance(body, bytes):
@@ -142,10 +177,22 @@ def _mock_client(status: int, body: Any) -> CoexistClient:
             Unavailable,
             "unavailable",
         ),
+        (
+            503,
+            {"type": "/problems/store_unavailable", "status": 503, "detail": "store down"},
+            Unavailable,
+            "unavailable",
+        ),
         (500, b"<html>oops</html>", CoexistError, "internal"),
         (
             413,
             {"error": {"code": "too_large", "message": "body: too large", "field": "body"}},
+            InvalidArgument,
+            "invalid_argument",
+        ),
+        (
+            413,
+            {"type": "/problems/body_too_large", "detail": "body: too large", "field": "body"},
             InvalidArgument,
             "invalid_argument",
         ),

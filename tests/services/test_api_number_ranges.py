@@ -58,7 +58,7 @@ def client(store_url: str, tmp_path: Path) -> Iterator[TestClient]:
 
 def _error(response: Any, status: int, field: str | None) -> None:
     assert response.status_code == status, response.text
-    assert response.json()["error"]["field"] == field, response.json()
+    assert response.json()["field"] == field, response.json()
 
 
 @pytest.mark.parametrize("version", [PAST_POSTGRES, PAST_64_BITS])

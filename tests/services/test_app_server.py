@@ -39,7 +39,7 @@ def test_server_answers_rest_and_grpc_and_reports_metrics(tiny_zoo_store: SqlMod
         assert act.status_code == 200, act.text
         assert abs(sum(act.json()["probs"]) - 1.0) < 1e-9
         bad = client.post("/v1/act", json={**body, "observation": OBS[:5]})
-        assert bad.status_code == 422 and bad.json()["error"]["field"] == "observation"
+        assert bad.status_code == 422 and bad.json()["field"] == "observation"
 
         assert client.get("/v1/registry/models").status_code == 200
         metrics = client.get("/metrics").text

@@ -35,9 +35,9 @@ def client(tiny_zoo_store: SqlModelStore, tmp_path: Path) -> Iterator[TestClient
 def _short_error(response: Any, status: int, field: str) -> str:
     assert response.status_code == status, response.text[:300]
     assert len(response.content) < 4096, f"a {len(response.content)}-byte answer"
-    error = response.json()["error"]
+    error = response.json()
     assert error["field"] == field, error
-    message: str = error["message"]
+    message: str = error["detail"]
     return message
 
 

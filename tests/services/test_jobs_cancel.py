@@ -155,9 +155,9 @@ def test_cancelling_a_finished_job_is_409_naming_its_status(
     assert _ended(client, job_id)["status"] == status
     answer = client.delete(f"/v1/jobs/{job_id}", headers=AUTH)
     assert answer.status_code == 409
-    error = answer.json()["error"]
+    error = answer.json()
     assert error["code"] == "conflict" and error["field"] == "status"
-    assert f"already {status}" in error["message"]
+    assert f"already {status}" in error["detail"]
     assert _job(client, job_id)["status"] == status  # untouched
 
 
@@ -167,12 +167,12 @@ def test_cancelling_twice_is_409_the_second_time(client: TestClient) -> None:
     assert client.delete(f"/v1/jobs/{job_id}", headers=AUTH).status_code == 202
     _ended(client, job_id)
     again = client.delete(f"/v1/jobs/{job_id}", headers=AUTH)
-    assert again.status_code == 409 and "already cancelled" in again.json()["error"]["message"]
+    assert again.status_code == 409 and "already cancelled" in again.json()["detail"]
 
 
 def test_cancelling_an_unknown_job_is_404(client: TestClient) -> None:
     answer = client.delete("/v1/jobs/0123456789abcdef", headers=AUTH)
-    assert answer.status_code == 404 and answer.json()["error"]["code"] == "not_found"
+    assert answer.status_code == 404 and answer.json()["code"] == "not_found"
 
 
 def test_cancelling_needs_the_admin_token(client: TestClient) -> None:

@@ -49,7 +49,7 @@ def _assert_all_503(answers: dict[str, httpx.Response]) -> None:
     statuses = {route: answer.status_code for route, answer in answers.items()}
     assert set(statuses.values()) == {503}, {r: a.text[:300] for r, a in answers.items()}
     for answer in answers.values():
-        assert answer.json()["error"]["code"] == "store_unavailable", answer.text
+        assert answer.json()["code"] == "store_unavailable", answer.text
 
 
 @pytest.fixture
@@ -103,7 +103,7 @@ def test_jobs_answer_503_when_the_disk_is_read_only_then_full(
         _fill(own_disk)
         answers = _jobs_answers(base)
         assert answers["submit"].status_code == 503, answers["submit"].text
-        assert "disk" in answers["submit"].json()["error"]["message"]
+        assert "disk" in answers["submit"].json()["detail"]
         assert all(a.status_code in (200, 404, 503) for a in answers.values()), answers
         (own_disk / "filler").unlink()  # room again: the same server recovers
         assert httpx.get(f"{base}/v1/jobs").json() == {"jobs": []}  # nothing half-written
@@ -149,8 +149,8 @@ def test_deleting_the_version_production_serves_is_refused(tmp_path: Path) -> No
             for version, alias in ((1, "production"), (2, "latest")):
                 refused = httpx.delete(f"{versions}/{version}", headers=AUTH)
                 assert refused.status_code == 409, refused.text
-                error = refused.json()["error"]
-                assert error["field"] == "version" and alias in error["message"]
+                error = refused.json()
+                assert error["field"] == "version" and alias in error["detail"]
             model = httpx.get(f"{base}/v1/registry/models/particle/task/a2").json()
             assert model["aliases"] == {"production": 1, "latest": 2}
             served = httpx.post(f"{base}/v1/act", json=act_body())

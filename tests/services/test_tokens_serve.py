@@ -70,7 +70,7 @@ def test_every_rest_route_needs_the_token(
     with httpx.Client(base_url=server.http_url, timeout=30) as client:
         anonymous = client.request(method, path, json=body)
         assert anonymous.status_code == 401, anonymous.text[:300]
-        assert anonymous.json()["error"]["code"] == "unauthorized"
+        assert anonymous.json()["code"] == "unauthorized"
         assert anonymous.headers["www-authenticate"] == "Bearer"
         assert anonymous.headers["x-request-id"]
         assert client.request(method, path, json=body, headers=WRONG).status_code == 403
@@ -162,8 +162,8 @@ def test_sessions_are_bounded_per_client(server: Server) -> None:
             made.append((here, answer.json()["session_id"]))
         refused = here.post("/v1/sessions", json=SESSION)
         assert refused.status_code == 429, refused.text
-        assert refused.json()["error"]["code"] == "too_many_sessions"
-        assert "this client" in refused.json()["error"]["message"]
+        assert refused.json()["code"] == "too_many_sessions"
+        assert "this client" in refused.json()["detail"]
         assert 1 <= int(refused.headers["retry-after"]) <= TTL_S
         other = there.post("/v1/sessions", json=SESSION)
         assert other.status_code == 201, other.text
@@ -194,8 +194,8 @@ def test_a_wrong_token_is_refused_even_while_reads_are_open(open_server: Server)
         assert client.post("/v1/act", json=ACT).status_code == 200  # open: no token needed
         wrong = client.post("/v1/act", json=ACT, headers=WRONG)
         assert wrong.status_code == 403, wrong.text[:300]
-        assert wrong.json()["error"]["code"] == "forbidden"
-        assert "the bearer token is not valid for this server" in wrong.json()["error"]["message"]
+        assert wrong.json()["code"] == "forbidden"
+        assert "the bearer token is not valid for this server" in wrong.json()["detail"]
         assert client.get("/v1/registry/models", headers=WRONG).status_code == 403
         assert client.get("/healthz", headers=WRONG).status_code == 200  # liveness stays open
     with grpc.insecure_channel(open_server.grpc_target) as channel:

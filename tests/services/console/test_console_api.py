@@ -4,7 +4,10 @@ registry overview, the page's files, the read token, and its routes after every 
 
 from __future__ import annotations
 
+import json
 import re
+import shutil
+import subprocess
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -192,8 +195,8 @@ def test_bad_settings_are_a_4xx_naming_the_field(
 ) -> None:
     response = client.get(f"{EPISODE}?{query}")
     assert response.status_code == status, response.text
-    error = response.json()["error"]
-    assert error["message"]
+    error = response.json()
+    assert error["detail"]
     if field is not None:
         assert error["field"] == field, error
 
@@ -209,9 +212,7 @@ def test_a_partner_without_a_task_network_is_blamed_on_partners(
     with _client(f"sqlite:///{copy}", tmp_path) as guarded:
         answer = guarded.get(f"{EPISODE}?env=particle&ego_goal=a2&partners=c1&methods=sl")
     assert answer.status_code == 404
-    assert (
-        answer.json()["error"]["field"] == "partners" and "c1" in answer.json()["error"]["message"]
-    )
+    assert answer.json()["field"] == "partners" and "c1" in answer.json()["detail"]
 
 
 def test_the_overview_lists_every_model_with_its_versions(client: TestClient) -> None:
@@ -277,3 +278,44 @@ def test_console_routes_come_after_every_api_route(client: TestClient) -> None:
     for api in ("/v1/act", "/v1/act:batch", "/v1/envs", "/healthz", "/readyz", "/metrics"):
         assert paths.index(api) < first_console
     assert all(p == "/" or "console" in p for p in paths[first_console:])
+
+
+def _explained_by_the_page(status: int, body: Any) -> dict[str, Any]:
+    """What the page's `api.js` makes of an error answer (`fromBody`), run by Node."""
+    node = shutil.which("node")
+    if node is None:
+        pytest.skip("no Node.js to run the page's api.js")
+    script = (
+        f"import {{fromBody}} from {json.dumps((STATIC_DIR / 'js' / 'api.js').as_uri())};\n"
+        f"const e = fromBody({status}, 'Status text', {json.dumps(body)});\n"
+        "console.log(JSON.stringify({code: e.code, message: e.message, field: e.field, "
+        "explained: e.explain()}));\n"
+    )
+    out = subprocess.run(
+        [node, "--input-type=module", "-e", script], capture_output=True, text=True, check=True
+    )
+    explained: dict[str, Any] = json.loads(out.stdout)
+    return explained
+
+
+def test_the_page_reads_problem_details_and_the_older_shape(client: TestClient) -> None:
+    answer = client.get(f"{EPISODE}?ego_goal=a2")  # no env
+    assert (
+        answer.status_code == 422 and answer.headers["content-type"] == "application/problem+json"
+    )
+    problem = answer.json()
+    seen = _explained_by_the_page(answer.status_code, problem)
+    assert seen["code"] == problem["code"] and seen["field"] == problem["field"]
+    assert seen["message"] == problem["detail"]
+    assert seen["explained"] == f"Error 422 [{problem['field']}]: {problem['detail']}"
+    older = {"error": {"code": "invalid_request", "message": "ego_goal: no", "field": "ego_goal"}}
+    seen = _explained_by_the_page(422, older)
+    assert (seen["code"], seen["message"], seen["field"]) == (
+        "invalid_request",
+        "ego_goal: no",
+        "ego_goal",
+    )
+    anonymous = _explained_by_the_page(401, {"type": "/problems/unauthorized", "status": 401})
+    assert anonymous["explained"].startswith("Refused (401)")
+    proxy_page = _explained_by_the_page(502, None)
+    assert (proxy_page["code"], proxy_page["message"]) == ("http_error", "Status text")

@@ -135,14 +135,14 @@ def test_unservable_networks_are_refused_and_production_keeps_serving(
 
     refused = upload(base, SPEC.to_json(), overflowing_weights())
     assert refused.status_code == 422, refused.text
-    error = refused.json()["error"]
-    assert error["field"] == "weights" and "overflow" in error["message"]
+    error = refused.json()
+    assert error["field"] == "weights" and "overflow" in error["detail"]
     deep = QNetSpec(obs_dim=8, n_actions=5, hidden=(4,) * 14).to_json()
     deep["hidden"] = [4] * 200  # 201 layers
     refused = upload(base, deep, b"not even read")
     assert refused.status_code == 422, refused.text
-    assert refused.json()["error"]["field"] == "spec"
-    assert "at most 15 hidden layers" in refused.json()["error"]["message"]
+    assert refused.json()["field"] == "spec"
+    assert "at most 15 hidden layers" in refused.json()["detail"]
     listed = httpx.get(f"{base}{VERSIONS}", headers=AUTH).json()
     assert [v["version"] for v in listed] == [2, 1]  # nothing registered
     assert upload(base, SPEC.to_json(), good_weights()).status_code == 201  # still open: v3
@@ -163,7 +163,7 @@ def test_unservable_networks_are_refused_and_production_keeps_serving(
         headers=AUTH,
     )
     assert moved.status_code == 409, moved.text  # ... is never what production serves
-    assert moved.json()["error"]["field"] == "version" and "overflow" in moved.text
+    assert moved.json()["field"] == "version" and "overflow" in moved.text
     assert (
         httpx.get(f"{base}/v1/registry/models/{NAME}", headers=AUTH).json()["aliases"]["production"]
         == 1
@@ -182,5 +182,5 @@ def test_unservable_networks_are_refused_and_production_keeps_serving(
     with running([fresh], timeout=240):
         answer = httpx.post(f"{fresh.http_url}/v1/act", json=act_body(), timeout=30)
         assert answer.status_code == 503, answer.text
-        assert answer.json()["error"]["field"] != "observation"
+        assert answer.json()["field"] != "observation"
         assert f"{NAME}/{bad}" in answer.text and "overflow" in answer.text

@@ -19,11 +19,11 @@ def test_a_cooking_state_is_refused_with_a_clear_message(act_client: TestClient)
     body = {"env": "cooking", "ego_goal": "CarrotBanana", "state": STATE, "ego_index": 0}
     response = act_client.post("/v1/act", json=body)
     assert response.status_code == 422, response.text
-    error = response.json()["error"]
+    error = response.json()
     assert error["field"] == "state" and error["code"] == "invalid_request"
-    assert "takes observations only" in error["message"] and "not one row" in error["message"]
+    assert "takes observations only" in error["detail"] and "not one row" in error["detail"]
     batch = {"env": "cooking", "ego_goal": "CarrotBanana", "states": [STATE], "ego_index": 0}
     response = act_client.post("/v1/act:batch", json=batch)
-    assert response.status_code == 422 and response.json()["error"]["field"] == "states"
+    assert response.status_code == 422 and response.json()["field"] == "states"
     envs = act_client.get("/v1/envs").json()["envs"]
     assert next(e for e in envs if e["name"] == "cooking")["state_layout"] is None

@@ -47,8 +47,8 @@ def client(tiny_zoo_store: SqlModelStore, tmp_path: Path) -> Iterator[TestClient
 def test_rest_refuses_a_pin_the_request_does_not_use(client: TestClient, name: str) -> None:
     answer = client.post("/v1/act", json={**ACT, "versions": {"particle/task/a2": 2, name: 1}})
     assert answer.status_code == 422, answer.text
-    assert answer.json()["error"]["field"] == f"versions[{name}]"
-    assert "uses no model" in answer.json()["error"]["message"]
+    assert answer.json()["field"] == f"versions[{name}]"
+    assert "uses no model" in answer.json()["detail"]
     used = client.post("/v1/act", json={**ACT, "versions": {"particle/task/a2": 2}})
     assert used.status_code == 200 and used.json()["models"][0]["version"] == 2
 
@@ -84,6 +84,6 @@ def test_a_session_refuses_a_pin_it_could_never_use(
     with SqlModelStore(url) as store, TestClient(create_app(settings, store=store)) as client:
         refused = client.post("/v1/sessions", json={**body, "versions": {"cooking/task/a2": 1}})
         assert refused.status_code == 422, refused.text
-        assert refused.json()["error"]["field"] == "versions[cooking/task/a2]"
+        assert refused.json()["field"] == "versions[cooking/task/a2]"
         usable = client.post("/v1/sessions", json={**body, "versions": {"particle/task/c1": 1}})
         assert usable.status_code == 201, usable.text

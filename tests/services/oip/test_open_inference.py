@@ -520,14 +520,28 @@ def test_the_token_gate_and_the_body_limit_answer_in_the_protocols_shape() -> No
     )
     assert big.status_code == 413
     assert "1024" in big.json()["error"]
-    v1 = client.get("/v1/envs")  # other paths keep their own shape
-    assert isinstance(v1.json()["error"], dict)
+    v1 = client.get("/v1/envs")  # other paths keep their own shape: problem details
+    assert v1.headers["content-type"] == "application/problem+json"
+    assert v1.json()["code"] == "unauthorized" and "error" not in v1.json()
+    assert denied.headers["content-type"] == "application/json"
 
 
 @pytest.mark.parametrize(
     ("status", "body", "want"),
     [
         (404, b'{"detail": "Not Found"}', (404, "no such v2 route")),
+        (  # the problem details every other path answers (services.problems)
+            422,
+            b'{"type": "/problems/invalid_request", "title": "Invalid request", "status": 422,'
+            b' "detail": "seed: bad", "code": "invalid_request", "field": "seed"}',
+            (400, "seed: bad"),
+        ),
+        (
+            404,
+            b'{"type": "/problems/not_found", "title": "Not found", "status": 404,'
+            b' "detail": "Not Found", "code": "not_found", "field": null}',
+            (404, "no such v2 route"),
+        ),
         (
             422,
             b'{"error": {"code": "x", "message": "seed: bad", "field": "seed"}}',

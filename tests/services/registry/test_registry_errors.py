@@ -50,8 +50,11 @@ def client(tmp_path: Path):
 
 def _error(response, status: int, field: str | None = None) -> dict:
     assert response.status_code == status, response.text
-    error = response.json()["error"]
-    assert set(error) >= {"code", "message", "field"} and error["message"]
+    assert response.headers["content-type"] == "application/problem+json"  # RFC 9457
+    error = response.json()
+    assert set(error) >= {"type", "title", "status", "detail", "code", "field"} and error["detail"]
+    path = response.request.url.raw_path.decode().partition("?")[0]  # percent-encoded
+    assert error["status"] == status and error["instance"] == path
     if field is not None:
         assert error["field"] == field, error
     return error
@@ -206,7 +209,7 @@ def test_vanished_database_is_503(tmp_path: Path, client: TestClient) -> None:
         client.get(f"{BASE}/models/{NAME}"),
     ):
         assert _error(response, 503)["code"] == "store_unavailable"
-        assert "unavailable" in response.json()["error"]["message"]
+        assert "unavailable" in response.json()["detail"]
 
 
 def test_default_token_refused_outside_dev_mode(tmp_path: Path) -> None:

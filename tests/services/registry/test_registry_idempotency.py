@@ -63,8 +63,8 @@ def test_a_retried_upload_is_registered_once(client: TestClient) -> None:
     assert [v["version"] for v in client.get(BASE).json()] == [1]
     conflict = _upload(client, 1, "upload-7d1f0c")
     assert conflict.status_code == 409, conflict.text
-    assert conflict.json()["error"]["field"] == "idempotency_key"
+    assert conflict.json()["field"] == "idempotency_key"
     assert _upload(client, 1, None).json()["version"] == 2  # without a key: a new version
     bad = _upload(client, 1, "not a key")
-    assert bad.status_code == 422 and bad.json()["error"]["field"] == "idempotency_key"
+    assert bad.status_code == 422 and bad.json()["field"] == "idempotency_key"
     assert [v["version"] for v in client.get(BASE).json()] == [2, 1]

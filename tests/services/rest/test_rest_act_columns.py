@@ -106,18 +106,18 @@ def test_bad_format_is_a_422_naming_format(act_client, bad: Any) -> None:
     body = {**_body(CASES["sl"], 2), "format": bad}
     response = act_client.post("/v1/act:batch", json=body)
     assert response.status_code == 422, response.text
-    error = response.json()["error"]
-    assert error["field"] == "format" and error["message"].startswith("format: ")
+    error = response.json()
+    assert error["field"] == "format" and error["detail"].startswith("format: ")
 
 
 def test_columns_errors_name_the_body_fields(act_client) -> None:
     body = {**_body(CASES["sl"], 3), "format": "columns"}
     body["observations"][1][2] = 1e300  # beyond float32
-    error = act_client.post("/v1/act:batch", json=body).json()["error"]
+    error = act_client.post("/v1/act:batch", json=body).json()
     assert error["field"] == "observations[1]"
     missing = {**_body(CASES["sl"], 2), "format": "columns", "ego_goal": "a0"}
     response = act_client.post("/v1/act:batch", json=missing)
-    assert response.status_code == 404 and response.json()["error"]["field"] == "ego_goal"
+    assert response.status_code == 404 and response.json()["field"] == "ego_goal"
 
 
 def test_openapi_documents_both_answers_and_the_format(act_client) -> None:

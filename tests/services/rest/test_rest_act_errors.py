@@ -158,9 +158,9 @@ ACT_CASES: list[tuple[str, dict[str, Any], int, str]] = [
 
 def _check_error(response, status: int, field: str) -> dict:
     assert response.status_code == status, response.text
-    error = response.json()["error"]
+    error = response.json()
     assert error["field"] == field, error
-    assert error["message"].startswith(f"{field}: ") and len(error["message"]) > len(field) + 4
+    assert error["detail"].startswith(f"{field}: ") and len(error["detail"]) > len(field) + 4
     assert error["code"] == {404: "model_not_found", 422: "invalid_request"}[status]
     return error
 
@@ -232,7 +232,7 @@ def test_nan_literal_in_json(act_client) -> None:
         '{"env": "particle", "ego_goal": "a2", "observation": [NaN, 0.4, 0, 0, 0.7, 0.6, 0, 0]}'
     )
     response = act_client.post("/v1/act", content=content, headers=JSON)
-    assert "NaN" in _check_error(response, 422, "observation")["message"]
+    assert "NaN" in _check_error(response, 422, "observation")["detail"]
 
 
 def test_missing_engine_is_503() -> None:
@@ -241,7 +241,7 @@ def test_missing_engine_is_503() -> None:
     install_error_handlers(app)
     response = TestClient(app).post("/v1/act", json=BODY)
     assert response.status_code == 503
-    assert response.json()["error"]["code"] == "model_unavailable"
+    assert response.json()["code"] == "model_unavailable"
 
 
 def test_store_outage_is_503(act_client, monkeypatch) -> None:
@@ -253,4 +253,4 @@ def test_store_outage_is_503(act_client, monkeypatch) -> None:
     monkeypatch.setattr(act_client.app.state.engine.store, "resolve", down)
     response = act_client.post("/v1/act", json=BODY)
     assert response.status_code == 503
-    assert "database is gone" in response.json()["error"]["message"]
+    assert "database is gone" in response.json()["detail"]

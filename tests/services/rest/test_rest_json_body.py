@@ -43,13 +43,13 @@ def test_nan_literals_and_huge_integers_take_the_standard_parser(act_client, mon
     huge = json.dumps({**BODY, "versions": {"particle/task/a2": 10**30}})  # orjson: 1e30
     answer = act_client.post("/v1/act", content=huge, headers=JSON)
     assert answer.status_code == 422
-    assert answer.json()["error"]["field"] == "versions[particle/task/a2]"  # the engine's check
+    assert answer.json()["field"] == "versions[particle/task/a2]"  # the engine's check
     assert len(seen) == 2
 
 
 def test_malformed_json_is_still_a_422_naming_the_body(act_client) -> None:
     answer = act_client.post("/v1/act", content=b'{"env": "particle",', headers=JSON)
-    assert answer.status_code == 422 and answer.json()["error"]["field"] == "body"
+    assert answer.status_code == 422 and answer.json()["field"] == "body"
 
 
 def test_only_scalars_outside_number_vectors_are_checked_for_huge_integers() -> None:
@@ -64,7 +64,7 @@ def test_a_lone_surrogate_is_a_422_not_a_string_nothing_can_encode(act_client) -
     can write; orjson refuses it, and so does the fallback now: the body's 422."""
     lone = json.dumps(BODY).replace('"a2"', '"a2\\ud800"')
     answer = act_client.post("/v1/act", content=lone, headers=JSON)
-    assert answer.status_code == 422 and answer.json()["error"]["field"] == "body"
+    assert answer.status_code == 422 and answer.json()["field"] == "body"
     with pytest.raises(json.JSONDecodeError):
         json_body.parse_json(b'{"k\\udc00": 1}')  # in a key too
     assert json_body.has_lone_surrogate([{"a": ["x", "\ud800"]}])
@@ -77,6 +77,6 @@ def test_a_body_nested_too_deeply_is_a_422(act_client) -> None:
     where nothing caught it); both are the body's 422 now."""
     deep = b'{"observation": ' + b"[" * 50_000 + b"]" * 50_000 + b"}"
     answer = act_client.post("/v1/act", content=deep, headers=JSON)
-    assert answer.status_code == 422 and answer.json()["error"]["field"] == "body"
+    assert answer.status_code == 422 and answer.json()["field"] == "body"
     with pytest.raises(json.JSONDecodeError):
         json_body.parse_json(b"[" * 5_000 + b"]" * 5_000)

@@ -63,7 +63,7 @@ def create(client: TestClient, **changes: Any) -> str:
 
 def error_of(response: Any, status: int) -> dict[str, Any]:
     assert response.status_code == status, response.text
-    error: dict[str, Any] = response.json()["error"]
+    error: dict[str, Any] = response.json()
     return error
 
 
@@ -103,7 +103,7 @@ def test_create_step_get_delete(client: TestClient) -> None:
     assert client.delete(f"/v1/sessions/{sid}").status_code == 204
     error = error_of(client.get(f"/v1/sessions/{sid}"), 404)
     assert error["code"] == "session_not_found" and error["field"] == "session_id"
-    assert sid in error["message"] and "deleted" in error["message"]
+    assert sid in error["detail"] and "deleted" in error["detail"]
     assert error_of(client.delete(f"/v1/sessions/{sid}"), 404)["code"] == "session_not_found"
 
 
@@ -170,14 +170,14 @@ def test_idle_sessions_expire_with_a_404_that_says_why(app: FastAPI, client: Tes
     assert client.get(f"/v1/sessions/{sid}").json()["expires_in_s"] == pytest.approx(1.0)
     clock.now += 1.0
     error = error_of(client.post(f"/v1/sessions/{sid}/steps", json={"observation": [0.0] * 8}), 404)
-    assert sid in error["message"] and "expired after 10 s idle" in error["message"]
+    assert sid in error["detail"] and "expired after 10 s idle" in error["detail"]
 
 
 def test_too_many_sessions_is_a_429(app: FastAPI, client: TestClient) -> None:
     app.state.sessions = SessionStore(app.state.engine, max_sessions=1)
     sid = create(client)
     error = error_of(client.post("/v1/sessions", json=CREATE), 429)
-    assert error["code"] == "too_many_sessions" and "maximum of 1" in error["message"]
+    assert error["code"] == "too_many_sessions" and "maximum of 1" in error["detail"]
     client.delete(f"/v1/sessions/{sid}")
     create(client)
 
@@ -231,7 +231,7 @@ def test_observed_at_step_0_is_a_422(client: TestClient) -> None:
     sid = create(client)
     step = {"observation": [0.2] * 8, "observed": [{"index": 1, "action": 3}]}
     error = error_of(client.post(f"/v1/sessions/{sid}/steps", json=step), 422)
-    assert error["field"] == "observed" and "no previous observation" in error["message"]
+    assert error["field"] == "observed" and "no previous observation" in error["detail"]
     assert client.get(f"/v1/sessions/{sid}").json()["step"] == 0
 
 
@@ -260,7 +260,7 @@ def test_bad_settings_are_a_422_naming_the_field(
 
 def test_unknown_sessions_are_404(client: TestClient) -> None:
     error = error_of(client.post("/v1/sessions/nope/steps", json={"observation": [0.0] * 8}), 404)
-    assert "created by another server process" in error["message"]
+    assert "created by another server process" in error["detail"]
 
 
 def _server_settings(**extra: Any) -> Settings:
@@ -282,8 +282,8 @@ def test_several_workers_refuse_sessions(tmp_path_factory: Any) -> None:
     with SqlModelStore(url) as store, TestClient(create_app(settings, store=store)) as client:
         error = error_of(client.post("/v1/sessions", json=CREATE), 501)
         assert error["code"] == "sessions_unavailable"
-        assert "4 worker processes" in error["message"]
-        assert "Episode" in error["message"]
+        assert "4 worker processes" in error["detail"]
+        assert "Episode" in error["detail"]
         # the stateless routes still answer
         act = {"env": "particle", "ego_goal": "a2", "observation": [0.0] * 8}
         assert client.post("/v1/act", json=act).status_code == 200

@@ -11,7 +11,8 @@ export function setToken(value) {
   else sessionStorage.removeItem(TOKEN_KEY);
 }
 
-/** An HTTP error in the server's shape {error: {code, message, field}}. */
+/** An HTTP error: the server answers RFC 9457 problem details
+ * ({type, title, status, detail, code, field}); older servers {error: {code, message, field}}. */
 export class ApiError extends Error {
   constructor(status, code, message, field) {
     super(message);
@@ -47,9 +48,17 @@ async function failure(response) {
   } catch {
     body = null;
   }
-  const error = body && body.error ? body.error : {};
-  return new ApiError(response.status, error.code || "http_error",
-    error.message || response.statusText || "request failed", error.field || null);
+  return fromBody(response.status, response.statusText, body);
+}
+
+/** The ApiError an error body describes: problem details, else the older shape. */
+export function fromBody(status, statusText, body) {
+  const old = body && typeof body.error === "object" && body.error ? body.error : null;
+  const problem = old ? {} : (body && typeof body === "object" ? body : {});
+  const error = old || {code: problem.code, message: problem.detail || problem.title,
+    field: problem.field};
+  return new ApiError(status, error.code || "http_error",
+    error.message || statusText || "request failed", error.field || null);
 }
 
 /** JSON request; resolves to the parsed body (null for 204), rejects with an ApiError. */
