@@ -75,6 +75,7 @@ class AllowedHosts:
                     f"Host {host[:100]!r} is not a name this server answers to "
                     "(COEXIST_ALLOWED_HOSTS)",
                     field="host",
+                    instance=scope.get("path"),
                 )
                 if scope["type"] == "websocket":  # refuse the upgrade
                     await send({"type": "websocket.close", "code": 1008})

@@ -42,8 +42,6 @@ from services.problems import MAX_DETAILS, ProblemResponse, documented, problem
 
 log = logging.getLogger(__name__)
 
-__all__ = ["MAX_DETAILS", "ApiError", "error_response", "install_error_handlers"]
-
 # Most specific first: the first class the error is an instance of decides.
 DOMAIN_STATUS: tuple[tuple[type[ModelStoreError], int], ...] = (
     (NotFound, 404),

@@ -38,8 +38,8 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 
 from services.engine.errors import EngineError, InvalidRequest, ModelNotFound, ModelUnavailable
-from services.problems import documented
-from services.registry.errors import MAX_DETAILS, error_response
+from services.problems import MAX_DETAILS, documented
+from services.registry.errors import error_response
 from services.sessions.errors import (
     SessionLimitReached,
     SessionNotFound,
