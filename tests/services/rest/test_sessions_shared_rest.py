@@ -65,9 +65,10 @@ def worker(engine: InferenceEngine, store_url: str, secret: str = SECRET) -> Tes
 
 def error_of(response: Any, status: int, code: str) -> str:
     assert response.status_code == status, response.text
-    error = response.json()["error"]
-    assert error["code"] == code, error
-    return str(error["message"])
+    assert response.headers["content-type"] == "application/problem+json"
+    error = response.json()
+    assert error["code"] == code and error["type"] == f"/problems/{code}", error
+    return str(error["detail"])
 
 
 def test_workers_take_turns_on_one_session(engine: InferenceEngine, url: str) -> None:
