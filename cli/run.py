@@ -54,16 +54,15 @@ def run(
         float | None,
         typer.Option(
             min=0.0,
-            help="aail_bounded's and aail_budget's ε (default: 2 and 8 times the task "
-            "network's training α).",
+            help="aail_bounded's ε (default: twice the task network's training α).",
         ),
     ] = None,
     budget: Annotated[
         float | None,
         typer.Option(
             min=0.0,
-            help="aail_budget's episode budget, a fraction of the ego's expected task value "
-            "at the start (default 0.01).",
+            help="aail_budget's episode budget of the ego's own task value, in the task "
+            "network's Q units (default: 8 times its training α).",
         ),
     ] = None,
     infer: Annotated[

@@ -50,6 +50,7 @@ class Answer:
     models: set[ModelRecord]
     budget_spent_B: np.ndarray | None = None  # aail_budget: S after this step
     budget_total_B: np.ndarray | None = None  # aail_budget: the episode's budget B
+    budget_value_B: np.ndarray | None = None  # aail_budget: the ego's task value V here
 
 
 class PolicyBackend(Protocol):
@@ -74,6 +75,7 @@ def _rows(request: ActRequest, start: int, stop: int) -> ActRequest:
         observations=np.asarray(request.observations)[start:stop],
         budget_spent=part(request.budget_spent),
         budget_total=part(request.budget_total),
+        budget_value=part(request.budget_value),
     )
 
 
@@ -97,6 +99,7 @@ def _sliced(answer: Any, request: ActRequest) -> Answer:
         set().union(*(p.models for p in parts)),
         joined([p.budget_spent_B for p in parts]),
         joined([p.budget_total_B for p in parts]),
+        joined([p.budget_value_B for p in parts]),
     )
 
 
@@ -116,7 +119,11 @@ class EngineBackend:
             return _sliced(self.answer, request)
         columns = self.engine.act_columns(request)
         return Answer(
-            columns.probs, _models(columns.models), columns.budget_spent, columns.budget_total
+            columns.probs,
+            _models(columns.models),
+            columns.budget_spent,
+            columns.budget_total,
+            columns.budget_value,
         )
 
     def probs(self, request: ActRequest) -> tuple[np.ndarray, set[ModelRecord]]:
@@ -152,6 +159,7 @@ class ServerBackend:
             budget=request.budget,
             budget_spent=_listed(request.budget_spent),
             budget_total=_listed(request.budget_total),
+            budget_value=_listed(request.budget_value),
             seed=request.seed,
             alias=request.alias,
             versions=dict(request.versions) or None,
@@ -170,6 +178,7 @@ class ServerBackend:
             _models(columns.models),
             column(columns.budget_spent),
             column(columns.budget_total),
+            column(columns.budget_value),
         )
 
     def probs(self, request: ActRequest) -> tuple[np.ndarray, set[ModelRecord]]:

@@ -164,7 +164,7 @@ def run_cells(
     partner_type: PartnerType | None = None,
 ) -> RunOutput:
     """Run every cell's episodes to the end (module docstring); results in cell order.
-    `regret_bound` is aail_bounded's ε, `budget` aail_budget's fraction k (None: the engine's
+    `regret_bound` is aail_bounded's ε, `budget` aail_budget's budget B (None: the engine's
     defaults); an aail_budget episode carries its budget state from step to step as a client
     of `/v1/act` does. Partners act as `partner_type` says (`evaluation.partner_types`;
     default: the task networks of `partner_alias`)."""
@@ -194,8 +194,9 @@ def run_cells(
         for c in cells
     ]
 
-    spent_B = np.zeros(n_rows)  # aail_budget's episode state per row (S, B)
+    spent_B = np.zeros(n_rows)  # aail_budget's episode state per row (S, B, V)
     total_B = np.zeros(n_rows)
+    value_B = np.zeros(n_rows)
 
     def act(request: ActRequest, rows: np.ndarray | None = None) -> np.ndarray:
         answer = backend.answer(request)
@@ -204,6 +205,7 @@ def run_cells(
         if rows is not None and answer.budget_spent_B is not None:
             spent_B[rows] = answer.budget_spent_B
             total_B[rows] = answer.budget_total_B
+            value_B[rows] = answer.budget_value_B
         return answer.probs_BA
 
     for t in range(max_steps):
@@ -234,6 +236,7 @@ def run_cells(
                     budget=budget,
                     budget_spent=spent_B[rows] if carried else None,
                     budget_total=total_B[rows] if carried else None,
+                    budget_value=value_B[rows] if carried else None,
                 )
             actions_BN[rows, 0] = sample_actions(act(request, rows), layout.u_TBN[t, rows, 0])
         if partners.switches and t == SWITCH_STEP:  # the partners' untold new goals

@@ -241,7 +241,8 @@ def evaluate_cooking(
     record_row = methods.index(record) * episodes if record in methods else None
     trajectory = [] if record_row is None else [world.state.select(record_row)]
     obs_BND = world.observe()
-    spent_B, total_B = np.zeros(n_rows), np.zeros(n_rows)  # aail_budget's episode state
+    # aail_budget's episode state (S, B, V)
+    spent_B, total_B, value_B = np.zeros(n_rows), np.zeros(n_rows), np.zeros(n_rows)
     for t in range(max_steps):
         active_B = ~np.all(served.reshape(n_rows, 2), axis=1)
         if not active_B.any():
@@ -263,11 +264,21 @@ def evaluate_cooking(
                 alias=alias,
             )
             if method == "aail_budget" and t > 0:  # the first step sends no state
-                request = replace(request, budget_spent=spent_B[rows], budget_total=total_B[rows])
+                request = replace(
+                    request,
+                    budget_spent=spent_B[rows],
+                    budget_total=total_B[rows],
+                    budget_value=value_B[rows],
+                )
             answer, models[method] = _answer(backend, request)
             probs_BA = answer.probs_BA
-            if answer.budget_spent_B is not None and answer.budget_total_B is not None:
+            if (
+                answer.budget_spent_B is not None
+                and answer.budget_total_B is not None
+                and answer.budget_value_B is not None
+            ):
                 spent_B[rows], total_B[rows] = answer.budget_spent_B, answer.budget_total_B
+                value_B[rows] = answer.budget_value_B
             actions_BN[rows, 0] = _inverse_cdf(probs_BA, u_BN[rows, 0])
         rows = np.flatnonzero(active_B)
         if right_cook.startswith("learned"):

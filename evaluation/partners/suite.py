@@ -38,7 +38,7 @@ class PartnersConfig:
     max_steps: int = 400
     partner_types: tuple[str, ...] = tuple(PARTNER_TYPES)
     methods: tuple[str, ...] = METHODS
-    budget: float | None = None  # aail_budget's fraction k (None: the engine's default)
+    budget: float | None = None  # aail_budget's budget B (None: the engine's default)
     alias: str = "production"
     partner_alias: str = "partners"
 

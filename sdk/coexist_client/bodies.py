@@ -188,6 +188,7 @@ def act_body(
     body.update(observation_fields(observation, state, ego_index))
     if budget_state is not None:
         body["budget_spent"], body["budget_total"] = budget_state.spent, budget_state.total
+        body["budget_value"] = budget_state.value
     return body
 
 
@@ -215,13 +216,17 @@ def act_batch_body(
     ego_index: int = 0,
     budget_spent: ArrayLike | None = None,
     budget_total: ArrayLike | None = None,
+    budget_value: ArrayLike | None = None,
     **settings: Unpack[Settings],
 ) -> dict[str, Any]:
     """The JSON body of `POST /v1/act:batch` (rows; `columns_exchange` asks for columns);
-    `budget_spent` and `budget_total`: aail_budget's state per row from the last answer."""
+    `budget_spent`, `budget_total` and `budget_value`: aail_budget's state per row from the last
+    answer."""
     body = policy_settings(env, ego_goal, **settings)
     body.update(observation_fields(observations, states, ego_index, batch=True))
-    for field, values in (("budget_spent", budget_spent), ("budget_total", budget_total)):
+    carried = {"budget_spent": budget_spent, "budget_total": budget_total}
+    carried["budget_value"] = budget_value
+    for field, values in carried.items():
         if values is not None:
             body[field] = _finite_rows(values, field, 1)
     return body

@@ -61,7 +61,7 @@ class RemotePolicy:
             "regret_bound": regret_bound,
             "temperature": temperature,
         }
-        if budget is not None:  # aail_budget's fraction; the episode carries what it spent
+        if budget is not None:  # aail_budget's budget B; the episode carries what it spent
             self.settings["budget"] = budget
         self.greedy = greedy
         self.seed = seed

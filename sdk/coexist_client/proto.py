@@ -84,7 +84,7 @@ def _observation_kwargs(fields: dict[str, Any]) -> dict[str, Any]:
 def act_request(body: dict[str, Any]) -> pb.ActRequest:
     kwargs = _settings_kwargs(body)
     kwargs.update(_observation_kwargs(body))
-    for key in ("budget_spent", "budget_total"):  # aail_budget's carried state
+    for key in ("budget_spent", "budget_total", "budget_value"):  # aail_budget's carried state
         if body.get(key) is not None:
             kwargs[key] = body[key]
     message: pb.ActRequest = _build(pb.ActRequest, kwargs)
@@ -104,7 +104,7 @@ def act_batch_request(body: dict[str, Any]) -> pb.ActBatchRequest:
     else:
         kwargs["states"] = [_state(s) for s in body["states"]]
         kwargs["ego_index"] = body["ego_index"]
-    for key in ("budget_spent", "budget_total"):  # aail_budget's carried state, per row
+    for key in ("budget_spent", "budget_total", "budget_value"):  # aail_budget's, per row
         if body.get(key) is not None:
             kwargs[key] = body[key]
     message: pb.ActBatchRequest = _build(pb.ActBatchRequest, kwargs)
@@ -151,7 +151,7 @@ def action_from_proto(response: pb.ActResponse) -> Action:
             )
             for b in response.beliefs
         ),
-        budget=Budget(response.budget.spent, response.budget.total)
+        budget=Budget(response.budget.spent, response.budget.total, response.budget.value)
         if response.HasField("budget")
         else None,
     )
@@ -175,6 +175,7 @@ def columns_from_proto(columns: pb.ActColumns) -> ActionColumns:
         models=[_model_from_proto(m) for m in columns.models],
         budget_spent=columns.budget_spent,
         budget_total=columns.budget_total,
+        budget_value=columns.budget_value,
         **{name: getattr(columns, name) for name in COLUMN_FIELDS},
     )
 

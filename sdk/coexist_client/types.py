@@ -101,15 +101,19 @@ class PartnerBelief:
 
 @dataclass(frozen=True)
 class Budget:
-    """aail_budget's episode state after a step: the task value given up so far and the
-    episode's budget; pass it back with the next step (`act(..., budget_state=action.budget)`)."""
+    """aail_budget's episode state after a step: the task value given up so far, the episode's
+    budget and the ego's task value at this step; pass it back with the next step
+    (`act(..., budget_state=action.budget)`)."""
 
     spent: float
     total: float
+    value: float
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any] | None) -> Budget | None:
-        return None if data is None else cls(float(data["spent"]), float(data["total"]))
+        if data is None:
+            return None
+        return cls(float(data["spent"]), float(data["total"]), float(data["value"]))
 
 
 @dataclass(frozen=True)
@@ -182,6 +186,7 @@ class ActionColumns:
     partner_weights: np.ndarray  # (B, P) float64, w_i in `partner_indices` order
     budget_spent: np.ndarray | None = None  # (B,) aail_budget's state per row, else None
     budget_total: np.ndarray | None = None
+    budget_value: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.probs)
@@ -203,6 +208,7 @@ class ActionColumns:
         partner_weights: Sequence[Any],
         budget_spent: Sequence[float] | None = None,
         budget_total: Sequence[float] | None = None,
+        budget_value: Sequence[float] | None = None,
     ) -> ActionColumns:
         """From JSON lists (nested) or protobuf repeated fields (flat, row-major) of `rows` rows."""
         indices = tuple(int(i) for i in partner_indices)
@@ -219,6 +225,7 @@ class ActionColumns:
             partner_weights=np.array(partner_weights, dtype=np.float64).reshape(rows, len(indices)),
             budget_spent=_column(budget_spent),
             budget_total=_column(budget_total),
+            budget_value=_column(budget_value),
         )
 
     @classmethod
@@ -230,6 +237,7 @@ class ActionColumns:
             models=[ModelUsed.from_json(m) for m in data["models"]],
             budget_spent=data.get("budget_spent"),
             budget_total=data.get("budget_total"),
+            budget_value=data.get("budget_value"),
             **{name: data[name] for name in COLUMN_FIELDS},
         )
 
@@ -239,10 +247,19 @@ class ActionColumns:
         greedy, entropies = self.greedy_actions.tolist(), self.task_entropies.tolist()
         task_weights, partner_weights = self.task_weights.tolist(), self.partner_weights.tolist()
         budgets: list[Budget | None] = [None] * len(probs)
-        if self.budget_spent is not None and self.budget_total is not None:
+        if (
+            self.budget_spent is not None
+            and self.budget_total is not None
+            and self.budget_value is not None
+        ):
             budgets = [
-                Budget(s, t)
-                for s, t in zip(self.budget_spent.tolist(), self.budget_total.tolist(), strict=True)
+                Budget(s, t, v)
+                for s, t, v in zip(
+                    self.budget_spent.tolist(),
+                    self.budget_total.tolist(),
+                    self.budget_value.tolist(),
+                    strict=True,
+                )
             ]
         return [
             Action(

@@ -15,8 +15,8 @@ bottom in `_act`; every batch size takes the same steps (a single observation is
 | reduce   | task Q = mean over the K task views; one impact Q per partner,| `mean_views`,  |
 |          | a goal distribution's the expectation over its goals (§3.2)   | `planning`     |
 | blend    | `policy.blend.blend_checked` (eqs. 8-10; R1 for aail_bounded);| `policy.blend` |
-|          | jl: the joint Q alone; aail_budget: AAIL's policy mixed with  | `spend_budget` |
-|          | the task's within the episode's budget (eqs. B1-B4)           |                |
+|          | jl: the joint Q alone; aail_budget: AAIL's policy while the   | `spend_budget` |
+|          | episode's budget lasts, the task's after (eqs. B1-B4)         |                |
 | sample   | inverse CDF per row from `default_rng(seed)`, one stream over | `sample_rows`  |
 |          | the rows (row r of a batch is not row 1 of a single request)  |                |
 
@@ -65,14 +65,9 @@ from envs.registry import known_envs
 from model_store.errors import ModelStoreError
 from model_store.store import ModelStore
 from policy.blend import BlendMethod, blend_checked
-from policy.maths import boltzmann
+from policy.maths import boltzmann, soft_value
 from policy.regret_bound import DEFAULT_EPSILON_PER_ALPHA, keep_goal_rows
-from policy.regret_budget import (
-    BUDGET_EPSILON_PER_ALPHA,
-    DEFAULT_BUDGET_FRACTION,
-    budget_rows,
-    initial_budget,
-)
+from policy.regret_budget import DEFAULT_BUDGET_PER_ALPHA, budget_rows, initial_budget
 from policy.row_forward import mean_views
 from policy.sampling import sample_rows
 from services.engine.environments import env_runtime
@@ -106,15 +101,15 @@ from services.engine.validation import CheckedRequest, check_request
 
 log = logging.getLogger(__name__)
 
-# the method `blend_checked` runs for each method: aail_budget is AAIL bounded by R1 at every
-# step, then the budget (B1-B4); sl and jl take the task (joint) network alone
+# the method `blend_checked` runs for each method: aail_budget is the paper's AAIL while its
+# budget lasts (B1-B4, `spend_budget`); sl and jl take the task (joint) network alone
 BLEND_OF: dict[str, BlendMethod] = {
     "sl": "sl",
     "jl": "sl",
     "nail": "nail",
     "aail": "aail",
     "aail_bounded": "aail_bounded",
-    "aail_budget": "aail_bounded",
+    "aail_budget": "aail",
 }
 
 
@@ -207,8 +202,6 @@ class InferenceEngine:
         else:
             q_impact_BPA = impact_q(checked, q_members, layout)
         temperature = float(request.temperature or group.nets[0].alpha or DEFAULT_TEMPERATURE)
-        if method == "aail_budget":  # R1's ε at every step: no oracle sets it to 0
-            epsilon_B = np.full(batch, budget_epsilon(request, group))
         # every partner slot is used, one temperature for all rows
         mask_BP = constant(plans, q_impact_BPA.shape[:2], True)
         temperature_B = constant(plans, (batch,), temperature)
@@ -229,9 +222,10 @@ class InferenceEngine:
         kept_BA = goal_kept_of(request, checked, epsilon_B)
         if kept_BA is not None:  # R4: no action that loses the reached goal where one keeps it
             probs_BA = keep_goal_rows(probs_BA, kept_BA)
+        value_B = None
         if method == "aail_budget":
-            probs_BA, spent_B, total_B = spend_budget(
-                request, checked, q_task_BA, q_impact_BPA, probs_BA, temperature
+            probs_BA, spent_B, total_B, value_B = spend_budget(
+                request, checked, group, q_task_BA, probs_BA, temperature
             )
         # one uniform per row, in order: row r of a batch is not row 1 of a single request
         rng = self._rng if request.seed is None else np.random.default_rng(request.seed)
@@ -250,6 +244,7 @@ class InferenceEngine:
             else blended.partner_weights_BP,
             budget_spent=spent_B,
             budget_total=total_B,
+            budget_value=value_B,
         )
 
     def _resolve_members(
@@ -473,35 +468,35 @@ def aail_bounded_guard(
     return np.where(reached_B, epsilon, 0.0), finished_B
 
 
-def budget_epsilon(request: ActRequest, group: StackedGroup) -> float:
-    """aail_budget's per-step ε (R1, at every step): the request's `regret_bound`, else
-    `BUDGET_EPSILON_PER_ALPHA` × the task network's training α."""
-    if request.regret_bound is not None:
-        return float(request.regret_bound)
-    return BUDGET_EPSILON_PER_ALPHA * float(group.nets[0].alpha or DEFAULT_TEMPERATURE)
-
-
 def spend_budget(
     request: ActRequest,
     checked: CheckedRequest,
+    group: StackedGroup,
     q_task_BA: np.ndarray,
-    q_impact_BPA: np.ndarray,
     probs_blend_BA: np.ndarray,
     temperature: float,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """aail_budget's policy, (B, A), and the episode's spent S' and budget B, (B,) each
-    (`policy.regret_budget`, eqs. B1-B4). At an episode's first step (no carried state) the
-    budget is the request's fraction k (default `DEFAULT_BUDGET_FRACTION`) of the ego's task
-    value here; later steps carry S and B from the last answer (k is then not read)."""
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """aail_budget's policy, (B, A), and the episode's state after this step, (B,) each: spent
+    S', budget B and the ego's task value V here (`policy.regret_budget`, eqs. B1-B4). At an
+    episode's first step (no carried state) B is the request's `budget`, else
+    `DEFAULT_BUDGET_PER_ALPHA` × the task network's training α, and nothing is spent; later
+    steps carry S, B and V from the last answer (`budget` is then not read)."""
     probs_task_BA = boltzmann(q_task_BA, temperature)
-    if checked.budget_total_B is None or checked.budget_spent_B is None:
-        fraction = DEFAULT_BUDGET_FRACTION if request.budget is None else float(request.budget)
-        total_B = initial_budget(probs_task_BA, q_task_BA, fraction)
-        spent_B = np.zeros_like(total_B)
-    else:
-        total_B, spent_B = checked.budget_total_B, checked.budget_spent_B
-    step = budget_rows(probs_task_BA, probs_blend_BA, q_task_BA, q_impact_BPA, spent_B, total_B)
-    return step.probs_BA, step.spent_B, total_B
+    value_B = soft_value(q_task_BA, temperature)
+    spent_B, total_B, last_B = (
+        checked.budget_spent_B,
+        checked.budget_total_B,
+        checked.budget_value_B,
+    )
+    if spent_B is None or total_B is None or last_B is None:
+        if request.budget is not None:
+            budget = float(request.budget)
+        else:
+            budget = DEFAULT_BUDGET_PER_ALPHA * float(group.nets[0].alpha or DEFAULT_TEMPERATURE)
+        total_B = initial_budget(budget, len(value_B))
+        spent_B, last_B = np.zeros_like(total_B), value_B
+    step = budget_rows(probs_task_BA, probs_blend_BA, q_task_BA, value_B, spent_B, total_B, last_B)
+    return step.probs_BA, step.spent_B, total_B, value_B
 
 
 def goal_kept_of(
@@ -511,7 +506,7 @@ def goal_kept_of(
     on the rows where `aail_bounded` blends (ε > 0); every action elsewhere. None where nothing
     is to keep (another method, no row blending, or a goal that cannot be lost)."""
     if request.method != "aail_bounded" or epsilon_B is None or not (epsilon_B > 0.0).any():
-        return None  # aail_budget's ε has no oracle behind it: R4 is aail_bounded's alone
+        return None  # R4 is aail_bounded's alone
     domain = checked.runtime.domain
     kept_BA = domain.goal_kept(checked.obs_BD, checked.n_agents, request.ego_goal)
     if kept_BA is None:

@@ -49,12 +49,14 @@ class ActRequest:
     method: Method = DEFAULT_METHOD
     temperature: float | None = None  # default: the task (or joint) model's training α
     regret_bound: float | None = None  # aail_bounded's ε; default: twice the task model's α
-    # aail_budget (`policy.regret_budget`): the budget's fraction k of |V_t(s_0)| (default
-    # DEFAULT_BUDGET_FRACTION), and the episode's state carried from its last step, per row
-    # (B,): S spent so far and the episode's budget B (both None at the episode's first step)
+    # aail_budget (`policy.regret_budget`): the episode's budget B in the task network's value
+    # units (default DEFAULT_BUDGET_PER_ALPHA × its α), and the episode's state carried from its
+    # last step, per row (B,): S spent so far, the budget B and the ego's task value V at that
+    # step (all three None at the episode's first step)
     budget: float | None = None
     budget_spent: Sequence[float] | np.ndarray | None = None
     budget_total: Sequence[float] | np.ndarray | None = None
+    budget_value: Sequence[float] | np.ndarray | None = None
     seed: int | None = None  # seeds the sampled action(s); one stream over the B rows
     alias: str = DEFAULT_ALIAS  # the alias every model is resolved by
     versions: Mapping[str, int] = field(default_factory=dict)  # pinned versions by model name
@@ -80,8 +82,9 @@ class ActResult:  # times dearer, and a batch makes one per row (docs/performanc
     task_weight: float  # w_t (1 for sl and jl)
     partner_weights: list[float]  # one per partner, in `partners` order
     models: list[ModelUsed]
-    budget_spent: float | None = None  # aail_budget: S after this step (eq. B4)
+    budget_spent: float | None = None  # aail_budget: S after this step (eqs. B3-B4)
     budget_total: float | None = None  # aail_budget: the episode's budget B
+    budget_value: float | None = None  # aail_budget: the ego's task value V at this step
 
 
 @dataclass(frozen=True, eq=False)  # eq=False: the fields are arrays
@@ -98,6 +101,7 @@ class ActColumns:
     partner_weights: np.ndarray  # (B, P) float64, partners in request order
     budget_spent: np.ndarray | None = None  # (B,) aail_budget's S after this step, else None
     budget_total: np.ndarray | None = None  # (B,) aail_budget's episode budget B, else None
+    budget_value: np.ndarray | None = None  # (B,) aail_budget's task value V here, else None
 
     def __len__(self) -> int:
         return len(self.probs)
@@ -110,8 +114,14 @@ class ActColumns:
         method, models = self.method, self.models
         spent: list[float | None] = [None] * len(probs)
         total: list[float | None] = [None] * len(probs)
-        if self.budget_spent is not None and self.budget_total is not None:
+        value: list[float | None] = [None] * len(probs)
+        if (
+            self.budget_spent is not None
+            and self.budget_total is not None
+            and self.budget_value is not None
+        ):
             spent, total = self.budget_spent.tolist(), self.budget_total.tolist()
+            value = self.budget_value.tolist()
         return [
             ActResult(
                 probs[b],
@@ -124,6 +134,7 @@ class ActColumns:
                 list(models),
                 spent[b],
                 total[b],
+                value[b],
             )
             for b in range(len(probs))
         ]
@@ -151,6 +162,9 @@ class ActColumns:
             budget_total=None
             if first.budget_total is None
             else np.array([r.budget_total for r in results], dtype=np.float64),
+            budget_value=None
+            if first.budget_value is None
+            else np.array([r.budget_value for r in results], dtype=np.float64),
         )
 
 

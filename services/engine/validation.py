@@ -12,10 +12,11 @@
 | `partners[i].goal_probs`  | known goals, finite probabilities >= 0 summing to 1 (within 1e-6)   |
 | `method`                  | one of aail, nail, sl, jl; jl needs >= 1 partner, each with a `goal`|
 | `temperature`             | None or a finite number > 0                                         |
-| `regret_bound`            | aail_bounded, aail_budget; None or a finite number >= 0             |
+| `regret_bound`            | aail_bounded only; None or a finite number >= 0                     |
 | `budget`                  | aail_budget only; None or a finite number >= 0                      |
-| `budget_spent`,           | aail_budget only; both None (the episode's first step) or both B    |
-| `budget_total`            | finite numbers >= 0, one per observation row                        |
+| `budget_spent`,           | aail_budget only; all three None (the episode's first step) or all  |
+| `budget_total`,           | three B finite numbers, one per observation row (spent and total    |
+| `budget_value`            | >= 0; the value any sign)                                           |
 | `seed`                    | None or an integer >= 0                                             |
 | `alias`, `versions[name]` | a valid alias; pinned names are model names, their versions        |
 |                           | integers in 1..MAX_VERSION; `engine.act` then refuses a pin of a    |
@@ -57,6 +58,7 @@ class CheckedRequest:
     # aail_budget's carried episode state, (B,) float64 each, or None at the first step
     budget_spent_B: np.ndarray | None = None
     budget_total_B: np.ndarray | None = None
+    budget_value_B: np.ndarray | None = None
 
     @property
     def partners_key(self) -> tuple[tuple[int, tuple[str, ...], bool], ...]:
@@ -257,72 +259,77 @@ def check_request(request: ActRequest, max_batch: int) -> CheckedRequest:
         )
     regret_bound = request.regret_bound
     if regret_bound is not None:
-        if request.method not in ("aail_bounded", "aail_budget"):
+        if request.method != "aail_bounded":
             raise InvalidRequest(
-                "regret_bound",
-                f"applies to methods aail_bounded and aail_budget only, not {brief(request.method)}",
+                "regret_bound", f"applies to method aail_bounded only, not {brief(request.method)}"
             )
         if not _is_real(regret_bound) or not math.isfinite(regret_bound) or regret_bound < 0:
             raise InvalidRequest(
                 "regret_bound", f"expected a finite number >= 0, got {brief(regret_bound)}"
             )
-    spent_B, total_B = check_budget(request, obs_BD.shape[0])
+    spent_B, total_B, value_B = check_budget(request, obs_BD.shape[0])
     seed = request.seed
     if seed is not None and (not _is_int(seed) or seed < 0):
         raise InvalidRequest("seed", f"expected an integer >= 0, got {brief(seed)}")
     check_alias(request.alias)
     check_versions(request.versions)
-    return CheckedRequest(runtime, obs_BD, n_agents, partners, spent_B, total_B)
+    return CheckedRequest(runtime, obs_BD, n_agents, partners, spent_B, total_B, value_B)
 
 
-def check_budget(request: ActRequest, n_rows: int) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """aail_budget's `budget`, `budget_spent` and `budget_total` (module docstring): the carried
-    state as (B,) float64 arrays, (None, None) at an episode's first step."""
-    fields = {
-        "budget": request.budget,
+def check_budget(
+    request: ActRequest, n_rows: int
+) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None]:
+    """aail_budget's `budget`, `budget_spent`, `budget_total` and `budget_value` (module
+    docstring): the carried state as (B,) float64 arrays, all None at an episode's first step."""
+    carried = {
         "budget_spent": request.budget_spent,
         "budget_total": request.budget_total,
+        "budget_value": request.budget_value,
     }
     if request.method != "aail_budget":
-        for name, value in fields.items():
+        for name, value in {"budget": request.budget, **carried}.items():
             if value is not None:
                 raise InvalidRequest(
                     name, f"applies to method aail_budget only, not {brief(request.method)}"
                 )
-        return None, None
+        return None, None, None
     budget = request.budget
     if budget is not None and (not _is_real(budget) or not math.isfinite(budget) or budget < 0):
         raise InvalidRequest("budget", f"expected a finite number >= 0, got {brief(budget)}")
-    if (request.budget_spent is None) != (request.budget_total is None):
-        missing = "budget_total" if request.budget_total is None else "budget_spent"
+    given = [name for name, value in carried.items() if value is not None]
+    if not given:
+        return None, None, None
+    if len(given) < len(carried):
+        missing = next(name for name in carried if name not in given)
         raise InvalidRequest(
             missing,
-            "give budget_spent and budget_total together (both from the episode's last answer), "
-            "or neither at the episode's first step",
+            "give budget_spent, budget_total and budget_value together (all from the episode's "
+            "last answer), or none of them at the episode's first step",
         )
-    if request.budget_spent is None:
-        return None, None
     spent_B = _budget_column(request.budget_spent, "budget_spent", n_rows)
     total_B = _budget_column(request.budget_total, "budget_total", n_rows)
-    return spent_B, total_B
+    value_B = _budget_column(request.budget_value, "budget_value", n_rows, signed=True)
+    return spent_B, total_B, value_B
 
 
-def _budget_column(values: object, field: str, n_rows: int) -> np.ndarray:
-    """One finite number >= 0 per row, (B,) float64 (a scalar for one row is accepted)."""
+def _budget_column(values: object, field: str, n_rows: int, signed: bool = False) -> np.ndarray:
+    """One finite number per row (>= 0 unless `signed`), (B,) float64 (a scalar for one row is
+    accepted)."""
+    wanted = "numbers" if signed else "numbers >= 0"
     if _is_real(values):
         values = [values]
     if not isinstance(values, list | tuple | np.ndarray):
-        raise InvalidRequest(field, f"expected one number >= 0 per row, got {brief(values)}")
+        raise InvalidRequest(field, f"expected one of the {wanted} per row, got {brief(values)}")
     try:
         array = np.asarray(values, dtype=np.float64)
     except (TypeError, ValueError):
-        raise InvalidRequest(field, f"expected numbers >= 0, got {brief(values)}") from None
+        raise InvalidRequest(field, f"expected {wanted}, got {brief(values)}") from None
     if array.shape != (n_rows,):
         raise InvalidRequest(
             field, f"expected {n_rows} number(s), one per observation row, got shape {array.shape}"
         )
-    if not np.isfinite(array).all() or (array < 0).any():
-        raise InvalidRequest(field, f"expected finite numbers >= 0, got {brief(values)}")
+    if not np.isfinite(array).all() or (not signed and (array < 0).any()):
+        raise InvalidRequest(field, f"expected finite {wanted}, got {brief(values)}")
     return array
 
 

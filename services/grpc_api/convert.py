@@ -145,19 +145,20 @@ def act_request(message: pb.ActRequest) -> ActRequest:
     request = repeated.request_with(message, lambda: _request(message, _NO_ROWS), observation, seed)
     spent = [message.budget_spent] if message.HasField("budget_spent") else None
     total = [message.budget_total] if message.HasField("budget_total") else None
-    if spent is None and total is None:
+    value = [message.budget_value] if message.HasField("budget_value") else None
+    if spent is None and total is None and value is None:
         return request
-    return replace(request, budget_spent=spent, budget_total=total)
+    return replace(request, budget_spent=spent, budget_total=total, budget_value=value)
 
 
 def episode_request(
     settings: pb.EpisodeSettings,
     step: pb.EpisodeStep,
     t: int,
-    budget: tuple[float, float] | None = None,
+    budget: tuple[float, float, float] | None = None,
 ) -> ActRequest:
     """Step t of an episode: the episode's settings, this step's observation, seed + t, and
-    aail_budget's state (spent, total) carried from the last step (None at the first)."""
+    aail_budget's state (spent, total, value) carried from the last step (None at the first)."""
     observation = _single_observation(settings.env, step)
     seed = settings.seed + t if settings.HasField("seed") else None
     request = repeated.request_with(
@@ -165,7 +166,9 @@ def episode_request(
     )
     if budget is None:
         return request
-    return replace(request, budget_spent=[budget[0]], budget_total=[budget[1]])
+    return replace(
+        request, budget_spent=[budget[0]], budget_total=[budget[1]], budget_value=[budget[2]]
+    )
 
 
 def act_batch_request(message: pb.ActBatchRequest, source: str) -> ActRequest:
@@ -197,12 +200,13 @@ def _vectors(rows: Sequence[Any]) -> np.ndarray:
 def _with_budget(message: pb.ActBatchRequest, observations: np.ndarray) -> ActRequest:
     """The batch's engine request; aail_budget's carried state where the client sent it."""
     request = _request(message, observations)
-    if not message.budget_spent and not message.budget_total:
+    if not message.budget_spent and not message.budget_total and not message.budget_value:
         return request
     return replace(
         request,
         budget_spent=list(message.budget_spent) or None,
         budget_total=list(message.budget_total) or None,
+        budget_value=list(message.budget_value) or None,
     )
 
 
@@ -340,9 +344,14 @@ def _fill(
     diagnostics.task_weight = result.task_weight
     for index, weight in zip(partner_indices, result.partner_weights, strict=True):
         diagnostics.partner_weights.add(index=index, weight=weight)
-    if result.budget_total is not None and result.budget_spent is not None:
+    if (
+        result.budget_total is not None
+        and result.budget_spent is not None
+        and result.budget_value is not None
+    ):
         message.budget.spent = result.budget_spent
         message.budget.total = result.budget_total
+        message.budget.value = result.budget_value
 
 
 def _shared(request: ActRequest, results: Sequence[ActResult]) -> tuple[bytes, list[int], Any]:
@@ -384,9 +393,14 @@ def act_columns_response(request: ActRequest, columns: ActColumns) -> pb.ActBatc
     out.task_weights.extend(columns.task_weights)
     out.partner_indices.extend([p.index for p in request.partners])
     out.partner_weights.extend(columns.partner_weights.ravel())
-    if columns.budget_spent is not None and columns.budget_total is not None:
+    if (
+        columns.budget_spent is not None
+        and columns.budget_total is not None
+        and columns.budget_value is not None
+    ):
         out.budget_spent.extend(columns.budget_spent)
         out.budget_total.extend(columns.budget_total)
+        out.budget_value.extend(columns.budget_value)
     return batch
 
 

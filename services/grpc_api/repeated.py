@@ -32,7 +32,14 @@ from services.engine import ActRequest, ActResult, ModelUsed
 from services.grpc_api.gen.coexist.v1 import policy_pb2 as pb
 
 MEMO_MAX = 256
-_PER_CALL_FIELDS = ("observation", "state", "seed", "budget_spent", "budget_total")
+_PER_CALL_FIELDS = (
+    "observation",
+    "state",
+    "seed",
+    "budget_spent",
+    "budget_total",
+    "budget_value",
+)
 
 K = TypeVar("K")
 V = TypeVar("V")

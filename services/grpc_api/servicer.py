@@ -111,7 +111,7 @@ class PolicyServicer(pb_grpc.PolicyServiceServicer):
         settings: pb.EpisodeSettings | None = None
         session: Session | None = None  # while a partner is inferred
         previous: tuple[str, np.ndarray] | None = None  # env, observation: for a later session
-        budget: tuple[float, float] | None = None  # aail_budget's (spent, total), carried
+        budget: tuple[float, float, float] | None = None  # aail_budget's state, carried
         for t, step in enumerate(requests):
             try:
                 check_parsed(step)
@@ -135,8 +135,13 @@ class PolicyServicer(pb_grpc.PolicyServiceServicer):
                     act_request, results = self._run(step, build)
                     response = convert.act_response(act_request, results[0])
                     previous = (settings.env, act_request.observations[0])
-                    spent, total = results[0].budget_spent, results[0].budget_total
-                    budget = None if spent is None or total is None else (spent, total)
+                    first = results[0]
+                    spent, total, value = first.budget_spent, first.budget_total, first.budget_value
+                    budget = (
+                        None
+                        if spent is None or total is None or value is None
+                        else (spent, total, value)
+                    )
             except Exception as err:
                 raise StepError(t, err) from err
             yield response
@@ -149,7 +154,7 @@ class PolicyServicer(pb_grpc.PolicyServiceServicer):
         session: Session | None,
         t: int,
         previous: tuple[str, np.ndarray] | None,
-        budget: tuple[float, float] | None = None,
+        budget: tuple[float, float, float] | None = None,
     ) -> Session | None:
         """The stream's session under new settings: None when no partner is inferred; the same
         session with replaced settings (beliefs kept) or a new one starting at step t."""

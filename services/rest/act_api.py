@@ -113,6 +113,7 @@ def _act(
             budget=body.budget,
             budget_spent=_budget_rows(getattr(body, "budget_spent", None), single),
             budget_total=_budget_rows(getattr(body, "budget_total", None), single),
+            budget_value=_budget_rows(getattr(body, "budget_value", None), single),
             seed=body.seed,
             alias=body.alias,
             versions=body.versions,
@@ -155,7 +156,11 @@ def encoder(env: str, partner_indices: Sequence[int]) -> Encoder:
             "models": models,
         }
         if result.budget_total is not None:
-            answer["budget"] = {"spent": result.budget_spent, "total": result.budget_total}
+            answer["budget"] = {
+                "spent": result.budget_spent,
+                "total": result.budget_total,
+                "value": result.budget_value,
+            }
         return answer
 
     return encode
@@ -193,10 +198,13 @@ def _columns(env: str, partners: Sequence[PartnerSpec], columns: ActColumns) -> 
         "partner_weights": np.ascontiguousarray(columns.partner_weights),
         **(
             {}
-            if columns.budget_total is None or columns.budget_spent is None
+            if columns.budget_total is None
+            or columns.budget_spent is None
+            or columns.budget_value is None
             else {
                 "budget_spent": np.ascontiguousarray(columns.budget_spent),
                 "budget_total": np.ascontiguousarray(columns.budget_total),
+                "budget_value": np.ascontiguousarray(columns.budget_value),
             }
         ),
     }

@@ -35,23 +35,25 @@ from services.rest.number_rows import NumberRows, NumberStates
 MethodName = Literal["aail_bounded", "aail_budget", "aail", "nail", "sl", "jl"]
 METHOD_HELP = (
     "blending method: aail_bounded (AAIL with a bound on the ego's own regret, the default), "
-    "aail_budget (AAIL within an episode's regret budget: send back `budget_spent` and "
-    "`budget_total` from each answer), aail (the paper's eqs. 8-10), nail (plain average), sl "
+    "aail_budget (AAIL within an episode's regret budget: send back `budget_spent`, "
+    "`budget_total` and `budget_value` from each answer), aail (the paper's eqs. 8-10), nail "
+    "(plain average), sl "
     "(task network alone), jl (joint network)"
 )
 BUDGET_HELP = (
-    "aail_budget only: the episode's budget as a fraction k >= 0 of the ego's expected task "
-    "value at its first step (default 0.01); read at the first step only"
+    "aail_budget only: the episode's budget B >= 0 of the ego's own task value, in the task "
+    "network's Q units (default 8 times its training α); read at the first step only"
 )
 SPENT_HELP = (
     "aail_budget only: the `budget.spent` of the episode's last answer (leave out, with "
-    "`budget_total`, at the episode's first step)"
+    "`budget_total` and `budget_value`, at the episode's first step)"
 )
 TOTAL_HELP = "aail_budget only: the `budget.total` of the episode's last answer"
+VALUE_HELP = "aail_budget only: the `budget.value` of the episode's last answer"
 REGRET_BOUND_HELP = (
-    "aail_bounded and aail_budget: ε >= 0, in the task network's Q units; actions whose task Q "
-    "is more than ε below the best keep their task-policy probability (default: twice the task "
-    "model's training α for aail_bounded, 8 times for aail_budget)"
+    "aail_bounded only: ε >= 0, in the task network's Q units; actions whose task Q is more than "
+    "ε below the best keep their task-policy probability (default: twice the task model's "
+    "training α)"
 )
 
 
@@ -101,6 +103,7 @@ class ActBody(ActFields):
     )
     budget_spent: float | None = Field(default=None, description=SPENT_HELP)
     budget_total: float | None = Field(default=None, description=TOTAL_HELP)
+    budget_value: float | None = Field(default=None, description=VALUE_HELP)
 
 
 class ActBatchBody(ActFields):
@@ -112,6 +115,7 @@ class ActBatchBody(ActFields):
     )
     budget_spent: Vector | None = Field(default=None, description=SPENT_HELP + ", one per row")
     budget_total: Vector | None = Field(default=None, description=TOTAL_HELP + ", one per row")
+    budget_value: Vector | None = Field(default=None, description=VALUE_HELP + ", one per row")
     format: Literal["rows", "columns"] = Field(
         default="rows",
         description="the response's form: `rows`, one result per observation (`results`), or "
@@ -132,8 +136,9 @@ class Diagnostics(BaseModel):
 
 
 class BudgetOut(BaseModel):
-    spent: float = Field(description="task value the episode has given up so far (eq. B4)")
-    total: float = Field(description="the episode's budget; send both back at the next step")
+    spent: float = Field(description="task value the episode has given up so far (eqs. B1-B4)")
+    total: float = Field(description="the episode's budget; send all three back at the next step")
+    value: float = Field(description="the ego's soft task value at this step (eq. B2)")
 
 
 class ModelUsedOut(BaseModel):
@@ -178,6 +183,7 @@ class ActColumnsResponse(BaseModel):
     )
     budget_spent: list[float] | None = Field(default=None, description="aail_budget: B spent")
     budget_total: list[float] | None = Field(default=None, description="aail_budget: B budgets")
+    budget_value: list[float] | None = Field(default=None, description="aail_budget: B task values")
 
 
 class EnvOut(BaseModel):

@@ -93,8 +93,8 @@ class SessionBody(RequestBody):
     regret_bound: float | None = Field(default=None, description=REGRET_BOUND_HELP)
     budget: float | None = Field(
         default=None,
-        description="aail_budget only: the episode's budget as a fraction k >= 0 of the ego's "
-        "expected task value at the session's first step (default 0.01); the session carries "
+        description="aail_budget only: the episode's budget B >= 0 of the ego's own task value, "
+        "in the task network's Q units (default 8 times its training α); the session carries "
         "what it spent from step to step",
     )
     seed: int | None = Field(default=None, description="step t samples with seed + t")

@@ -37,7 +37,7 @@ from policy.belief import BeliefConfig
 from services.sessions.errors import SessionNotFound, SessionStateInvalid
 from services.sessions.messages import SessionPartner, SessionSettings, SessionState
 
-FORMAT = b"CS1"  # bump when the layout or a field's meaning changes
+FORMAT = b"CS2"  # bump when the layout or a field's meaning changes
 TAG_BYTES = 32
 ID_TAG_CHARS = 11  # 66 bits of the id's HMAC: a foreign or mistyped id is told apart
 DTYPES: dict[str, np.dtype[Any]] = {"float64": np.dtype("<f8"), "float32": np.dtype("<f4")}
@@ -216,6 +216,6 @@ def _state_from(d: Mapping[str, Any]) -> SessionState:
         last_actions=tuple(None if a is None else int(a) for a in d["last_actions"]),
         previous=None if d["previous"] is None else _array_from(d["previous"]),
         previous_agents=int(d["previous_agents"]),
-        budget=None if budget is None else (float(budget[0]), float(budget[1])),
+        budget=None if budget is None else (float(budget[0]), float(budget[1]), float(budget[2])),
         table_partners=tuple(int(i) for i in d["table_partners"]),
     )

@@ -49,7 +49,7 @@ class SessionSettings:
     method: Method = DEFAULT_METHOD
     temperature: float | None = None  # of the act pass (default: the task model's training α)
     regret_bound: float | None = None  # aail_bounded's ε (default: twice the task model's α)
-    budget: float | None = None  # aail_budget's fraction k (`policy.regret_budget`)
+    budget: float | None = None  # aail_budget's budget B (`policy.regret_budget`)
     seed: int | None = None  # step t samples with seed + t
     alias: str = DEFAULT_ALIAS
     versions: Mapping[str, int] = field(default_factory=dict)
@@ -110,5 +110,6 @@ class SessionState:
     last_actions: tuple[int | None, ...]  # the action the last update used, per inferred partner
     previous: np.ndarray | None  # float32 (1, D): the last step's observation
     previous_agents: int  # the agents `previous` holds
-    budget: tuple[float, float] | None  # aail_budget's (spent S, budget B) after the last step
+    # aail_budget's (spent S, budget B, the ego's task value V) after the last step
+    budget: tuple[float, float, float] | None
     table_partners: tuple[int, ...]  # whose actions the next step likely brings (scoring ahead)

@@ -97,7 +97,7 @@ class Session:
         first_step: int = 0,
         previous_observation: ArrayLike | None = None,
         prefetch: bool = True,
-        budget_state: tuple[float, float] | None = None,
+        budget_state: tuple[float, float, float] | None = None,
         checked: CheckedSettings | None = None,
     ) -> None:
         self.engine = engine
@@ -116,9 +116,9 @@ class Session:
         if previous_observation is not None:
             self._previous, self._previous_agents = self._observation(previous_observation)
         self._next_step = self._first_step = first_step
-        # aail_budget's episode state (S spent, B budget) after the last step; None before it
-        # (`budget_state`: what an episode begun without the session had spent)
-        self._budget: tuple[float, float] | None = budget_state
+        # aail_budget's episode state (S spent, B budget, V the ego's task value) after the last
+        # step; None before it (`budget_state`: where an episode begun without the session stood)
+        self._budget: tuple[float, float, float] | None = budget_state
         # scoring ahead: the partners whose actions the next step is expected to bring, and
         # the table made for them (the step it serves, the table)
         self._table_partners: tuple[int, ...] = ()
@@ -245,8 +245,12 @@ class Session:
             self._next_step = t + 1
             self._last_views = (log_belief_PG, views)
             self._table_partners = self._expected_partners(entries, t, n_agents)
-            if result.budget_spent is not None and result.budget_total is not None:
-                self._budget = (result.budget_spent, result.budget_total)
+            if (
+                result.budget_spent is not None
+                and result.budget_total is not None
+                and result.budget_value is not None
+            ):
+                self._budget = (result.budget_spent, result.budget_total, result.budget_value)
             beliefs = self._beliefs(views, updates, actions)
         return SessionStepResult(self.session_id, t, result, beliefs)
 
@@ -491,10 +495,11 @@ class Session:
         # the episode's budget state, carried as a client of /v1/act would
         spent_1: np.ndarray | None = None
         budget_1: np.ndarray | None = None
+        value_1: np.ndarray | None = None
         if self._budget is not None:
-            spent_1, budget_1 = np.array([self._budget[0]]), np.array([self._budget[1]])
+            spent_1, budget_1, value_1 = (np.array([x]) for x in self._budget)
         ready = CheckedRequest(
-            checked.runtime, obs_1D, n_agents, tuple(partners), spent_1, budget_1
+            checked.runtime, obs_1D, n_agents, tuple(partners), spent_1, budget_1, value_1
         )
         try:
             return self.engine.act_checked(request, ready)[0]

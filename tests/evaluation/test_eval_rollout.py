@@ -37,7 +37,10 @@ class FakeBackend:
         # a budget state that counts the steps: what the rollout must carry back
         rows = len(request.observations)
         spent = np.zeros(rows) if request.budget_spent is None else request.budget_spent
-        return Answer(probs, models, np.asarray(spent) + 1.0, np.full(rows, 100.0))
+        value = np.zeros(rows) if request.budget_value is None else request.budget_value
+        return Answer(
+            probs, models, np.asarray(spent) + 1.0, np.full(rows, 100.0), np.asarray(value) - 1.0
+        )
 
     def has_models(self, request: ActRequest) -> bool:
         return request.method != "jl"
@@ -123,11 +126,13 @@ def test_an_aail_budget_episode_carries_its_budget_state_step_to_step() -> None:
     backend = FakeBackend(uniform_policy)
     run_cells(backend, [Cell(scenario, "aail_budget")], max_steps=6, seed=3, budget=0.2)
     ego = [r for r in backend.requests if r.method == "aail_budget"]
-    assert ego[0].budget_spent is None and ego[0].budget_total is None  # the first step
+    first = ego[0]  # the first step sends no state
+    assert first.budget_spent is None and first.budget_total is None and first.budget_value is None
     for t, request in enumerate(ego[1:], start=1):
         assert request.budget == 0.2
         np.testing.assert_array_equal(request.budget_spent, np.full(4, float(t)))
         np.testing.assert_array_equal(request.budget_total, np.full(4, 100.0))
+        np.testing.assert_array_equal(request.budget_value, np.full(4, -float(t)))
 
 
 @pytest.mark.parametrize("name", ["idle", "scripted", "eps_0.3", "hot", "switching", "same"])

@@ -210,6 +210,7 @@ def test_aail_budget_state_round_trips_over_grpc(
             )
             spent: list[float] | None = None if state is None else [state.spent]
             total: list[float] | None = None if state is None else [state.total]
+            value: list[float] | None = None if state is None else [state.value]
             expected = engine_act(
                 live,
                 obs,
@@ -218,10 +219,12 @@ def test_aail_budget_state_round_trips_over_grpc(
                 seed=5 + t,
                 budget_spent=spent,
                 budget_total=total,
+                budget_value=value,
             )[0]
             assert a.budget is not None
             assert a.budget.spent == pytest.approx(expected.budget_spent)
             assert a.budget.total == pytest.approx(expected.budget_total)
+            assert a.budget.value == pytest.approx(expected.budget_value)
             assert a.probs == pytest.approx(expected.probs)
             step = stream.act(obs)
             assert step.budget == a.budget and step.probs == pytest.approx(a.probs)
@@ -236,7 +239,9 @@ def test_aail_budget_state_round_trips_over_grpc(
         method="aail_budget",
         budget_spent=[0.0, 0.5],
         budget_total=[1.0, 0.5],
+        budget_value=[-0.1, -0.2],
     )
     assert columns.budget_total is not None and columns.budget_spent is not None
+    assert columns.budget_value is not None and len(columns.budget_value) == 2
     assert columns.budget_total.tolist() == [1.0, 0.5]
     assert columns.budget_spent[1] == pytest.approx(0.5)  # nothing left to spend

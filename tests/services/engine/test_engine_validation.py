@@ -179,7 +179,7 @@ CASES: list[tuple[str, dict[str, Any], str, str]] = [
         "regret bound with aail",
         {"method": "aail", "regret_bound": 0.1},
         "regret_bound",
-        "aail_bounded and aail_budget only",
+        "aail_bounded only",
     ),
     ("seed < 0", {"seed": -1}, "seed", ">= 0"),
     ("seed float", {"seed": 1.5}, "seed", "integer"),

@@ -60,7 +60,7 @@ class BeliefSettings(_message.Message):
     def __init__(self, forgetting: _Optional[float] = ..., floor: _Optional[float] = ..., temperature: _Optional[float] = ..., blend_mass: _Optional[float] = ..., blend_max_goals: _Optional[int] = ...) -> None: ...
 
 class ActRequest(_message.Message):
-    __slots__ = ("env", "ego_goal", "observation", "state", "ego_index", "partners", "method", "temperature", "seed", "alias", "versions", "regret_bound", "budget", "budget_spent", "budget_total")
+    __slots__ = ("env", "ego_goal", "observation", "state", "ego_index", "partners", "method", "temperature", "seed", "alias", "versions", "regret_bound", "budget", "budget_spent", "budget_total", "budget_value")
     class VersionsEntry(_message.Message):
         __slots__ = ("key", "value")
         KEY_FIELD_NUMBER: _ClassVar[int]
@@ -83,6 +83,7 @@ class ActRequest(_message.Message):
     BUDGET_FIELD_NUMBER: _ClassVar[int]
     BUDGET_SPENT_FIELD_NUMBER: _ClassVar[int]
     BUDGET_TOTAL_FIELD_NUMBER: _ClassVar[int]
+    BUDGET_VALUE_FIELD_NUMBER: _ClassVar[int]
     env: str
     ego_goal: str
     observation: _containers.RepeatedScalarFieldContainer[float]
@@ -98,7 +99,8 @@ class ActRequest(_message.Message):
     budget: float
     budget_spent: float
     budget_total: float
-    def __init__(self, env: _Optional[str] = ..., ego_goal: _Optional[str] = ..., observation: _Optional[_Iterable[float]] = ..., state: _Optional[_Union[State, _Mapping]] = ..., ego_index: _Optional[int] = ..., partners: _Optional[_Iterable[_Union[PartnerSpec, _Mapping]]] = ..., method: _Optional[str] = ..., temperature: _Optional[float] = ..., seed: _Optional[int] = ..., alias: _Optional[str] = ..., versions: _Optional[_Mapping[str, int]] = ..., regret_bound: _Optional[float] = ..., budget: _Optional[float] = ..., budget_spent: _Optional[float] = ..., budget_total: _Optional[float] = ...) -> None: ...
+    budget_value: float
+    def __init__(self, env: _Optional[str] = ..., ego_goal: _Optional[str] = ..., observation: _Optional[_Iterable[float]] = ..., state: _Optional[_Union[State, _Mapping]] = ..., ego_index: _Optional[int] = ..., partners: _Optional[_Iterable[_Union[PartnerSpec, _Mapping]]] = ..., method: _Optional[str] = ..., temperature: _Optional[float] = ..., seed: _Optional[int] = ..., alias: _Optional[str] = ..., versions: _Optional[_Mapping[str, int]] = ..., regret_bound: _Optional[float] = ..., budget: _Optional[float] = ..., budget_spent: _Optional[float] = ..., budget_total: _Optional[float] = ..., budget_value: _Optional[float] = ...) -> None: ...
 
 class Matrix(_message.Message):
     __slots__ = ("rows", "cols", "values")
@@ -111,7 +113,7 @@ class Matrix(_message.Message):
     def __init__(self, rows: _Optional[int] = ..., cols: _Optional[int] = ..., values: _Optional[_Iterable[float]] = ...) -> None: ...
 
 class ActBatchRequest(_message.Message):
-    __slots__ = ("env", "ego_goal", "observations", "states", "ego_index", "partners", "method", "temperature", "seed", "alias", "versions", "observation_matrix", "format", "regret_bound", "budget", "budget_spent", "budget_total")
+    __slots__ = ("env", "ego_goal", "observations", "states", "ego_index", "partners", "method", "temperature", "seed", "alias", "versions", "observation_matrix", "format", "regret_bound", "budget", "budget_spent", "budget_total", "budget_value")
     class VersionsEntry(_message.Message):
         __slots__ = ("key", "value")
         KEY_FIELD_NUMBER: _ClassVar[int]
@@ -136,6 +138,7 @@ class ActBatchRequest(_message.Message):
     BUDGET_FIELD_NUMBER: _ClassVar[int]
     BUDGET_SPENT_FIELD_NUMBER: _ClassVar[int]
     BUDGET_TOTAL_FIELD_NUMBER: _ClassVar[int]
+    BUDGET_VALUE_FIELD_NUMBER: _ClassVar[int]
     env: str
     ego_goal: str
     observations: _containers.RepeatedCompositeFieldContainer[Vector]
@@ -153,7 +156,8 @@ class ActBatchRequest(_message.Message):
     budget: float
     budget_spent: _containers.RepeatedScalarFieldContainer[float]
     budget_total: _containers.RepeatedScalarFieldContainer[float]
-    def __init__(self, env: _Optional[str] = ..., ego_goal: _Optional[str] = ..., observations: _Optional[_Iterable[_Union[Vector, _Mapping]]] = ..., states: _Optional[_Iterable[_Union[State, _Mapping]]] = ..., ego_index: _Optional[int] = ..., partners: _Optional[_Iterable[_Union[PartnerSpec, _Mapping]]] = ..., method: _Optional[str] = ..., temperature: _Optional[float] = ..., seed: _Optional[int] = ..., alias: _Optional[str] = ..., versions: _Optional[_Mapping[str, int]] = ..., observation_matrix: _Optional[_Union[Matrix, _Mapping]] = ..., format: _Optional[_Union[BatchFormat, str]] = ..., regret_bound: _Optional[float] = ..., budget: _Optional[float] = ..., budget_spent: _Optional[_Iterable[float]] = ..., budget_total: _Optional[_Iterable[float]] = ...) -> None: ...
+    budget_value: _containers.RepeatedScalarFieldContainer[float]
+    def __init__(self, env: _Optional[str] = ..., ego_goal: _Optional[str] = ..., observations: _Optional[_Iterable[_Union[Vector, _Mapping]]] = ..., states: _Optional[_Iterable[_Union[State, _Mapping]]] = ..., ego_index: _Optional[int] = ..., partners: _Optional[_Iterable[_Union[PartnerSpec, _Mapping]]] = ..., method: _Optional[str] = ..., temperature: _Optional[float] = ..., seed: _Optional[int] = ..., alias: _Optional[str] = ..., versions: _Optional[_Mapping[str, int]] = ..., observation_matrix: _Optional[_Union[Matrix, _Mapping]] = ..., format: _Optional[_Union[BatchFormat, str]] = ..., regret_bound: _Optional[float] = ..., budget: _Optional[float] = ..., budget_spent: _Optional[_Iterable[float]] = ..., budget_total: _Optional[_Iterable[float]] = ..., budget_value: _Optional[_Iterable[float]] = ...) -> None: ...
 
 class EpisodeSettings(_message.Message):
     __slots__ = ("env", "ego_goal", "partners", "method", "temperature", "seed", "alias", "versions", "belief", "regret_bound", "budget")
@@ -289,15 +293,17 @@ class ActResponse(_message.Message):
     def __init__(self, probs: _Optional[_Iterable[float]] = ..., action: _Optional[int] = ..., greedy_action: _Optional[int] = ..., action_meaning: _Optional[str] = ..., method: _Optional[str] = ..., diagnostics: _Optional[_Union[Diagnostics, _Mapping]] = ..., models: _Optional[_Iterable[_Union[ModelUsed, _Mapping]]] = ..., beliefs: _Optional[_Iterable[_Union[PartnerBelief, _Mapping]]] = ..., budget: _Optional[_Union[Budget, _Mapping]] = ...) -> None: ...
 
 class Budget(_message.Message):
-    __slots__ = ("spent", "total")
+    __slots__ = ("spent", "total", "value")
     SPENT_FIELD_NUMBER: _ClassVar[int]
     TOTAL_FIELD_NUMBER: _ClassVar[int]
+    VALUE_FIELD_NUMBER: _ClassVar[int]
     spent: float
     total: float
-    def __init__(self, spent: _Optional[float] = ..., total: _Optional[float] = ...) -> None: ...
+    value: float
+    def __init__(self, spent: _Optional[float] = ..., total: _Optional[float] = ..., value: _Optional[float] = ...) -> None: ...
 
 class ActColumns(_message.Message):
-    __slots__ = ("method", "models", "rows", "n_actions", "probs", "actions", "greedy_actions", "action_meanings", "task_entropies", "task_weights", "partner_indices", "partner_weights", "budget_spent", "budget_total")
+    __slots__ = ("method", "models", "rows", "n_actions", "probs", "actions", "greedy_actions", "action_meanings", "task_entropies", "task_weights", "partner_indices", "partner_weights", "budget_spent", "budget_total", "budget_value")
     METHOD_FIELD_NUMBER: _ClassVar[int]
     MODELS_FIELD_NUMBER: _ClassVar[int]
     ROWS_FIELD_NUMBER: _ClassVar[int]
@@ -312,6 +318,7 @@ class ActColumns(_message.Message):
     PARTNER_WEIGHTS_FIELD_NUMBER: _ClassVar[int]
     BUDGET_SPENT_FIELD_NUMBER: _ClassVar[int]
     BUDGET_TOTAL_FIELD_NUMBER: _ClassVar[int]
+    BUDGET_VALUE_FIELD_NUMBER: _ClassVar[int]
     method: str
     models: _containers.RepeatedCompositeFieldContainer[ModelUsed]
     rows: int
@@ -326,7 +333,8 @@ class ActColumns(_message.Message):
     partner_weights: _containers.RepeatedScalarFieldContainer[float]
     budget_spent: _containers.RepeatedScalarFieldContainer[float]
     budget_total: _containers.RepeatedScalarFieldContainer[float]
-    def __init__(self, method: _Optional[str] = ..., models: _Optional[_Iterable[_Union[ModelUsed, _Mapping]]] = ..., rows: _Optional[int] = ..., n_actions: _Optional[int] = ..., probs: _Optional[_Iterable[float]] = ..., actions: _Optional[_Iterable[int]] = ..., greedy_actions: _Optional[_Iterable[int]] = ..., action_meanings: _Optional[_Iterable[str]] = ..., task_entropies: _Optional[_Iterable[float]] = ..., task_weights: _Optional[_Iterable[float]] = ..., partner_indices: _Optional[_Iterable[int]] = ..., partner_weights: _Optional[_Iterable[float]] = ..., budget_spent: _Optional[_Iterable[float]] = ..., budget_total: _Optional[_Iterable[float]] = ...) -> None: ...
+    budget_value: _containers.RepeatedScalarFieldContainer[float]
+    def __init__(self, method: _Optional[str] = ..., models: _Optional[_Iterable[_Union[ModelUsed, _Mapping]]] = ..., rows: _Optional[int] = ..., n_actions: _Optional[int] = ..., probs: _Optional[_Iterable[float]] = ..., actions: _Optional[_Iterable[int]] = ..., greedy_actions: _Optional[_Iterable[int]] = ..., action_meanings: _Optional[_Iterable[str]] = ..., task_entropies: _Optional[_Iterable[float]] = ..., task_weights: _Optional[_Iterable[float]] = ..., partner_indices: _Optional[_Iterable[int]] = ..., partner_weights: _Optional[_Iterable[float]] = ..., budget_spent: _Optional[_Iterable[float]] = ..., budget_total: _Optional[_Iterable[float]] = ..., budget_value: _Optional[_Iterable[float]] = ...) -> None: ...
 
 class ActBatchResponse(_message.Message):
     __slots__ = ("results", "columns")
