@@ -5,8 +5,9 @@ Every HTTP error the server makes outside `/v2` (which keeps the Open Inference 
 `{"error": "<message>"}`, `services.oip.rest`) has this body:
 
     {"type": "/problems/model_not_found", "title": "Model not found", "status": 404,
-     "detail": "ego_goal: no network for goal 'zz' of particle", "instance": "/v1/act",
-     "code": "model_not_found", "field": "ego_goal"}
+     "detail": "versions[particle/task/a2]: no task network: model 'particle/task/a2' has no
+     version 7", "instance": "/v1/act", "code": "model_not_found",
+     "field": "versions[particle/task/a2]"}
 
 | member     | what                                                                         |
 |------------|------------------------------------------------------------------------------|
@@ -32,6 +33,7 @@ secret: a token is never part of a message, and `instance` leaves the query stri
 from __future__ import annotations
 
 import html
+import re
 from http import HTTPStatus
 from typing import Any
 from urllib.parse import quote
@@ -337,10 +339,15 @@ def problem_page(code: str) -> HTMLResponse:
         raise HTTPException(404, f"no problem type {clip(code, FIELD_CHARS)!r}")
     title, text = PROBLEM_TYPES[code]
     body = (
-        f"<p>{html.escape(text)}</p><p>Answered as <code>application/problem+json</code> with "
+        f"<p>{_code_spans(text)}</p><p>Answered as <code>application/problem+json</code> with "
         f'<code>"code": "{code}"</code>. <a href="{PREFIX.rstrip("/")}">All problem types</a>.</p>'
     )
     return _page(f"{title} ({code})", body)
+
+
+def _code_spans(text: str) -> str:
+    """`text` escaped for HTML, its `backquoted` parts as code."""
+    return re.sub(r"`([^`]*)`", r"<code>\1</code>", html.escape(text))
 
 
 def _page(title: str, body: str) -> HTMLResponse:

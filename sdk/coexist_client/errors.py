@@ -12,7 +12,9 @@
 `code` is the same whichever transport answered: the gRPC status name in lower case
 (`invalid_argument`, `not_found`, `unavailable`, `internal`, ...; an HTTP status is mapped to its
 gRPC counterpart). `field` names the bad part of the request as the server saw it
-(`observation`, `partners[0].goal_probs`, ...) or is None; `message` is the server's.
+(`observation`, `partners[0].goal_probs`, ...) or is None; `message` is the server's (over
+HTTP the problem details' `detail`; `coexist_client.transport.error_message` reads the older
+`{"error": {...}}` body too).
 """
 
 from __future__ import annotations

@@ -133,6 +133,7 @@ def test_every_problem_type_is_a_page_open_to_anyone(client: TestClient) -> None
         assert f'href="/problems/{code}"' in index.text
         page = client.get(f"/problems/{code}")  # no token: documentation
         assert page.status_code == 200 and title in page.text, code
+        assert "`" not in page.text  # backquoted names are code
     problem_of(client.get("/problems/no_such_type", headers=READ), 404, "not_found")
     problem_of(client.get("/problems/no_such_type"), 401, "unauthorized")  # not a page
 
