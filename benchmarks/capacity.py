@@ -19,8 +19,13 @@ Run: `OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/capacity.py [--workers 
 |             | loop over raw sockets with pre-encoded requests (an `httpx` client saturates  |
 |             | far below the server); latency runs from a step's SCHEDULED send time to its  |
 |             | answer, so a late send counts (no coordinated omission)                       |
+| warm-up     | a few sessions for 3 s on a new server, untimed (each worker loads and stacks |
+|             | its networks on first use)                                                    |
 | held        | the largest N whose steps, after 1 s of warm-up, have p99 <= 20 ms, no error  |
 |             | (any status but 200, a dropped connection) and >= 95 % of the 10 Hz steps done |
+| CPU         | the server's CPU seconds (all its processes, from /proc) and Redis's own      |
+|             | (`INFO cpu`) over each level, per step: the figure to plan cores with, less   |
+|             | moved by other work on the machine than the latencies                         |
 | throughput  | `wrk -t2 -c32` closed loop on `POST /v1/act` (4 announced partners, the same  |
 |             | episode's observations), rounds of `--duration` s: median requests/s          |
 """
@@ -298,6 +303,8 @@ def main() -> None:
                     "| Redis CPU ms/step | held |"
                 )
                 print("|---|---|---|---|---|---|---|---|---|")
+            if counts:  # every worker loads and stacks its networks first, untimed
+                hold(port, 4 * args.workers, 3.0, args.processes, args.workers, server.pid, None)
             for n in counts:
                 r = hold(
                     port,
