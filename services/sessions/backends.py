@@ -16,7 +16,7 @@ rows past `expires_at`, deleted at the next `create`). Bounds: `create` counts t
 sessions of the namespace and of the client in the same atomic step that inserts.
 
 A store that does not answer raises `SessionStoreUnavailable` naming it (password hidden) and
-the cause, within `timeout_s`; the caller changed nothing. Times are the servers' wall clocks
+the cause, within `timeout_s` (a `replace` whose reply was lost may have been applied). Times are the servers' wall clocks
 (`time.time()`): replicas on one host, or synchronised hosts.
 """
 
