@@ -21,8 +21,9 @@ Run: `OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/session_stores.py
 
 Every step is followed by `prepare_next` (untimed), as the servers run it after the answer.
 The answers of every case are checked equal to the memory store's (the same seeds). Figures:
-the median over rounds of each round's p50 and p99 in ms, and the overhead = the case's p50
-minus memory's p50 in the same round.
+the median over rounds of each round's p50 and p99 in ms, the overhead = the case's p50 minus
+memory's p50 in the same round, and this process's CPU per step (the step and `prepare_next`,
+creation amortised; waiting on the store is not CPU).
 """
 
 from __future__ import annotations
@@ -67,8 +68,13 @@ SETTINGS = SessionSettings(
 )
 
 
-def run(stores: list[Any], obs_TD: np.ndarray, act_TP: np.ndarray) -> tuple[list[float], list]:
-    """Seconds per step and the answers' probabilities, the stores taking turns."""
+def run(
+    stores: list[Any], obs_TD: np.ndarray, act_TP: np.ndarray
+) -> tuple[list[float], list, float]:
+    """Seconds per step, the answers' probabilities, and this process's CPU seconds per step
+    (the step and `prepare_next`, not the time spent waiting on the store), the stores taking
+    turns."""
+    cpu = time.process_time()
     session_id = stores[0].create(SETTINGS).session_id
     times, probs = [], []
     for t, obs in enumerate(obs_TD):
@@ -80,7 +86,8 @@ def run(stores: list[Any], obs_TD: np.ndarray, act_TP: np.ndarray) -> tuple[list
         store.prepare_next(session_id)
         probs.append(list(answer.result.probs))
     stores[0].delete(session_id)
-    return times[1:], probs  # step 0 has no evidence
+    cpu = (time.process_time() - cpu) / len(obs_TD)
+    return times[1:], probs, cpu  # step 0 has no evidence
 
 
 def codec_seconds(engine: InferenceEngine, obs_TD: np.ndarray, act_TP: np.ndarray) -> float:
@@ -152,10 +159,12 @@ def main() -> None:
             p50: dict[str, list[float]] = {k: [] for k in cases}
             p99: dict[str, list[float]] = {k: [] for k in cases}
             over: dict[str, list[float]] = {k: [] for k in cases}
+            cpu: dict[str, list[float]] = {k: [] for k in cases}
             for _ in range(args.rounds):
                 reference: list | None = None
                 for name, stores in cases.items():
-                    times, probs = run(stores, obs_TD, act_TP)
+                    times, probs, cpu_s = run(stores, obs_TD, act_TP)
+                    cpu[name].append(cpu_s * 1e3)
                     if reference is None:
                         reference = probs
                     elif probs != reference:
@@ -163,17 +172,20 @@ def main() -> None:
                     p50[name].append(float(np.percentile(times, 50)) * 1e3)
                     p99[name].append(float(np.percentile(times, 99)) * 1e3)
                     over[name].append(p50[name][-1] - p50["memory"][-1])
-            print("\n| case | step p50 ms | step p99 ms | overhead p50 ms |\n|---|---|---|---|")
+            print("\n| case | step p50 ms | step p99 ms | overhead p50 ms | CPU ms/step |")
+            print("|---|---|---|---|---|")
             for name in cases:
                 print(
                     f"| {name} | {statistics.median(p50[name]):.3f} | "
-                    f"{statistics.median(p99[name]):.3f} | {statistics.median(over[name]):+.3f} |"
+                    f"{statistics.median(p99[name]):.3f} | {statistics.median(over[name]):+.3f} | "
+                    f"{statistics.median(cpu[name]):.3f} |"
                 )
             print(
-                f"| codec (encode + decode) | {codec_seconds(engine, obs_TD, act_TP) * 1e3:.3f} | | |"
+                f"| codec (encode + decode) | {codec_seconds(engine, obs_TD, act_TP) * 1e3:.3f} "
+                "| | | |"
             )
             for name, store_url in trips.items():
-                print(f"| {name}, round trip | {round_trip_ms(name, store_url):.3f} | | |")
+                print(f"| {name}, round trip | {round_trip_ms(name, store_url):.3f} | | | |")
 
 
 if __name__ == "__main__":
