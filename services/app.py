@@ -69,7 +69,7 @@ from services.rest import install_error_handlers as install_act_errors
 from services.rest import router as act_router
 from services.rest import sessions_router
 from services.rest.body_limit import BodyLimit
-from services.rest.lean_route import LeanDispatch
+from services.rest.direct_route import DirectJson, direct_routes
 from services.rest.sessions_api import open_session_store
 from services.sessions import SharedSessionStore
 from services.settings import Settings, get_settings
@@ -198,7 +198,9 @@ def create_app(
     scraped = scrape_registry(registry)  # every worker's requests with `--workers N`
     # Outermost last: request ids, then metrics, then the body limit (pure ASGI, cheap checks);
     # innermost, the direct way of a valid JSON body to the act and session endpoints.
-    app.add_middleware(LeanDispatch)
+    # (these two routers are included without dependencies, which it could not see)
+    if settings.direct_json:
+        app.add_middleware(DirectJson, routes=direct_routes(act_router, sessions_router))
     app.add_middleware(
         BodyLimit,
         max_bytes=settings.max_body_bytes,

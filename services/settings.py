@@ -88,6 +88,10 @@ by the test suite and by Ray.
 | `COEXIST_WORKERS`             | 1                  | server        | uvicorn worker processes (set by `coexist serve   |
 |                               |                    |               | --workers`); > 1 refuses REST sessions unless     |
 |                               |                    |               | `SESSION_STORE_URL` is set                        |
+| `COEXIST_DIRECT_JSON`         | true               | server        | a valid JSON act or session body goes straight to |
+|                               |                    |               | its endpoint (`services.rest.direct_route`); off: |
+|                               |                    |               | FastAPI's router answers every request (the same  |
+|                               |                    |               | answers, more CPU per act: docs/performance.md)   |
 | `COEXIST_LOG_FORMAT`          | `text`             | server        | `json`: one JSON object per line (the images set  |
 |                               |                    |               | it); `text`: for a terminal (`services.logging`)  |
 | `COEXIST_LOG_LEVEL`           | `info`             | server        | `debug` (also probe access lines), `info`,        |
@@ -176,6 +180,7 @@ class Settings(BaseSettings):
     session_store_url: str | None = None  # Redis or PostgreSQL; None: in this process
     session_secret: SecretStr | None = None  # signs ids and records of the shared store
     workers: int = Field(default=1, ge=1)
+    direct_json: bool = True
     log_format: Literal["json", "text"] = "text"
     log_level: Literal["debug", "info", "warning", "error"] = "info"
     shutdown_grace_s: int = Field(default=10, ge=0, le=3600)

@@ -6,8 +6,8 @@
 
 The handlers are `async def` and call the engine directly (no thread-pool hop: a forward takes
 microseconds); they only translate JSON to an `ActRequest` and the results back, written with
-orjson; a valid JSON body comes straight from the app's `LeanDispatch` middleware, without
-FastAPI's router and dependency solving (`lean_route`; its share of an act: docs/performance.md).
+orjson; a valid JSON body comes straight from the app's `DirectJson` middleware, without
+FastAPI's router and dependency solving (`direct_route`; its share of an act: docs/performance.md).
 A batch with `"format": "columns"` is answered from `engine.act_columns`: one array per field,
 written by orjson straight from numpy, and the models once, not per row.
 Field names in errors follow the body: a single request's `observation` (or `state`), a batch's
@@ -38,7 +38,7 @@ from services.engine import (
 )
 from services.engine.environments import env_runtime
 from services.rest.errors import ACT_ERROR_RESPONSES
-from services.rest.lean_route import LeanJsonRoute
+from services.rest.json_body import FastJsonRoute
 from services.rest.schemas import (
     ActBatchBody,
     ActBatchResponse,
@@ -49,7 +49,7 @@ from services.rest.schemas import (
     EnvsResponse,
 )
 
-router = APIRouter(prefix="/v1", tags=["inference"], route_class=LeanJsonRoute)
+router = APIRouter(prefix="/v1", tags=["inference"], route_class=FastJsonRoute)
 
 
 def _engine(request: Request) -> InferenceEngine:

@@ -20,9 +20,9 @@ apart by address; a `Retry-After` says when the first slot could free up), 501
 `sessions_unavailable`, and with a shared store 410 `session_state_invalid` (its stored record
 fails its signature or format) and 503 `session_store_unavailable`.
 
-Speed (a step is the hot route): the routes are `LeanJsonRoute`s, so a valid body reaches its
-handler without FastAPI's router and dependency solving (`services.rest.lean_route`, the app's
-`LeanDispatch`); a step's answer is
+Speed (a step is the hot route): a valid step or create body reaches its handler without
+FastAPI's router and dependency solving (`services.rest.direct_route`, the app's `DirectJson`
+middleware); a step's answer is
 /v1/act's `ActResponse` written here, its `models` list (36 entries when the whole belief is
 blended) written once per set of networks (`_models_fragment`).
 """
@@ -48,7 +48,7 @@ from services.engine import (
 )
 from services.rest.act_api import encoder, model_dicts
 from services.rest.errors import SESSION_ERROR_RESPONSES
-from services.rest.lean_route import LeanJsonRoute
+from services.rest.json_body import FastJsonRoute
 from services.rest.session_schemas import (
     SessionBody,
     SessionOut,
@@ -70,8 +70,7 @@ from services.sessions.backends import open_backend
 from services.sessions.codec import SessionCodec
 from services.settings import Settings
 
-# LeanJsonRoute: a valid step (or create) body goes straight to its handler (LeanDispatch)
-router = APIRouter(prefix="/v1/sessions", tags=["sessions"], route_class=LeanJsonRoute)
+router = APIRouter(prefix="/v1/sessions", tags=["sessions"], route_class=FastJsonRoute)
 
 
 AnyStore = SessionStore | SharedSessionStore

@@ -1,7 +1,7 @@
-"""`LeanDispatch` (services/rest/lean_route.py): a valid JSON body for a `LeanJsonRoute` reaches
-the endpoint without FastAPI's router and dependency solving, and everything else answers
-exactly as `FastJsonRoute` does; router-level dependencies always run; only endpoints of the
-supported shape qualify; endpoint errors go to the app's exception handlers."""
+"""`DirectJson` (services/rest/direct_route.py): a valid JSON body for a given route reaches the
+endpoint without FastAPI's router and dependency solving, and everything else answers exactly as
+FastAPI does; routes with dependencies and endpoints of another shape are not given; endpoint
+errors go to the app's exception handlers; only FastAPI's and Starlette's public names are used."""
 
 from __future__ import annotations
 
@@ -16,9 +16,9 @@ import pytest
 from fastapi import APIRouter, Body, Depends, FastAPI, HTTPException, Path, Request, Response
 from fastapi.testclient import TestClient
 
-from services.rest import install_error_handlers, lean_route, sessions_router
+from services.rest import direct_route, install_error_handlers, router, sessions_router
+from services.rest.direct_route import DirectJson, direct_call, direct_routes
 from services.rest.json_body import FastJsonRoute
-from services.rest.lean_route import LeanDispatch, LeanJsonRoute, direct_call
 from services.rest.session_schemas import SessionStepBody
 
 
@@ -27,19 +27,24 @@ async def echo(item_id: str, body: SessionStepBody, request: Request) -> Respons
     return Response(orjson.dumps(answer), media_type="application/json")
 
 
-def _client(route_class: type[FastJsonRoute], **include: Any) -> TestClient:
-    router = APIRouter(prefix="/v1", route_class=route_class)
-    router.add_api_route("/items/{item_id}/steps", echo, methods=["POST"])
+def _app(endpoint: Any = echo, *, direct: bool = True, **route: Any) -> FastAPI:
+    items = APIRouter(prefix="/v1", route_class=FastJsonRoute)
+    items.add_api_route("/items/{item_id}/steps", endpoint, methods=["POST"], **route)
     app = FastAPI()
-    app.include_router(router, **include)
+    app.include_router(items)
     install_error_handlers(app)
-    app.add_middleware(LeanDispatch)
-    return TestClient(app)
+    if direct:
+        app.add_middleware(DirectJson, routes=direct_routes(items))
+    return app
+
+
+def _client(**kwargs: Any) -> TestClient:
+    return TestClient(_app(**kwargs))
 
 
 @pytest.fixture(scope="module")
 def clients() -> Iterator[tuple[TestClient, TestClient]]:
-    with _client(LeanJsonRoute) as lean, _client(FastJsonRoute) as full:
+    with _client() as lean, _client(direct=False) as full:
         yield lean, full
 
 
@@ -93,52 +98,45 @@ def test_a_valid_body_skips_dependency_solving(
     assert len(solved) == 2  # FastAPI's handler for the invalid body and for FastJsonRoute
 
 
-def test_router_level_dependencies_still_run() -> None:
+def test_a_route_with_a_dependency_is_not_given() -> None:
     def deny() -> None:
         raise HTTPException(403, "no")
 
-    with _client(LeanJsonRoute, dependencies=[Depends(deny)]) as client:
+    guarded = APIRouter(prefix="/v1", dependencies=[Depends(deny)])
+    guarded.add_api_route("/items/{item_id}/steps", echo, methods=["POST"])
+    assert direct_routes(guarded) == ()
+    with _client(dependencies=[Depends(deny)]) as client:
         response = client.post("/v1/items/x/steps", content=b'{"observation": [1]}', headers=JSON)
     assert response.status_code == 403
 
 
-def test_dependencies_of_an_outer_inclusion_still_run() -> None:
-    def deny() -> None:
-        raise HTTPException(403, "no")
-
-    inner = APIRouter(prefix="/v1", route_class=LeanJsonRoute)
-    inner.add_api_route("/items/{item_id}/steps", echo, methods=["POST"])
-    outer = APIRouter(prefix="/outer")
-    outer.include_router(inner)
-    app = FastAPI()
-    app.include_router(outer, dependencies=[Depends(deny)])
-    app.include_router(inner)  # the same route included again without: the direct path
-    app.add_middleware(LeanDispatch)
-    with TestClient(app) as client:
-        body = b'{"observation": [1]}'
-        guarded = client.post("/outer/v1/items/x/steps", content=body, headers=JSON)
-        open_ = client.post("/v1/items/x/steps", content=body, headers=JSON)
-    assert guarded.status_code == 403
-    assert open_.status_code == 200 and open_.json()["item_id"] == "x"
-
-
-def test_no_private_fastapi_names_are_read() -> None:
-    tree = ast.parse(pathlib.Path(lean_route.__file__).read_text())
+def test_no_private_fastapi_or_starlette_names_are_read() -> None:
+    tree = ast.parse(pathlib.Path(direct_route.__file__).read_text())
     imported = [
         (node.module, alias.name)
         for node in ast.walk(tree)
-        if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("fastapi")
+        if isinstance(node, ast.ImportFrom)
+        and (node.module or "").startswith(("fastapi", "starlette"))
         for alias in node.names
     ]
-    assert imported and not [name for _, name in imported if name.startswith("_")]
-    strings = [n.value for n in ast.walk(tree) if isinstance(n, ast.Constant)]
-    assert not [v for v in strings if isinstance(v, str) and v.startswith("_effective")]
+    assert imported
+    assert not [(m, n) for m, n in imported if n.startswith("_") or "._" in f".{m}"]
+    own = {  # the middleware's own attributes and methods
+        *(
+            n.attr
+            for n in ast.walk(tree)
+            if isinstance(n, ast.Attribute) and isinstance(n.ctx, ast.Store)
+        ),
+        *(n.name for n in ast.walk(tree) if isinstance(n, ast.AsyncFunctionDef | ast.FunctionDef)),
+    }
+    read = {n.attr for n in ast.walk(tree) if isinstance(n, ast.Attribute)}
+    assert not [a for a in read - own if a.startswith("_")]
 
 
 def _route(endpoint: Any, **kwargs: Any) -> fastapi.routing.APIRoute:
-    router = APIRouter(route_class=LeanJsonRoute)
-    router.add_api_route("/things/{item_id}", endpoint, methods=["POST"], **kwargs)
-    route = router.routes[0]
+    things = APIRouter(route_class=FastJsonRoute)
+    things.add_api_route("/things/{item_id}", endpoint, methods=["POST"], **kwargs)
+    route = things.routes[0]
     assert isinstance(route, fastapi.routing.APIRoute)
     return route
 
@@ -166,14 +164,9 @@ def test_a_route_with_a_dependency_takes_fastapis_handler() -> None:
     assert direct_call(_route(echo)) is not None
 
 
-def test_the_session_step_and_create_routes_are_direct() -> None:
-    paths = {
-        route.path: direct_call(route)
-        for route in sessions_router.routes
-        if isinstance(route, fastapi.routing.APIRoute) and "POST" in (route.methods or ())
-    }
-    assert paths.keys() == {"/v1/sessions/{session_id}/steps", "/v1/sessions"}
-    assert all(call is not None for call in paths.values())
+def test_the_act_and_session_posts_are_direct() -> None:
+    paths = {direct.route.path for direct in direct_routes(router, sessions_router)}
+    assert paths == {"/v1/act", "/v1/act:batch", "/v1/sessions/{session_id}/steps", "/v1/sessions"}
 
 
 async def fails(item_id: str, body: SessionStepBody, request: Request) -> Response:
@@ -189,14 +182,8 @@ async def fails(item_id: str, body: SessionStepBody, request: Request) -> Respon
 @pytest.mark.parametrize("item_id", ["http", "engine"])
 def test_endpoint_errors_are_the_apps_exception_handlers(item_id: str) -> None:
     answers = []
-    for route_class in (LeanJsonRoute, FastJsonRoute):
-        router = APIRouter(prefix="/v1", route_class=route_class)
-        router.add_api_route("/items/{item_id}/steps", fails, methods=["POST"])
-        app = FastAPI()
-        app.include_router(router)
-        install_error_handlers(app)
-        app.add_middleware(LeanDispatch)
-        with TestClient(app) as client:
+    for direct in (True, False):
+        with TestClient(_app(fails, direct=direct)) as client:
             response = client.post(
                 f"/v1/items/{item_id}/steps", content=b'{"observation": [1]}', headers=JSON
             )
@@ -205,30 +192,28 @@ def test_endpoint_errors_are_the_apps_exception_handlers(item_id: str) -> None:
 
 
 def test_an_unhandled_endpoint_error_propagates() -> None:
-    router = APIRouter(prefix="/v1", route_class=LeanJsonRoute)
-    router.add_api_route("/items/{item_id}/steps", fails, methods=["POST"])
-    app = FastAPI()
-    app.include_router(router)
-    app.add_middleware(LeanDispatch)
-    with TestClient(app, raise_server_exceptions=True) as client, pytest.raises(RuntimeError):
+    with (
+        TestClient(_app(fails), raise_server_exceptions=True) as client,
+        pytest.raises(RuntimeError),
+    ):
         client.post("/v1/items/x/steps", content=b'{"observation": [1]}', headers=JSON)
 
 
-def test_an_earlier_route_of_the_same_path_answers() -> None:
-    """FastAPI picks the first route that matches in full: the dispatch never jumps it."""
+def test_the_access_log_and_metrics_see_the_route_template(
+    clients: tuple[TestClient, TestClient],
+) -> None:
+    from services.logging import route_template
 
-    async def first(item_id: str) -> dict[str, str]:
-        return {"first": item_id}
+    seen: list[str | None] = []
 
-    router = APIRouter(prefix="/v1", route_class=LeanJsonRoute)
-    router.add_api_route("/items/{item_id}/steps", echo, methods=["POST"])
-    app = FastAPI()
-    app.add_api_route("/v1/items/{item_id}/steps", first, methods=["POST"])
-    app.include_router(router)
-    app.add_middleware(LeanDispatch)
-    with TestClient(app) as client:
-        response = client.post("/v1/items/x/steps", content=b'{"observation": [1]}', headers=JSON)
-    assert response.json() == {"first": "x"}
+    async def spy(item_id: str, body: SessionStepBody, request: Request) -> Response:
+        seen.append(route_template(dict(request.scope)))
+        return Response(b"{}", media_type="application/json")
+
+    for direct in (True, False):
+        with TestClient(_app(spy, direct=direct)) as client:
+            client.post("/v1/items/x/steps", content=b'{"observation": [1]}', headers=JSON)
+    assert seen == ["/v1/items/{item_id}/steps"] * 2
 
 
 def test_a_body_in_chunks_is_read_whole(clients: tuple[TestClient, TestClient]) -> None:
@@ -241,3 +226,15 @@ def test_a_body_in_chunks_is_read_whole(clients: tuple[TestClient, TestClient]) 
     got = lean.post("/v1/items/x/steps", content=chunks(), headers=JSON)
     expected = full.post("/v1/items/x/steps", content=b'{"observation": [0.5, 1.5]}', headers=JSON)
     assert got.status_code == 200 and got.content == expected.content
+
+
+@pytest.mark.parametrize("direct", [True, False])
+def test_the_served_app_has_the_direct_path_unless_switched_off(
+    direct: bool, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from services.app import create_app
+    from services.settings import Settings
+
+    monkeypatch.setenv("COEXIST_DEV_MODE", "1")
+    app = create_app(Settings(direct_json=direct))
+    assert (DirectJson in [m.cls for m in app.user_middleware]) is direct
