@@ -14,7 +14,6 @@ partners`. Writes `REPORT.md` and `results.json` into `--out`.
 
 from __future__ import annotations
 
-import shlex
 import time
 from contextlib import ExitStack
 from dataclasses import dataclass
@@ -22,6 +21,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from evaluation.base import EvalOptions, OptionError, Ui
+from evaluation.command_line import portable_command
 
 if TYPE_CHECKING:
     from evaluation.partners.suite import PartnersResult
@@ -117,8 +117,8 @@ PARTNERS_SUITE = PartnersSuite()
 
 
 def _command(options: EvalOptions, out: Path, settings: dict[str, Any]) -> str:
-    """The command line that reproduces this run, every setting spelled out (a store URL as
-    given: it names no machine's folder when the user named none)."""
+    """The command line that reproduces this run, every setting spelled out, with no folder of
+    the machine it ran on (`evaluation.command_line`)."""
     words = ["coexist", "eval", "--suite", "partners", "--seed", str(options.seed)]
     words += ["--server", options.server] if options.server else []
     words += ["--store-url", options.store_url] if options.store_url else []
@@ -127,4 +127,4 @@ def _command(options: EvalOptions, out: Path, settings: dict[str, Any]) -> str:
     words += ["--alias", options.alias, "--partner-alias", options.partner_alias]
     if options.partner_types:
         words += ["--partner-types", ",".join(options.partner_types)]
-    return shlex.join([*words, "--out", str(out)])
+    return portable_command([*words, "--out", str(out)])

@@ -51,6 +51,10 @@ def test_fast_suite_writes_a_report_whose_tables_match_the_episodes(tmp_path: Pa
         if r["method"] == "sl":
             assert r["team_gain"] == 0.0 and r["stranded"] == 0
     assert "## Verdicts for" in report and "never strands" in report
+    # the command a reader reruns names the zoo's folder and the output as variables, never the
+    # folders of the machine the run was made on
+    command = next(line for line in report.splitlines() if line.startswith("- Command:"))
+    assert "sqlite:///$ZOO/models.db" in command and str(tmp_path) not in command
 
 
 def test_rows_are_computed_from_the_cells() -> None:
