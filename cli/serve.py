@@ -57,7 +57,8 @@ def serve(
     os.environ["COEXIST_HTTP_PORT"] = str(http_port)
     os.environ["COEXIST_GRPC_PORT"] = str(grpc_port)
     os.environ["COEXIST_GRPC_ENABLED"] = "true" if grpc_port else "false"
-    os.environ["COEXIST_WORKERS"] = str(workers)  # the app refuses REST sessions with > 1
+    # with > 1 the app refuses REST sessions unless COEXIST_SESSION_STORE_URL shares them
+    os.environ["COEXIST_WORKERS"] = str(workers)
     if store_url:
         os.environ["COEXIST_STORE_URL"] = store_url
     os.environ["COEXIST_CREATE_STORE"] = "true" if create_store else "false"
@@ -80,6 +81,14 @@ def serve(
     except InvalidArgument as err:
         typer.echo(f"error: {err}", err=True)
         raise typer.Exit(2) from None
+    if settings.session_store_url:  # a mistyped scheme or a missing client, named now
+        from services.sessions.backends import open_backend
+
+        try:
+            open_backend(settings.session_store_url, "check").close()  # connects nowhere yet
+        except ValueError as err:
+            typer.echo(f"error: {err}", err=True)
+            raise typer.Exit(2) from None
     if bootstrap:
         _bootstrap(settings.resolved_store_url(), settings.data_dir, bootstrap_steps)
     if workers > 1:  # one /metrics for all workers: prometheus_client's multiprocess mode

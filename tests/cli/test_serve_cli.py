@@ -58,6 +58,27 @@ def test_serve_refuses_the_default_token_outside_dev_mode(tmp_path: Path) -> Non
     assert b"COEXIST_ADMIN_TOKEN" in result.stderr
 
 
+def test_serve_names_an_unusable_session_store(tmp_path: Path) -> None:
+    """A session store URL of another scheme stops `serve` before it starts, password unshown
+    (a missing COEXIST_SESSION_SECRET is `Settings.check_secure`'s, tested with the routes)."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith("COEXIST_")}
+    env.update(
+        COEXIST_DATA_DIR=str(tmp_path),
+        COEXIST_DEV_MODE="1",
+        COEXIST_SESSION_STORE_URL="mysql://u:hunter2-not-shown@db/x",
+        COEXIST_SESSION_SECRET="a-long-random-session-secret-1f3b",
+    )
+    result = subprocess.run(
+        [sys.executable, "-m", "cli.main", "serve", "--no-bootstrap"],
+        env=env,
+        capture_output=True,
+        timeout=60,
+    )
+    assert result.returncode == 2, result.stderr
+    assert b"expected redis://, rediss:// or postgresql://" in result.stderr
+    assert b"hunter2" not in result.stderr + result.stdout
+
+
 @pytest.mark.slow
 def test_bootstrap_trains_the_missing_zoo_once(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
