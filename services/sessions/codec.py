@@ -102,7 +102,7 @@ class SessionCodec:
             (length,) = struct.unpack(">I", body[:4])
             settings_json = body[4 : 4 + length]
             return settings_json, _state_from(orjson.loads(body[4 + length :]))
-        except (ValueError, KeyError, TypeError, struct.error) as err:
+        except (ValueError, KeyError, IndexError, TypeError, struct.error) as err:
             raise SessionStateInvalid(
                 session_id, f"its stored state is unreadable: {err}"
             ) from None
