@@ -140,10 +140,11 @@ class EnvPlugin:
         return self.domain.name
 
 
-_lock = threading.Lock()
+_lock = threading.RLock()
 _registry: dict[str, EnvPlugin] = {}
 _broken: dict[str, str] = {}  # entry-point name -> why it did not load
 _loaded = False
+_loading = False  # the entry points are being loaded (a plugin may register itself meanwhile)
 
 
 def register_env(plugin: EnvPlugin, *, replace: bool = False) -> None:
@@ -183,33 +184,42 @@ def _check_plugin(plugin: object, source: str) -> EnvPlugin:
 def _load_entry_points() -> None:
     """Every `coexist.envs` entry point, once per process. One that fails to load is logged and
     remembered: asking for it names the failure; the others load."""
-    global _loaded
+    global _loaded, _loading
     if _loaded:
         return
     with _lock:
-        if _loaded:
+        if _loaded or _loading:  # _loading: a plugin's import calling `register_env`
             return
-        for point in entry_points(group=ENTRY_POINT_GROUP):
-            if point.name in _registry:
-                continue  # registered from code first, or a second distribution's copy
-            try:
-                loaded = point.load()
-                plugin = _check_plugin(
-                    loaded() if callable(loaded) and not isinstance(loaded, EnvPlugin) else loaded,
-                    f"entry point {point.name} = {point.value}",
-                )
-                if plugin.name != point.name:
-                    raise ValueError(
-                        f"entry point {point.name} = {point.value}: its domain is named "
-                        f"{plugin.name!r}; name the entry point the same"
-                    )
-            except Exception as exc:  # a broken plugin must not take the others down
-                why = f"{type(exc).__name__}: {exc}"
-                log.warning("env plugin %s (%s) failed to load: %s", point.name, point.value, why)
-                _broken[point.name] = f"{point.value}: {why}"
-                continue
-            _registry[plugin.name] = plugin
+        _loading = True
+        try:
+            _load_each_entry_point()
+        finally:
+            _loading = False
         _loaded = True
+
+
+def _load_each_entry_point() -> None:
+    """Load every entry point not registered yet; one that fails is remembered."""
+    for point in entry_points(group=ENTRY_POINT_GROUP):
+        if point.name in _registry:
+            continue  # registered from code first, or a second distribution's copy
+        try:
+            loaded = point.load()
+            plugin = _check_plugin(
+                loaded() if callable(loaded) and not isinstance(loaded, EnvPlugin) else loaded,
+                f"entry point {point.name} = {point.value}",
+            )
+            if plugin.name != point.name:
+                raise ValueError(
+                    f"entry point {point.name} = {point.value}: its domain is named "
+                    f"{plugin.name!r}; name the entry point the same"
+                )
+        except Exception as exc:  # a broken plugin must not take the others down
+            why = f"{type(exc).__name__}: {exc}"
+            log.warning("env plugin %s (%s) failed to load: %s", point.name, point.value, why)
+            _broken[point.name] = f"{point.value}: {why}"
+            continue
+        _registry[plugin.name] = plugin
 
 
 def known_envs() -> tuple[str, ...]:

@@ -4,8 +4,10 @@ the others down."""
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Iterator
 from importlib.metadata import EntryPoint
+from pathlib import Path
 
 import pytest
 
@@ -101,3 +103,21 @@ def test_the_plain_drawing_draws_any_env(tinyline: str) -> None:
     scene, frame = drawing.scene(env).to_json(), drawing.scene_frame(env).to_json()
     assert scene["width"] == 2.0 and len(scene["agent_colours"]) == 2
     assert [a["index"] for a in frame["agents"]] == [0, 1]
+
+
+def test_a_plugin_that_registers_itself_on_import_loads(
+    fresh_registry: None, monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    """Its import calls `register_env` while the entry points are loading: no deadlock, and the
+    entry point's object is the registration."""
+    (tmp_path / "self_registering.py").write_text(
+        "from envs.particle.plugin import ENV as PARTICLE_ENV\n"
+        "from envs.registry import register_env\n"
+        "ENV = PARTICLE_ENV\n"
+        "register_env(ENV)\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    points = _points(("particle", "self_registering:ENV"))
+    monkeypatch.setattr(registry, "entry_points", lambda group: points)
+    assert known_envs() == ("particle",)
+    assert env_plugin("particle") is sys.modules["self_registering"].ENV
