@@ -13,7 +13,9 @@ import subprocess
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-NOT_SOURCE = ("tests", "docs", "scripts")  # top-level folders that hold no package of ours
+# top-level folders that hold no package of ours (examples/: separate distributions, each with
+# its own tests, run by tests/envs/test_mpe2_landmarks_example.py)
+NOT_SOURCE = ("tests", "docs", "scripts", "examples")
 NO_MIRROR = ("model_store/migrations",)  # Alembic's scripts (module docstring)
 
 
