@@ -4,7 +4,7 @@ installed here (run it in a venv made by `make setup`, after changing a dependen
     .venv/bin/python scripts/lock_image_deps.py          # rewrites docker/requirements.lock
     .venv/bin/python scripts/lock_image_deps.py --check  # exit 1 when the file is out of date
 
-The images install coexist with the extras `train` and `postgres` (docker/Dockerfile): the lock
+The images install coexist with the extras `train`, `postgres` and `redis` (docker/Dockerfile): the lock
 holds the closure of those requirements (markers evaluated for Linux and this Python), less
 coexist and coexist-client themselves (the code layer, installed with `--no-deps`) and torch
 (installed first from its own index, at the Dockerfile's `TORCH_VERSION`).
@@ -22,7 +22,7 @@ from packaging.utils import canonicalize_name
 
 ROOT = Path(__file__).resolve().parents[1]
 LOCK = ROOT / "docker" / "requirements.lock"
-ROOTS = [("coexist", ("train", "postgres")), ("coexist-client", ())]
+ROOTS = [("coexist", ("train", "postgres", "redis")), ("coexist-client", ())]
 NOT_LOCKED = {"coexist", "coexist-client", "torch"}
 OURS = {"coexist": ROOT / "pyproject.toml", "coexist-client": ROOT / "sdk" / "pyproject.toml"}
 HEADER = (

@@ -1,7 +1,8 @@
 """docker/ tested without a Docker engine (none runs on this machine).
 
 - compose.yaml parses (PyYAML) into the topology: PostgreSQL with a health check, a one-shot
-  migration, the trainer job, two inference replicas, a load balancer for HTTP and gRPC;
+  migration, the trainer job, two inference replicas sharing their REST sessions through a
+  password-protected Redis, a load balancer for HTTP and gRPC;
 - every command the images run is a `coexist` command whose options the CLI accepts;
 - the Dockerfile: multi-stage, non-root, CPU torch by default, CUDA documented, health checks,
   and its COPY list holds every package pyproject ships;
@@ -14,7 +15,8 @@
   the trainer command (`--help`: a real zoo takes tens of minutes; a tiny registered zoo stands
   in for its result), two replicas from the compose command, the image's HEALTHCHECK against
   one, and REST and gRPC requests through a round-robin TCP proxy standing in for Envoy (nginx
-  and Envoy are not installed here).
+  and Envoy are not installed here), a REST session among them, stepped on both replicas
+  through the compose file's session settings (a local Redis standing in for the `redis` one).
 """
 
 from __future__ import annotations
@@ -54,6 +56,9 @@ from replica_cluster import (
     server_env,
     start_server,
 )
+from session_backends import drop_namespace, redis_url
+
+from services.sessions.codec import SessionCodec
 
 COMPOSE = yaml.safe_load((DOCKER / "compose.yaml").read_text())
 SERVICES: dict[str, Any] = COMPOSE["services"]
@@ -68,6 +73,7 @@ def _depends(service: str) -> dict[str, str]:
 def test_compose_describes_the_topology() -> None:
     assert set(SERVICES) == {
         "postgres",
+        "redis",
         "migrate",
         "trainer",
         "inference",
@@ -80,7 +86,12 @@ def test_compose_describes_the_topology() -> None:
     assert SERVICES["migrate"]["restart"] == "no"  # one shot
     assert _depends("trainer") == {"migrate": "service_completed_successfully"}
     assert SERVICES["trainer"]["restart"] == "no"  # a job
-    assert _depends("inference") == {"trainer": "service_completed_successfully"}
+    assert _depends("inference") == {
+        "trainer": "service_completed_successfully",
+        "redis": "service_healthy",  # the replicas' shared REST sessions
+    }
+    assert "redis-cli ping" in " ".join(SERVICES["redis"]["healthcheck"]["test"])
+    assert "ports" not in SERVICES["redis"]  # the replicas' alone
     assert SERVICES["inference"]["deploy"]["replicas"] == 2
     assert "ports" not in SERVICES["inference"]  # reached through the load balancer only
     assert _depends("lb") == {"inference": "service_healthy"}
@@ -102,6 +113,8 @@ SECRETS = {
     "COEXIST_ADMIN_TOKEN": "admin-secret-for-the-test",
     "COEXIST_READ_TOKEN": "read-secret-for-the-test",
     "GRAFANA_ADMIN_PASSWORD": "grafana-secret-for-the-test",
+    "REDIS_PASSWORD": "redis-secret-for-the-test",
+    "COEXIST_SESSION_SECRET": "session-secret-for-the-test",
 }
 
 
@@ -120,6 +133,24 @@ def test_compose_refuses_to_start_without_each_secret(secret: str) -> None:
         everything["services"]["postgres"]["environment"]["POSTGRES_PASSWORD"]
         == (SECRETS["POSTGRES_PASSWORD"])
     )
+
+
+def test_the_replicas_share_their_sessions_through_a_password_protected_redis() -> None:
+    """Every replica has the same session store (the `redis` service, with its password) and
+    the same signing secret; Redis reads its password from a config file, never from its
+    command line (which `ps` shows), and the health check authenticates from the environment."""
+    env = interpolate(SERVICES["inference"]["environment"], SECRETS)
+    url = env["COEXIST_SESSION_STORE_URL"]
+    assert url == f"redis://:{SECRETS['REDIS_PASSWORD']}@redis:6379/0"
+    assert env["COEXIST_SESSION_SECRET"] == SECRETS["COEXIST_SESSION_SECRET"]
+    redis = interpolate(SERVICES["redis"], SECRETS)
+    (mount,) = redis["configs"]
+    assert redis["command"] == ["redis-server", mount["target"]]
+    assert SECRETS["REDIS_PASSWORD"] not in json.dumps(redis["command"])
+    conf = interpolate(COMPOSE["configs"][mount["source"]]["content"], SECRETS).splitlines()
+    assert f"requirepass {SECRETS['REDIS_PASSWORD']}" in conf
+    assert redis["environment"]["REDISCLI_AUTH"] == SECRETS["REDIS_PASSWORD"]
+    assert any(v.endswith(":/data") for v in redis["volumes"])  # sessions outlive a restart
 
 
 def test_compose_requires_the_read_token_and_prometheus_sends_it() -> None:
@@ -279,9 +310,12 @@ def test_envoy_keeps_a_session_on_one_replica() -> None:
     assert sessions["load_assignment"]["endpoints"] == http["load_assignment"]["endpoints"]
 
 
-def _service_env(service: str, base: dict[str, str], store_url: str) -> dict[str, str]:
+def _service_env(
+    service: str, base: dict[str, str], store_url: str, session_url: str = ""
+) -> dict[str, str]:
     """The image's and the compose file's COEXIST_* variables over `base`; the container-only
-    ones (data dir, listen address) and the store URL (no host `postgres` here) replaced."""
+    ones (data dir, listen address) and the store URLs (no host `postgres` or `redis` here)
+    replaced."""
     image = STAGES[SERVICES[service]["build"]["target"]].env
     kept = {
         k: v
@@ -291,7 +325,10 @@ def _service_env(service: str, base: dict[str, str], store_url: str) -> dict[str
     compose = interpolate(
         SERVICES[service].get("environment", {}), {**SECRETS, "COEXIST_ADMIN_TOKEN": ADMIN_TOKEN}
     )
-    return {**base, **kept, **compose, "COEXIST_STORE_URL": store_url}
+    env = {**base, **kept, **compose, "COEXIST_STORE_URL": store_url}
+    if "COEXIST_SESSION_STORE_URL" in env:
+        env["COEXIST_SESSION_STORE_URL"] = session_url
+    return env
 
 
 def _install_like_the_image(tmp_path: Path) -> tuple[list[str], dict[str, str]]:
@@ -340,12 +377,13 @@ def _install_like_the_image(tmp_path: Path) -> tuple[list[str], dict[str, str]]:
 
 
 @pytest.mark.postgres
+@pytest.mark.redis
 @pytest.mark.slow
 def test_the_topology_runs_as_plain_processes(tmp_path: Path) -> None:
     launcher, path_env = _install_like_the_image(tmp_path)
     run_dir = tmp_path / "cwd"
     run_dir.mkdir()
-    with pg_schema_url() as store_url:  # postgres: up and healthy
+    with pg_schema_url() as store_url, redis_url() as session_url:  # postgres, redis: healthy
         base_env = server_env(store_url, tmp_path / "data", **path_env)
         where = subprocess.run(
             [*launcher[:2], "import cli; print(cli.__file__)"],
@@ -376,7 +414,7 @@ def test_the_topology_runs_as_plain_processes(tmp_path: Path) -> None:
         seed_zoo(store_url)  # what the trainer job leaves behind, in miniature
 
         inference = service_argv(SERVICES["inference"], STAGES)[1:]
-        env = _service_env("inference", base_env, store_url)
+        env = _service_env("inference", base_env, store_url, session_url)
         replicas = [
             start_server(f"replica-{k}", env, tmp_path, inference, launcher=launcher, cwd=run_dir)
             for k in range(2)
@@ -420,6 +458,34 @@ def test_the_topology_runs_as_plain_processes(tmp_path: Path) -> None:
                         action = client.act("particle", "a2", OBS, partners={1: "b3"}, seed=1)
                         assert len(action.probs) == 5
                 assert http_lb.counts == [3, 2] and grpc_lb.counts == [1, 1]
+                # A session created on one replica and stepped on both, round robin: the
+                # compose file's shared store and secret at work.
+                lb_sessions = f"http://127.0.0.1:{http_lb.port}/v1/sessions"
+                try:
+                    created = httpx.post(
+                        lb_sessions,
+                        json={
+                            "env": "particle",
+                            "ego_goal": "a2",
+                            "partners": [{"index": 1, "goal": "b3"}],
+                            "seed": 1,
+                        },
+                        headers=read_auth,
+                    )
+                    assert created.status_code == 201, created.text
+                    session_id = created.json()["session_id"]
+                    for step in range(2):
+                        answer = httpx.post(
+                            f"{lb_sessions}/{session_id}/steps",
+                            json={"observation": OBS, "expected_step": step},
+                            headers=read_auth,
+                            timeout=30,
+                        )
+                        assert answer.status_code == 200, answer.text
+                    assert http_lb.counts == [4, 4]  # created on one, stepped on each
+                finally:
+                    namespace = SessionCodec(env["COEXIST_SESSION_SECRET"].encode()).namespace()
+                    drop_namespace(session_url, namespace)
             for server in replicas:  # what Prometheus scrapes: every dashboard metric is there
                 assert httpx.get(f"{server.http_url}/metrics").status_code == 401
                 page = httpx.get(f"{server.http_url}/metrics", headers=read_auth).text

@@ -74,7 +74,7 @@ def test_the_lock_pins_every_requirement_of_the_images() -> None:
     project = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]
     sdk = tomllib.loads((REPO / "sdk" / "pyproject.toml").read_text())["project"]
     wanted = [*project["dependencies"], *sdk["dependencies"]]
-    for extra in ("train", "postgres"):
+    for extra in ("train", "postgres", "redis"):
         wanted += project["optional-dependencies"][extra]
     for line in wanted:
         req = Requirement(line)
