@@ -5,7 +5,7 @@ numbers (the compiled `services.rest._number_rows`), validated by pydantic as a 
 
 Why: a large batch is as many lists of Python floats; validating them as `list[list[float]]`
 copies every number into new lists and `np.asarray` then walks them again, a large share of a
-batch request's time (docs/performance.md, "A faster REST batch"). The compiled pass takes
+batch request's time (docs/performance.md, "Where the time goes"). The compiled pass takes
 only what pydantic would accept unchanged (exact floats and ints, lists of equal length at
 every level); anything else (a string, a bool, ragged rows, an empty batch, a number beyond a
 double) goes the way it always went, so the same bodies are accepted, with the same values
