@@ -228,7 +228,14 @@ def to_markdown(
         "- What the numbers say, in words: [discussion.md](discussion.md) (hand-written).",
         "",
     ]
-    judged = [default] + [m for m in BLENDS if m != default and m in c.methods]
+    return "\n".join(lines) + "\n" + tables_markdown(rows, default, c.methods)
+
+
+def tables_markdown(rows: list[Row], default: str, methods: tuple[str, ...]) -> str:
+    """The verdicts and the three tables of a report: everything below its header, computed
+    from `rows` alone (so a test can check a committed report against its results.json)."""
+    lines: list[str] = []
+    judged = [default] + [m for m in BLENDS if m != default and m in methods]
     for method in judged:
         role = "the server's default" if method == default else "an option"
         lines += [

@@ -1,0 +1,39 @@
+"""The committed partners reports say what their data says: each REPORT.md's verdicts and tables
+are what `evaluation.partners.report` computes from the rows of its results.json, and ZOOS.md is
+the spread of those runs."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import pytest
+
+from evaluation.partners.report import Row, tables_markdown
+from evaluation.partners.spread import spread_markdown
+
+REPORTS = Path(__file__).resolve().parents[3] / "reports" / "partners"
+RUNS = {"zoo seed 0": REPORTS, "zoo seed 10": REPORTS / "zoo10", "zoo seed 20": REPORTS / "zoo20"}
+DEFAULT = "aail_bounded"  # the server's default blend, as each report names it
+
+
+def _rows(run: Path) -> tuple[list[Row], tuple[str, ...]]:
+    data = json.loads((run / "results.json").read_text())
+    rows = [Row(**{k: (math.nan if v is None else v) for k, v in r.items()}) for r in data["rows"]]
+    return rows, tuple(data["config"]["methods"])
+
+
+@pytest.mark.parametrize("label", sorted(RUNS))
+def test_each_report_holds_the_tables_its_results_give(label: str) -> None:
+    run = RUNS[label]
+    rows, methods = _rows(run)
+    report = (run / "REPORT.md").read_text()
+    assert "## Verdicts for AAIL-B (the server's default)" in report
+    assert report.endswith(tables_markdown(rows, DEFAULT, methods))
+
+
+def test_zoos_is_the_spread_of_the_three_runs() -> None:
+    runs = [json.loads((run / "results.json").read_text()) for run in RUNS.values()]
+    table = spread_markdown(runs, list(RUNS))
+    assert table in (REPORTS / "ZOOS.md").read_text()
