@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -20,7 +21,10 @@ DEFAULT = "aail_bounded"  # the server's default blend, as each report names it
 
 def _rows(run: Path) -> tuple[list[Row], tuple[str, ...]]:
     data = json.loads((run / "results.json").read_text())
-    rows = [Row(**{k: (math.nan if v is None else v) for k, v in r.items()}) for r in data["rows"]]
+    rows: list[Row] = []
+    for r in data["rows"]:
+        fields: dict[str, Any] = {k: (math.nan if v is None else v) for k, v in r.items()}
+        rows.append(Row(**fields))
     return rows, tuple(data["config"]["methods"])
 
 
