@@ -291,8 +291,10 @@ def with_problem_responses(openapi: dict[str, Any]) -> dict[str, Any]:
     defs = PROBLEM_SCHEMA.get("$defs", {})
     schemas.update(defs)
     schemas["Problem"] = {k: v for k, v in PROBLEM_SCHEMA.items() if k != "$defs"}
+    schemas["InferenceError"] = V2_ERROR_SCHEMA
     for path, operations in openapi.get("paths", {}).items():
         if path == "/v2" or path.startswith("/v2/"):
+            _protocol_errors(operations)
             continue
         for operation in operations.values():
             for status, response in operation.get("responses", {}).items():
@@ -303,6 +305,35 @@ def with_problem_responses(openapi: dict[str, Any]) -> dict[str, Any]:
         if f"#/components/schemas/{name}'" not in used:
             schemas.pop(name, None)
     return openapi
+
+
+# The Open Inference Protocol's error body (`/v2`): one string, as its clients parse it.
+V2_ERROR_SCHEMA: dict[str, Any] = {
+    "title": "InferenceError",
+    "type": "object",
+    "required": ["error"],
+    "properties": {"error": {"type": "string", "description": "what went wrong"}},
+}
+V2_ERRORS = {
+    "400": "The request does not follow the protocol or names a bad tensor",
+    "404": "No such model or model version",
+    "503": "The model's store cannot be reached",
+}
+
+
+def _protocol_errors(operations: dict[str, Any]) -> None:
+    """A `/v2` route's errors as the protocol answers them: 400, not FastAPI's own 422, with
+    `{"error": "<string>"}` (services/oip/rest.py, `error_status`)."""
+    for operation in operations.values():
+        responses = operation.setdefault("responses", {})
+        responses.pop("422", None)
+        for status, description in V2_ERRORS.items():
+            responses[status] = {
+                "description": description,
+                "content": {
+                    "application/json": {"schema": {"$ref": "#/components/schemas/InferenceError"}}
+                },
+            }
 
 
 def _phrase(status: int) -> str:
