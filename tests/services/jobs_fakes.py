@@ -67,7 +67,7 @@ def fake_jobs_app(tmp_path: Path) -> Iterator[FastAPI]:
             table.close()
 
 
-def wait_for(check: Callable[[], Any], what: str, timeout_s: float = 30.0) -> Any:
+def wait_for(check: Callable[[], Any], what: str, timeout_s: float = 60.0) -> Any:
     """Poll `check` until it returns something truthy; fail naming `what` after `timeout_s`
     (generous: a trainer subprocess starts in seconds, but a loaded 2-core machine is slower)."""
     deadline = time.monotonic() + timeout_s
