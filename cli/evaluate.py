@@ -132,6 +132,12 @@ def evaluate(
             "Default: all."
         ),
     ] = None,
+    env: Annotated[
+        str | None,
+        typer.Option(
+            help="--suite pairs: the environment (any registered one: `coexist env list`)."
+        ),
+    ] = None,
     print_combos: Annotated[
         bool,
         typer.Option(
@@ -169,6 +175,7 @@ def evaluate(
         partner_alias=partner_alias,
         print_combos=print_combos,
         partner_types=tuple(t.strip() for t in (partner_types or "").split(",") if t.strip()),
+        env=env,
     )
     ui = _ConsoleUi()
     try:

@@ -54,6 +54,7 @@ class EvalOptions:
     partner_alias: str = "partners"
     print_combos: bool = False
     partner_types: tuple[str, ...] = ()  # the partners suite's partner types (empty: all)
+    env: str | None = None  # the pairs suite's environment (any registered one)
 
 
 class OptionError(ValueError):

@@ -7,6 +7,8 @@
 | `cooking`   | `evaluation.cooking.command.COOKING_SUITE`      | the kitchen, Fig. 9      |
 | `partners`  | `evaluation.partners.command.PARTNERS_SUITE`    | every method against     |
 |             |                                                 | partners not coexist's   |
+| `pairs`     | `evaluation.pairs.command.PAIRS_SUITE`          | every method on goal     |
+|             |                                                 | pairs of any `--env`     |
 
 Suites are plugins like environments (`envs.registry`): each is an entry point of the group
 `coexist.suites` naming an object that implements `evaluation.base.Suite`, loaded once per
