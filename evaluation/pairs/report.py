@@ -61,7 +61,7 @@ def summarise(
         methods[r.method] = row
     versus: dict[str, Any] = {}
     for measure in MEASURES:
-        tests = {}
+        tests: dict[str, dict[str, Any]] = {}
         for r in results:
             if r.method == REFERENCE:
                 continue

@@ -10,7 +10,8 @@ Every method plays the same episodes: pair p's episode e starts from
 `envs.registry.episode_resets(env, seed + 1000 p, episodes, 2)[e]` and agent i samples its
 action at step t with the uniform `U[p, e, t, i]` (common random numbers drawn once from
 `seed`), so the methods' differences are paired by episode. The envs of one method step in
-lockstep: one engine request per (goal pair, agent) per step, rows = that pair's live episodes.
+lockstep: per step, one engine request per goal pair for the egos (rows: that pair's live
+episodes) and one per partner goal for the partners.
 
 Per episode: each agent's return (the sum of its rewards) and whether its own goal is reached
 at the last step (`Domain.goal_reached` on its final observation).
@@ -121,21 +122,24 @@ def run_method(
                     **state,
                 )
             )
-            if ego.budget_spent_B is not None:
+            spent, total, value = ego.budget_spent_B, ego.budget_total_B, ego.budget_value_B
+            if spent is not None and total is not None and value is not None:
                 if budget is None:
                     budget = np.full((P, E, 3), np.nan)
-                budget[p, rows] = np.stack(
-                    [ego.budget_spent_B, ego.budget_total_B, ego.budget_value_B], axis=1
-                )
-            partner = backend.answer(
-                ActRequest(
-                    env=env, ego_goal=partner_goal, observations=obs[p, rows, 1], alias=alias
-                )
-            )
+                budget[p, rows] = np.stack([spent, total, value], axis=1)
             actions[p, rows, 0] = _sample(ego.probs_BA, uniforms[p, rows, t, 0])
-            actions[p, rows, 1] = _sample(partner.probs_BA, uniforms[p, rows, t, 1])
+        # the partners act on their own goals alone: one request per partner goal, every pair's
+        for partner_goal in sorted({g for _, g in pairs}):
+            at = live & np.array([g == partner_goal for _, g in pairs])[:, None]
+            if not at.any():
+                continue
+            partner = backend.answer(
+                ActRequest(env=env, ego_goal=partner_goal, observations=obs[at][:, 1], alias=alias)
+            )
+            actions[..., 1][at] = _sample(partner.probs_BA, uniforms[..., t, 1][at])
         for p in range(P):
-            for e in np.flatnonzero(live[p]):
+            for e_live in np.flatnonzero(live[p]):
+                e = int(e_live)
                 world = envs[p][e]
                 agents = world.possible_agents
                 step = {a: int(actions[p, e, i]) for i, a in enumerate(agents) if a in world.agents}
