@@ -96,7 +96,7 @@ class PairsSuite:
                             max_steps=settings["max_steps"],
                             alias=options.alias,
                             regret_bound=settings["regret_bound"],
-                            advance=bars(method, settings["max_steps"] + 1),
+                            advance=bars(method, settings["max_steps"]),
                         )
                     )
             wall_s = time.perf_counter() - start

@@ -83,7 +83,7 @@ def run_method(
     """`episodes` episodes of `method` on every pair (module docstring)."""
     domain = get_domain(env)
     P, E, n = len(pairs), episodes, 2
-    uniforms = np.random.default_rng([seed, 2]).random((P, E, max_steps + 1, n))
+    uniforms = np.random.default_rng([seed, 2]).random((P, E, max_steps, n))
     envs: list[list[Any]] = []
     obs = np.zeros((P, E, n, domain.obs_dim(n)))
     for p, goals in enumerate(pairs):
@@ -101,7 +101,7 @@ def run_method(
     live = np.ones((P, E), dtype=bool)
     # aail_budget's episode state, carried per row from one step to the next (None at t = 0)
     budget: np.ndarray | None = None
-    for t in range(max_steps + 1):
+    for t in range(max_steps):  # the env truncates at max_steps (`EnvPlugin.make_env`)
         if not live.any():
             break
         actions = np.zeros((P, E, n), dtype=int)
@@ -153,7 +153,7 @@ def run_method(
                     live[p, e] = False
                     world.close()
         if advance is not None:
-            advance(1, int(live.sum()))
+            advance(t + 1, int(live.sum()))
     success = np.zeros((P, E, n), dtype=bool)
     for p, goals in enumerate(pairs):
         for i, goal in enumerate(goals):
