@@ -53,7 +53,11 @@ def summarise(
         for measure in MEASURES:
             values = _per_pair(r, measure)
             ci = paired_ci(values, np.zeros_like(values))
-            row[measure] = {"mean": float(values.mean()), "ci95": [ci.low, ci.high]}
+            row[measure] = {
+                "mean": float(values.mean()),
+                "ci95": [ci.low, ci.high],
+                "per_pair": values.tolist(),  # in the order of `pairs`
+            }
         row["stranded"] = int((sl.ego_success & ~r.ego_success).sum())
         row["rescued"] = int((~sl.ego_success & r.ego_success).sum())
         row["partner_success"] = float(r.partner_success.mean())
