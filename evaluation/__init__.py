@@ -1,7 +1,8 @@
 """The experiments: their statistics, plots and reports (`coexist eval --suite ...`).
 
 One folder per suite (`paper/`: the particle experiments, §4.2; `inference/`: online goal
-inference; `cooking/`: the kitchen, §4.4), each with a `command.py` implementing `base.Suite`,
+inference; `cooking/`: the kitchen, §4.4; `partners/`: partners not coexist's; `pairs/`: every
+method on goal pairs of any registered environment), each with a `command.py` implementing `base.Suite`,
 over the parts they share:
 
 | module       | what                                                                       |

@@ -33,6 +33,7 @@ DEFAULT_EPISODES = 100
 DEFAULT_MAX_STEPS = 400  # the paper's episode limit in the kitchen
 # options of the paper suite that this one refuses, in the order they are checked
 PAPER_ONLY = (
+    "env",
     "five_agent_episodes",
     "pairs",
     "pair_episodes",

@@ -45,6 +45,8 @@ class InferenceSuite:
 
         if options.partner_types:
             raise OptionError("used by --suite partners only", "--partner-types")
+        if options.env is not None:
+            raise OptionError("used by --suite pairs only", "--env")
         if options.server is not None:
             raise OptionError(
                 "the inference suite runs in-process (the likelihood pass is the engine's); "

@@ -104,6 +104,10 @@ def _config(options: EvalOptions) -> SuiteConfig:
 
     if options.partner_types:
         raise OptionError("used by --suite partners only", "--partner-types")
+    if options.env is not None:
+        raise OptionError(
+            "used by --suite pairs only (this suite is the particle world's)", "--env"
+        )
     if options.pairs is not None:
         raise OptionError(
             "used by --suite inference only; the paper suite draws pairs per class "

@@ -27,6 +27,7 @@ if TYPE_CHECKING:
     from evaluation.partners.suite import PartnersResult
 
 NOT_USED: tuple[str, ...] = (
+    "env",
     "episodes",
     "five_agent_episodes",
     "pairs",

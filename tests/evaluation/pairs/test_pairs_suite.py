@@ -17,6 +17,7 @@ from evaluation.backend import EngineBackend
 from evaluation.base import Bars, EvalOptions, OptionError
 from evaluation.pairs.command import METHODS, PAIRS_SUITE
 from evaluation.pairs.rollout import goal_pairs, run_method
+from evaluation.suites import get_suite
 from model_store.sql.sql_store import SqlModelStore
 from services.engine import InferenceEngine
 from trainer.learners import train_impacts, train_tasks
@@ -121,3 +122,11 @@ def test_refused_options_are_named(options: EvalOptions, flag: str) -> None:
     with pytest.raises(OptionError) as refused:
         PAIRS_SUITE.run(options, _QuietUi())
     assert refused.value.option == flag
+
+
+@pytest.mark.parametrize("name", ["paper", "inference", "cooking", "partners"])
+def test_the_other_suites_refuse_env(name: str) -> None:
+    """`--env` chooses the pairs suite's world only: a suite of one world names it, not ignores it."""
+    with pytest.raises(OptionError) as refused:
+        get_suite(name).run(EvalOptions(env="mpe2_landmarks"), _QuietUi())
+    assert refused.value.option == "--env"
