@@ -1,6 +1,6 @@
-"""Capacity: how many robots one server holds, each a REST session stepping at 10 Hz with 4
-inferred partners, with step p99 <= 20 ms and no error; and act throughput at c = 32, one worker
-against two.
+"""Capacity: how many robots one server holds, each a REST session stepping at a fixed rate
+(`HZ`) with inferred partners (`PARTNER_GOALS`), within a step-latency bound (`P99_MS`) and
+without errors; and act throughput under concurrent load, one worker against two.
 
 Run: `OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/capacity.py [--workers 1]
 [--session-store redis://127.0.0.1:6379/0] [--sessions 10,20,40,60,80] [--duration 10]
@@ -21,7 +21,7 @@ Run: `OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/capacity.py [--workers 
 |             | answer, so a late send counts (no coordinated omission)                       |
 | warm-up     | a few sessions for 3 s on a new server, untimed (each worker loads and stacks |
 |             | its networks on first use)                                                    |
-| held        | the largest N whose steps, after 1 s of warm-up, have p99 <= 20 ms, no error  |
+| held        | the largest N whose steps, after the warm-up, have p99 <= P99_MS, no error    |
 |             | (any status but 200, a dropped connection) and >= 95 % of the 10 Hz steps done |
 | CPU         | the server's CPU seconds (all its processes, from /proc) and Redis's own      |
 |             | (`INFO cpu`) over each level, per step: the figure to plan cores with, less   |

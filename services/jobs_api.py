@@ -40,6 +40,7 @@ from typing import Annotated, Any, Literal
 from fastapi import APIRouter, Depends, FastAPI, Query, Request
 from fastapi.responses import JSONResponse
 from pydantic import Field
+from sqlalchemy import URL
 
 import services.registry  # noqa: F401  (first: importing services.deps first is a cycle)
 from model_store.errors import StoreUnavailable
@@ -76,20 +77,22 @@ class JobRequest(RequestBody):
     )
 
 
-def _store_urls(app: FastAPI) -> tuple[str, str]:
-    """The job table's database URL (the store's own SQL database, SQLite paths made absolute)
-    and the URL a job's subprocess opens the store by (`ModelStore.reopen_url`: a plugin's
-    scheme stays a plugin's scheme), passwords included: they go only to the job table's engine
-    and into the trainer's environment (`JobRunner`), never onto a command line, into a log or
-    into an answer."""
+def _store_urls(app: FastAPI) -> tuple[URL, str]:
+    """The job table's database URL (the store's own SQL database, SQLite paths made absolute),
+    kept a URL object so that its password is never rendered into a string here, and the URL a
+    job's subprocess opens the store by (`ModelStore.reopen_url`: a plugin's scheme stays a
+    plugin's scheme), which goes only into the trainer's environment (`JobRunner`), never onto
+    a command line, into a log or into an answer."""
     store = getattr(app.state, "store", None)
     url = getattr(store, "url", None)
     if store is None or url is None:
         raise StoreUnavailable("training jobs need a SQL model store (and it is not open)")
     if url.get_backend_name() == "sqlite" and url.database:
         url = url.set(database=str(Path(url.database).absolute()))
-    table_url: str = url.render_as_string(hide_password=False)
-    return table_url, store.reopen_url() or table_url
+    store_url = store.reopen_url()
+    if store_url is None:
+        raise StoreUnavailable("training jobs need a model store another process can open")
+    return url, store_url
 
 
 def _open(app: FastAPI) -> tuple[JobTable, JobRunner]:

@@ -45,7 +45,7 @@ from datetime import UTC, datetime, timedelta
 from enum import StrEnum
 from typing import Any
 
-from sqlalchemy import Engine, or_, select, update
+from sqlalchemy import URL, Engine, or_, select, update
 from sqlalchemy.exc import DBAPIError
 from sqlalchemy.orm import Session, sessionmaker
 
@@ -114,7 +114,9 @@ def _check_id(job_id: str) -> None:
 class JobTable:
     """Rows of `training_jobs` in the database at `url` (the model store's)."""
 
-    def __init__(self, url: str, *, max_attempts: int = 3, stale_after_s: float = 30.0) -> None:
+    def __init__(
+        self, url: str | URL, *, max_attempts: int = 3, stale_after_s: float = 30.0
+    ) -> None:
         self.engine: Engine = create_store_engine(url)
         self._where = f"job table in {redact_url(url)} unavailable"
         with self._unavailable():
