@@ -24,6 +24,8 @@ kept in log space, with two changes a deployment needs (`BeliefConfig`):
 | `update_log_belief`          | one step: forget, multiply, normalise, floor     | (P, G)/(G,)  |
 | `PreparedUpdate`             | the same for fixed priors, checked once (faster) | (E, G)       |
 | `evidence_rows`              | which likelihood rows count as evidence          | (P,)/()      |
+| `PreparedUpdate.pruned`      | the update scoring only the active goals, with   | (E, G)       |
+|                              | its error bound (`policy.belief_prune`)          |              |
 
 What a belief says (`top_goals`, `belief_entropy`, `belief_summary`, `belief_cross_entropy`, the
 blend's goal distribution `blend_goal_probs` / `blend_goal_weights`, and both for every row at
@@ -46,6 +48,7 @@ import numpy as np
 
 from policy._validate import PROB_SUM_TOL
 from policy.belief_compiled import compiled_update
+from policy.belief_prune import PrunedUpdate, pruned_update
 from policy.belief_views import (
     BeliefView,
     belief_cross_entropy,
@@ -89,6 +92,10 @@ class BeliefConfig:
     forgetting: float = 0.95  # λ in (0, 1]: 1 = never forget
     floor: float = 1e-3  # ε in [0, 1/G): every goal keeps probability >= ε
     temperature: float | None = None  # α of the likelihood; None: each task net's training α
+    # goal pruning (`policy.belief_prune`): τ, goals below it are not scored while the step's
+    # error bound stays <= δ, nor blended; 0 = off
+    prune_below: float = 0.0
+    prune_error: float = 0.05  # δ in (0, 1]: the bound on one step's total-variation error
 
     def validate(self, n_goals: int) -> None:
         """ValueError naming the field (`belief.forgetting`, ...) when a value is out of range."""
@@ -106,6 +113,19 @@ class BeliefConfig:
             raise ValueError(
                 f"belief.temperature: expected null or a finite number > 0, got {alpha!r}"
             )
+        tau, delta = self.prune_below, self.prune_error
+        if not _is_real(tau) or not (tau == 0 or eps < tau <= 1):
+            raise ValueError(
+                f"belief.prune_below: expected 0 (off) or a number in (floor, 1] = "
+                f"({eps!r}, 1], got {tau!r}"
+            )
+        if tau > 0 and eps == 0:
+            raise ValueError(
+                "belief.prune_below: pruning needs belief.floor > 0 (a pruned goal keeps the "
+                "floor's probability, from which the evidence can raise it again)"
+            )
+        if not _is_real(delta) or not 0 < delta <= 1:
+            raise ValueError(f"belief.prune_error: expected a number in (0, 1], got {delta!r}")
 
 
 def prior_log_probs(
@@ -306,6 +326,21 @@ class PreparedUpdate:
         if pull is not None and rows is not None:
             pull = pull[rows]
         return _updated(log_belief_EG, log_lik_EG, pull, self.forgetting, self.floor)
+
+    def pruned(
+        self,
+        log_belief_EG: np.ndarray,
+        log_lik_EA: np.ndarray,
+        active: np.ndarray,
+        rows: Sequence[int] | None = None,
+    ) -> PrunedUpdate:
+        """`policy.belief_prune.pruned_update` of these rows with this session's prior and
+        settings: the likelihoods `log_lik_EA` of the goals `active` only, and each row's bound
+        on its distance to `self(log_belief_EG, full likelihoods, rows)`."""
+        pull = self._pull_PG
+        if pull is not None and rows is not None:
+            pull = pull[rows]
+        return pruned_update(log_belief_EG, log_lik_EA, active, pull, self.forgetting, self.floor)
 
 
 def _forgetting_pull(log_prior: np.ndarray, lam: float, eps: float) -> np.ndarray | None:

@@ -41,9 +41,11 @@ def _is_real(value: object) -> bool:
     )
 
 
-def _check_blend(mass: float, max_goals: int | None) -> None:
+def _check_blend(mass: float, max_goals: int | None, below: float = 0.0) -> None:
     if not _is_real(mass) or not 0 < mass <= 1:
         raise ValueError(f"mass: expected a number in (0, 1], got {mass!r}")
+    if not _is_real(below) or not 0 <= below <= 1:
+        raise ValueError(f"below: expected a number in [0, 1], got {below!r}")
     if max_goals is not None and (
         isinstance(max_goals, bool) or not isinstance(max_goals, int | np.integer) or max_goals < 1
     ):
@@ -130,25 +132,32 @@ def blend_goal_probs(
 
 
 def blend_goal_weights(
-    log_belief_G: np.ndarray, mass: float = 1.0, max_goals: int | None = None
+    log_belief_G: np.ndarray, mass: float = 1.0, max_goals: int | None = None, below: float = 0.0
 ) -> tuple[list[int], list[float]]:
-    """`blend_goal_probs` as the kept goals' indices (ascending) and their probabilities."""
+    """`blend_goal_probs` as the kept goals' indices (ascending) and their probabilities;
+    `below` > 0 also leaves out every goal of probability below it but the most probable (goal
+    pruning, `policy.belief_prune`)."""
     log_b = _belief_vector(log_belief_G)
-    _check_blend(mass, max_goals)
+    _check_blend(mass, max_goals, below)
     probs = np.exp(log_b).tolist()
-    order = None if _whole(mass, max_goals, log_b.size) else np.argsort(-log_b, kind="stable")
-    kept, probs = _blend_kept(probs, order, mass, max_goals)
+    whole = _whole(mass, max_goals, log_b.size, below)
+    order = None if whole else np.argsort(-log_b, kind="stable")
+    kept, probs = _blend_kept(probs, order, mass, max_goals, below)
     total = math.fsum(probs)
     return kept, [p / total for p in probs]
 
 
-def _whole(mass: float, max_goals: int | None, n_goals: int) -> bool:
+def _whole(mass: float, max_goals: int | None, n_goals: int, below: float = 0.0) -> bool:
     """Whether the blend keeps every goal of probability > 0 (no ordering needed)."""
-    return mass >= 1 and (max_goals is None or max_goals >= n_goals)
+    return mass >= 1 and (max_goals is None or max_goals >= n_goals) and below <= 0
 
 
 def _blend_kept(
-    probs: list[float], order: np.ndarray | None, mass: float, max_goals: int | None
+    probs: list[float],
+    order: np.ndarray | None,
+    mass: float,
+    max_goals: int | None,
+    below: float = 0.0,
 ) -> tuple[list[int], list[float]]:
     """The blend's goals (ascending) and their unnormalised probabilities, from one row's
     probabilities and, unless the blend is `_whole`, its goals by descending probability."""
@@ -157,7 +166,7 @@ def _blend_kept(
     else:
         kept, covered = [], 0.0
         for g in order[: None if max_goals is None else int(max_goals)].tolist():
-            if probs[g] <= 0:
+            if probs[g] <= 0 or (kept and probs[g] < below):  # descending: the rest too
                 break
             kept.append(g)
             covered += probs[g]
@@ -177,8 +186,9 @@ def belief_views(
     k: int = 3,
     mass: float = 1.0,
     max_goals: int | None = None,
+    below: float = 0.0,
 ) -> list[BeliefView]:
-    """Per row p of a (P, G) log-belief: `blend_goal_weights(row, mass, max_goals)` and
+    """Per row p of a (P, G) log-belief: `blend_goal_weights(row, mass, max_goals, below)` and
     `belief_summary(row, goals, k)`, the same numbers bit for bit, with one exp, one sort and
     one sum for all rows instead of two exps and a sort per row (elementwise operations and
     the last-axis sum give every row what they give it alone; a division of arrays rounds as
@@ -192,18 +202,23 @@ def belief_views(
         raise ValueError(f"goals: expected {n_goals} goals, got {len(goals)}")
     if k < 1:
         raise ValueError(f"k: expected >= 1, got {k}")
-    _check_blend(mass, max_goals)
+    _check_blend(mass, max_goals, below)
     if log_b.shape[0] == 0:
         return []
-    if _whole(mass, max_goals, n_goals):  # compiled where it can
+    if _whole(mass, max_goals, n_goals, below):  # compiled where it can
         views = compiled_views(log_b, goals, k)
         if views is not None:
             return views
-    return reference_views(log_b, goals, k, mass, max_goals)
+    return reference_views(log_b, goals, k, mass, max_goals, below)
 
 
 def reference_views(
-    log_b: np.ndarray, goals: Sequence[str], k: int, mass: float, max_goals: int | None
+    log_b: np.ndarray,
+    goals: Sequence[str],
+    k: int,
+    mass: float,
+    max_goals: int | None,
+    below: float = 0.0,
 ) -> list[BeliefView]:
     """`belief_views` in numpy on checked arguments (a non-empty (P, G) float64 `log_b`): the
     compiled views' reference, and the beliefs they leave (a partial blend, a zero
@@ -215,14 +230,14 @@ def reference_views(
     terms = b * log_b if positive else np.where(b > 0, b * np.where(b > 0, log_b, 0.0), 0.0)
     entropies = terms.sum(axis=1).tolist()
     tops = order[:, :k].tolist()
-    whole = _whole(mass, max_goals, n_goals)
+    whole = _whole(mass, max_goals, n_goals, below)
     views = []
     for p, row in enumerate(b.tolist()):
         top = [(goals[g], row[g]) for g in tops[p]]
         if whole and positive:  # every goal kept: `_blend_kept` would copy the row as it is
             kept, probs = list(range(n_goals)), row
         else:
-            kept, probs = _blend_kept(row, None if whole else order[p], mass, max_goals)
+            kept, probs = _blend_kept(row, None if whole else order[p], mass, max_goals, below)
         total = math.fsum(probs)
         views.append(BeliefView(kept, [q / total for q in probs], top, max(0.0, -entropies[p])))
     return views

@@ -17,6 +17,9 @@ The belief itself (prior, forgetting, floor) is pure maths in `policy.belief`.
 | ahead    | `likelihood_table`: the same pass for every action a, before the actions   |
 |          | are known; `LikelihoodTable.pick` then gives the same numbers (a session   |
 |          | computes step t + 1's table right after answering step t)                  |
+| pruned   | `goals`: the pass on those goals' networks only (a pruning session's       |
+|          | active goals, `policy.belief_prune`): the same numbers as their columns of |
+|          | the whole pass with the compiled forward (rows and members independent)    |
 
 α per goal: the request's `temperature`, else `LIKELIHOOD_TEMPERING` × each task network's
 training α (lineage; else `DEFAULT_TEMPERATURE`): a partner is modelled as acting by its own
@@ -122,9 +125,15 @@ def _partner_views(
     return np.concatenate(views).astype(np.float32, copy=False)[None]
 
 
-def _forward_all(group: StackedGroup, x_1PF: np.ndarray) -> np.ndarray:
+def _forward_all(
+    group: StackedGroup, x_1PF: np.ndarray, goals: np.ndarray | None = None
+) -> np.ndarray:
     """Q-values (G, P, A) of every member of the group on the same rows: one stacked pass per
-    spec partition (one in total when every task network has the same architecture)."""
+    spec partition (one in total when every task network has the same architecture). `goals`
+    (ascending member indices): only those members, (len(goals), P, A), one pass per run of
+    consecutive members."""
+    if goals is not None:
+        return _forward_some(group, x_1PF, goals)
     if len(group.partitions) == 1:
         part = group.partitions[0]
         return row_forward(x_1PF, part.row_weights, 0, len(part.members), part.spec.activation)
@@ -136,6 +145,30 @@ def _forward_all(group: StackedGroup, x_1PF: np.ndarray) -> np.ndarray:
             x_1PF, part.row_weights, 0, members, part.spec.activation
         )
     return q_GPA
+
+
+def _forward_some(group: StackedGroup, x_1PF: np.ndarray, goals: np.ndarray) -> np.ndarray:
+    """`_forward_all(group, x_1PF)[goals]` without the other members' passes."""
+    n_actions = group.nets[0].spec.n_actions
+    q_KPA = np.empty((len(goals), x_1PF.shape[1], n_actions), dtype=np.float32)
+    wanted = goals.tolist()
+    for part in group.partitions:
+        if len(group.partitions) == 1:  # every member, in order: positions are the indices
+            mine = list(enumerate(wanted))
+        else:
+            position = {member: i for i, member in enumerate(part.members)}
+            mine = [(k, position[g]) for k, g in enumerate(wanted) if g in position]
+        k = 0
+        while k < len(mine):  # runs of consecutive members: one call each
+            end = k + 1
+            while end < len(mine) and mine[end][1] == mine[end - 1][1] + 1:
+                end += 1
+            start = mine[k][1]
+            q_KPA[mine[k][0] : mine[k][0] + end - k] = row_forward(
+                x_1PF, part.row_weights, start, end - k, part.spec.activation
+            )
+            k = end
+    return q_KPA
 
 
 def _training_alphas(group: StackedGroup) -> tuple[np.ndarray, bool]:
@@ -288,18 +321,20 @@ def checked_log_likelihoods(
     alias: str,
     versions: Mapping[str, int],
     temperature: float | None,
+    goals: np.ndarray | None = None,
 ) -> np.ndarray:
     """`goal_log_likelihoods` on arguments its checks passed: `obs_D` a finite float32 (D,)
     observation of `n_agents` agents, partner indices in 1..n_agents-1 (none twice), int64
     actions in range, a valid alias and pins, a temperature None or finite > 0. Internal, for a
     caller that checked them already (a session: its settings once, each step's observation
-    and `observed` entries; it checks the indices against the stored observation's agents)."""
+    and `observed` entries; it checks the indices against the stored observation's agents).
+    `goals` (ascending catalogue indices): only those goals' columns, (P, len(goals))."""
     group = task_group(cache_, runtime, alias, versions)
     if not len(partners):
-        return np.zeros((0, len(group.nets)))
-    q_GPA = _q_values(group, runtime, obs_D, n_agents, tuple(partners))
+        return np.zeros((0, len(group.nets) if goals is None else len(goals)))
+    q_GPA = _q_values(group, runtime, obs_D, n_agents, tuple(partners), goals)
     cache_.stats.likelihood_passes += 1
-    return _log_likelihoods(q_GPA, actions_P, *_alphas(group, temperature))
+    return _log_likelihoods(q_GPA, actions_P, *_alphas(group, temperature, goals))
 
 
 def task_group(
@@ -317,24 +352,29 @@ def _q_values(
     obs_D: np.ndarray,
     n_agents: int,
     partners: tuple[int, ...],
+    goals: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Every task network on each partner's view: finite (G, P, A) float32 Q-values."""
+    """Every task network (or those of `goals`) on each partner's view: finite (G, P, A)
+    float32 Q-values."""
     x_1PF = _partner_views(runtime, obs_D, n_agents, partners)
     if ROW_FORWARD:  # compiled: no floating-point warnings to silence
-        q_GPA = _forward_all(group, x_1PF)
+        q_GPA = _forward_all(group, x_1PF, goals)
     else:
         with np.errstate(over="ignore", invalid="ignore"):  # huge inputs: refused just below
-            q_GPA = _forward_all(group, x_1PF)
+            q_GPA = _forward_all(group, x_1PF, goals)
     if not np.isfinite(q_GPA).all():  # a huge observation's fault, or a network's
         raise overflow_error(group, obs_D, "observation")
     return q_GPA
 
 
-def _alphas(group: StackedGroup, temperature: float | None) -> tuple[np.ndarray | float, bool]:
-    """The Boltzmann temperature per goal (the request's, else each network's tempered α) and
-    whether one is below `TINY_ALPHA`."""
+def _alphas(
+    group: StackedGroup, temperature: float | None, goals: np.ndarray | None = None
+) -> tuple[np.ndarray | float, bool]:
+    """The Boltzmann temperature per goal (the request's, else each network's tempered α; of
+    `goals` only when given) and whether one is below `TINY_ALPHA`."""
     if temperature is None:
-        return _training_alphas(group)
+        alpha, tiny = _training_alphas(group)
+        return (alpha if goals is None else alpha[goals]), tiny
     return float(temperature), temperature < TINY_ALPHA
 
 
@@ -352,7 +392,8 @@ class LikelihoodTable:
 
     group: StackedGroup  # the task networks it was computed with
     partners: tuple[int, ...]
-    logp_GPA: np.ndarray  # (G, P, A) float64
+    logp_GPA: np.ndarray  # (G, P, A) float64; (len(goals), P, A) with `goals`
+    goals: tuple[int, ...] | None = None  # the goals scored (a pruning session's); None: all
 
     def pick(
         self, group: StackedGroup, partners: Sequence[int], actions_P: np.ndarray
@@ -383,18 +424,19 @@ def likelihood_table(
     alias: str,
     versions: Mapping[str, int],
     temperature: float | None,
+    goals: np.ndarray | None = None,
 ) -> LikelihoodTable:
     """The `LikelihoodTable` of `partners` on `obs_D`, arguments as `checked_log_likelihoods`
     takes them (errors too: `ModelNotFound`, an observation whose Q-values overflow)."""
     group = task_group(cache_, runtime, alias, versions)
-    q_GPA = _q_values(group, runtime, obs_D, n_agents, partners)
-    alpha, tiny = _alphas(group, temperature)
+    q_GPA = _q_values(group, runtime, obs_D, n_agents, partners, goals)
+    alpha, tiny = _alphas(group, temperature, goals)
     z_GPA = compiled_log_softmax(q_GPA, alpha)  # the numpy lines' bits, compiled
     if z_GPA is None:
         z_GPA, log_norm_GP = _scaled(q_GPA, alpha, tiny)
         z_GPA -= log_norm_GP[:, :, None]  # in place: the same subtraction as `_log_likelihoods`'
     cache_.stats.likelihood_tables += 1
-    return LikelihoodTable(group, partners, z_GPA)
+    return LikelihoodTable(group, partners, z_GPA, None if goals is None else tuple(goals.tolist()))
 
 
 def recover_partner_actions(

@@ -214,6 +214,8 @@ class EngineStats:
     likelihood_tables: int = 0  # the same passes for every action, ahead (a session's next step)
     likelihood_tables_used: int = 0  # session steps whose evidence such a table scored
     catalogue_group_acts: int = 0  # acts whose goal distributions every goal's group served
+    pruned_updates: int = 0  # belief rows updated with goal pruning (some goals not scored)
+    pruned_rescored: int = 0  # pruning rows whose bound exceeded δ: every goal scored then
 
     def snapshot(self) -> EngineStats:
         return EngineStats(**vars(self))

@@ -245,7 +245,11 @@ def session_settings(settings: pb.EpisodeSettings) -> SessionSettings:
         for p in settings.partners
     )
     b = settings.belief
-    belief = {k: getattr(b, k) for k in ("forgetting", "floor", "temperature") if b.HasField(k)}
+    belief = {
+        k: getattr(b, k)
+        for k in ("forgetting", "floor", "temperature", "prune_below", "prune_error")
+        if b.HasField(k)
+    }
     blend = {k: getattr(b, k) for k in ("blend_mass", "blend_max_goals") if b.HasField(k)}
     return SessionSettings(
         env=settings.env,

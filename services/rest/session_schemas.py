@@ -76,6 +76,17 @@ class BeliefIn(RequestBody):
         description="at most this many goals in the blend (null, default: no bound); a bound "
         "below the number of goals costs what blend_mass below 1 costs",
     )
+    prune_below: float = Field(
+        default=0.0,
+        description="τ: goal pruning, 0 (default) = off. Goals below this probability (but "
+        "each partner's most probable) are neither scored by the belief update nor blended, "
+        "in (floor, 1]; a step whose error bound exceeds prune_error scores every goal",
+    )
+    prune_error: float = Field(
+        default=0.05,
+        description="δ in (0, 1]: pruning scores only the likely goals while the bound on the "
+        "step's total-variation error of the belief is at most this",
+    )
 
 
 class SessionBody(RequestBody):

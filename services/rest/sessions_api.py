@@ -130,7 +130,13 @@ def _settings(body: SessionBody) -> SessionSettings:
         seed=body.seed,
         alias=body.alias,
         versions=body.versions,
-        belief=BeliefConfig(forgetting=b.forgetting, floor=b.floor, temperature=b.temperature),
+        belief=BeliefConfig(
+            forgetting=b.forgetting,
+            floor=b.floor,
+            temperature=b.temperature,
+            prune_below=b.prune_below,
+            prune_error=b.prune_error,
+        ),
         blend_mass=b.blend_mass,
         blend_max_goals=b.blend_max_goals,
     )
@@ -196,6 +202,8 @@ def _session_json(info: SessionInfo) -> dict[str, Any]:
         "temperature": s.belief.temperature,
         "blend_mass": s.blend_mass,
         "blend_max_goals": s.blend_max_goals,
+        "prune_below": s.belief.prune_below,
+        "prune_error": s.belief.prune_error,
     }
     return {
         "session_id": info.session_id,

@@ -23,6 +23,14 @@ A step is all or nothing: it computes the new belief and the action on copies an
 nothing. Steps are serialised by a per-session lock; `expected_step` turns a stale or repeated
 step into `StepConflict` instead of a second update.
 
+Goal pruning (`belief.prune_below` τ > 0; `policy.belief_prune`, docs/method.md). The update
+scores only the active goals (each partner's goals at or above τ, and its most probable), in
+the table scored ahead or on demand, and a partner whose step's error bound exceeds
+`belief.prune_error` δ gets the other goals scored too (the exact update). The act blends each
+partner's goals at or above τ of its new belief (and its most probable): a set that changes
+only when a goal crosses τ, so the engine stacks it once it comes twice (its "Goal
+distributions").
+
 State held: the settings (checked once), one log-belief row (G,) per inferred partner, the
 previous observation, the next step's index and per-partner counters, and what the last belief
 says (`policy.belief.belief_views`: the blend's distribution and the summary, one exp for all
@@ -52,6 +60,7 @@ from numpy.typing import ArrayLike
 
 from model_store.errors import brief
 from policy.belief import BeliefView, belief_views
+from policy.belief_prune import active_goals
 from services.engine import (
     ActRequest,
     ActResult,
@@ -289,6 +298,10 @@ class Session:
             if self._table is not None and self._table[0] == t:
                 return False
             settings = self._checked.settings
+            goals = None  # pruning: the goals the next step's update scores, from this belief
+            if settings.belief.prune_below > 0:
+                rows = [self._checked.inferred_indices.index(p) for p in partners]
+                goals = active_goals(self._log_belief_PG[rows], settings.belief.prune_below)
             try:
                 table = likelihood_table(
                     self.engine.cache,
@@ -299,6 +312,7 @@ class Session:
                     alias=settings.alias,
                     versions=settings.versions,
                     temperature=settings.belief.temperature,
+                    goals=goals,
                 )
             except EngineError:
                 return False
@@ -367,7 +381,13 @@ class Session:
                     f"agent(s), expected {expected}",
                 )
         actions_E = np.array(actions, dtype=np.int64)
-        log_lik_EG = self._scored_ahead(t, partners, actions_E)
+        rows = [indices.index(e.index) for e in entries]
+        scored = self._scored_ahead(t, partners, actions_E)
+        if settings.belief.prune_below > 0 and (scored is None or scored[1] is not None):
+            log_belief_PG = self._log_belief_PG.copy()
+            log_belief_PG[rows] = self._pruned(scored, partners, actions_E, rows)
+            return log_belief_PG, *self._counted(rows, actions, actions_used)
+        log_lik_EG = None if scored is None or scored[1] is not None else scored[0]
         if log_lik_EG is None:
             # = engine.goal_log_likelihoods(env, previous, partners, actions, ...) without its
             # checks: the settings were checked at creation, the observation and `observed` above
@@ -382,34 +402,99 @@ class Session:
                 versions=settings.versions,
                 temperature=settings.belief.temperature,
             )
-        rows = [indices.index(e.index) for e in entries]
         # = update_log_belief(log_belief_PG[rows], log_lik_EG, log_prior_PG[rows], belief)
         if rows == list(range(count)):  # every inferred partner, in order: no copies
             log_belief_PG = checked.update(self._log_belief_PG, log_lik_EG)
         else:
             log_belief_PG = self._log_belief_PG.copy()
             log_belief_PG[rows] = checked.update(log_belief_PG[rows], log_lik_EG, rows)
+        return log_belief_PG, *self._counted(rows, actions, actions_used)
+
+    def _counted(
+        self, rows: Sequence[int], actions: Sequence[int | None], actions_used: list[int | None]
+    ) -> tuple[list[int], list[int | None]]:
+        """The update counts and used actions after updating `rows` with `actions`."""
         updates = list(self._updates)
         for row, action in zip(rows, actions, strict=True):
             updates[row] += 1
             actions_used[row] = action
-        return log_belief_PG, updates, actions_used
+        return updates, actions_used
+
+    def _pruned(
+        self,
+        scored: tuple[np.ndarray, tuple[int, ...] | None] | None,
+        partners: Sequence[int],
+        actions_E: np.ndarray,
+        rows: list[int],
+    ) -> np.ndarray:
+        """The new beliefs of `rows` with goal pruning (`policy.belief_prune`): the active
+        goals' likelihoods (from the table scored ahead, else a pass over those goals only),
+        the pruned update, and for each row whose bound exceeds `belief.prune_error` the other
+        goals scored too and the exact update (the same numbers as without pruning)."""
+        checked, settings = self._checked, self._checked.settings
+        belief = settings.belief
+        old_EG = self._log_belief_PG[rows]
+        if scored is not None and scored[1] is not None:
+            log_lik_EA, active = scored[0], np.array(scored[1], dtype=np.intp)
+        else:
+            active = active_goals(old_EG, belief.prune_below)
+            log_lik_EA = self._likelihoods(partners, actions_E, active)
+        step = checked.update.pruned(old_EG, log_lik_EA, active, rows)
+        new_EG = step.log_belief_EG
+        over = np.flatnonzero(~(step.bound_E <= belief.prune_error))  # inf and NaN too
+        stats = self.engine.stats
+        if len(active) < len(checked.goals):  # goals were skipped
+            stats.pruned_updates += len(rows) - len(over)
+        if len(over):
+            stats.pruned_rescored += len(over)
+            rest = np.setdiff1d(np.arange(len(checked.goals)), active)
+            log_lik_EG = np.empty((len(over), len(checked.goals)))
+            log_lik_EG[:, active] = log_lik_EA[over]
+            chosen = over.tolist()
+            log_lik_EG[:, rest] = self._likelihoods(
+                [partners[e] for e in chosen], actions_E[over], rest
+            )
+            new_EG[over] = checked.update(old_EG[over], log_lik_EG, [rows[e] for e in chosen])
+        return new_EG
+
+    def _likelihoods(
+        self, partners: Sequence[int], actions_E: np.ndarray, goals: np.ndarray
+    ) -> np.ndarray:
+        """(E, len(goals)) log-likelihoods of the partners' actions on the previous
+        observation under the task networks of `goals` (arguments checked by the step)."""
+        assert self._previous is not None
+        settings = self._checked.settings
+        return checked_log_likelihoods(
+            self.engine.cache,
+            self._checked.runtime,
+            self._previous[0],
+            self._previous_agents,
+            partners,
+            actions_E,
+            alias=settings.alias,
+            versions=settings.versions,
+            temperature=settings.belief.temperature,
+            goals=goals,
+        )
 
     def _scored_ahead(
         self, t: int, partners: Sequence[int], actions_E: np.ndarray
-    ) -> np.ndarray | None:
-        """The log-likelihoods from the table `prepare_next` made for step t, or None (no
-        table, another step's, other partners, or an alias moved since: `LikelihoodTable.pick`)."""
+    ) -> tuple[np.ndarray, tuple[int, ...] | None] | None:
+        """The log-likelihoods from the table `prepare_next` made for step t and the goals it
+        scored (None: every goal), or None (no table, another step's, other partners, or an
+        alias moved since: `LikelihoodTable.pick`)."""
         if self._table is None or self._table[0] != t:
             return None
         settings = self._checked.settings
         group = task_group(
             self.engine.cache, self._checked.runtime, settings.alias, settings.versions
         )
-        log_lik_EG = self._table[1].pick(group, partners, actions_E)
-        if log_lik_EG is not None:
-            self.engine.stats.likelihood_tables_used += 1
-        return log_lik_EG
+        table = self._table[1]
+        log_lik_EG = table.pick(group, partners, actions_E)
+        if log_lik_EG is None:
+            return None
+        self.engine.stats.likelihood_tables_used += 1
+        return log_lik_EG, table.goals
 
     def _recover(
         self, entries: Sequence[Observed], actions: list[int | None], obs_1D: np.ndarray
@@ -451,6 +536,7 @@ class Session:
             TOP_GOALS,
             settings.blend_mass,
             settings.blend_max_goals,
+            settings.belief.prune_below,
         )
 
     def _act(self, obs_1D: np.ndarray, n_agents: int, views: list[BeliefView], t: int) -> ActResult:

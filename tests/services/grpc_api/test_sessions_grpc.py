@@ -192,6 +192,24 @@ def test_new_settings_keep_the_belief_and_inference_may_start_mid_stream(live: L
             "partners[0].infer",
             lambda s: [pb.EpisodeStep(settings=episode_settings(method="jl"), observation=OBS_2)],
         ),
+        (
+            "belief.prune_below",
+            lambda s: [
+                pb.EpisodeStep(
+                    settings=episode_settings(belief=pb.BeliefSettings(prune_below=-0.1)),
+                    observation=OBS_2,
+                )
+            ],
+        ),
+        (
+            "belief.prune_error",
+            lambda s: [
+                pb.EpisodeStep(
+                    settings=episode_settings(belief=pb.BeliefSettings(prune_error=0.0)),
+                    observation=OBS_2,
+                )
+            ],
+        ),
     ],
 )
 def test_bad_inferring_steps_are_invalid_argument_naming_the_field(

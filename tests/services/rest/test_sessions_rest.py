@@ -242,6 +242,11 @@ def test_observed_at_step_0_is_a_422(client: TestClient) -> None:
         ("belief.floor", {"belief": {"floor": 0.2}}),
         ("belief.blend_mass", {"belief": {"blend_mass": 1.5}}),
         ("belief.blend_max_goals", {"belief": {"blend_max_goals": 0}}),
+        ("belief.prune_below", {"belief": {"prune_below": 0.0005}}),  # below the floor
+        ("belief.prune_below", {"belief": {"prune_below": 1.5}}),
+        ("belief.prune_below", {"belief": {"prune_below": 0.1, "floor": 0.0}}),
+        ("belief.prune_error", {"belief": {"prune_error": 0.0}}),
+        ("belief.prune_error", {"belief": {"prune_error": 2.0}}),
         ("belief.speed", {"belief": {"speed": 1}}),
         ("partners[0].goal", {"partners": [{"index": 1, "goal": "zz", "infer": True}]}),
         ("partners[0].infer", {"partners": [{"index": 1, "infer": "maybe"}]}),
