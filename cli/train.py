@@ -228,6 +228,7 @@ def _on_ray(
         serve_alias=serve_alias,
         address=address,
         progress=progress,
+        store_password=store.reopen_password(),  # apart from the URL string, as to a job
     )
 
 

@@ -24,6 +24,8 @@ from collections.abc import Callable
 from importlib.metadata import entry_points
 from pathlib import Path
 
+from sqlalchemy.engine import URL
+
 from model_store.errors import InvalidArgument
 from model_store.sql.sql_store import DEFAULT_MAX_ARTIFACT_BYTES, SqlModelStore
 from model_store.store import ModelStore
@@ -56,13 +58,17 @@ def store_schemes() -> dict[str, str]:
     return {p.name: p.value for p in entry_points(group=ENTRY_POINT_GROUP)}
 
 
-def store_factory(url: str) -> StoreFactory:
+def store_factory(url: str | URL) -> StoreFactory:
     """The factory of the backend `url`'s scheme picks (module docstring); `InvalidArgument`
     on field `store_url` for a URL without a scheme, a scheme nobody registered, or a plugin
-    that fails to load."""
-    scheme, separator, _ = url.partition("://")
-    if not separator:
-        scheme = url.partition(":")[0] if ":" in url else ""
+    that fails to load. A URL object (a Ray worker's, password inside) is looked up by its
+    driver name, never rendered."""
+    if isinstance(url, URL):
+        scheme = url.drivername
+    else:
+        scheme, separator, _ = url.partition("://")
+        if not separator:
+            scheme = url.partition(":")[0] if ":" in url else ""
     points = {p.name: p for p in entry_points(group=ENTRY_POINT_GROUP)}
     for name in (scheme, scheme.partition("+")[0]):
         if name and name in points:
@@ -102,7 +108,7 @@ def check_store_url(url: str, *, create: bool) -> None:
 
 
 def open_store(
-    url: str | None = None,
+    url: str | URL | None = None,
     *,
     max_artifact_bytes: int = DEFAULT_MAX_ARTIFACT_BYTES,
     auto_migrate: bool = True,

@@ -138,9 +138,17 @@ class ModelStore(ABC):
     # --- lifecycle -------------------------------------------------------------------------
     def reopen_url(self) -> str | None:
         """The URL by which another process (a training job's subprocess, a Ray worker) opens
-        this same store through `model_store.defaults.open_store`, secrets included: it goes
-        into that process's environment, never onto a command line, into a log or an answer.
-        None where no other process can reach it (the default: an in-process store)."""
+        this same store through `model_store.defaults.open_store`, without its password
+        (`reopen_password`): it goes into that process's environment, never onto a command
+        line, into a log or an answer. None where no other process can reach it (the default:
+        an in-process store)."""
+        return None
+
+    def reopen_password(self) -> str | None:
+        """The database password `reopen_url` leaves out, None if there is none (the default).
+        It travels apart from the URL, so that no string holds both: a job's subprocess gets it
+        in `PGPASSWORD`, which libpq reads (`trainer.jobs.runner`), a Ray worker inside the
+        store's URL object (`trainer.backends.ray_cluster.portable_store_url`)."""
         return None
 
     def close(self) -> None:  # noqa: B027 - optional hook, most stores hold nothing

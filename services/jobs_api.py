@@ -77,11 +77,12 @@ class JobRequest(RequestBody):
     )
 
 
-def _store_urls(app: FastAPI) -> tuple[URL, str]:
+def _store_urls(app: FastAPI) -> tuple[URL, str, str | None]:
     """The job table's database URL (the store's own SQL database, SQLite paths made absolute),
-    kept a URL object so that its password is never rendered into a string here, and the URL a
+    kept a URL object so that its password is never rendered into a string here; the URL a
     job's subprocess opens the store by (`ModelStore.reopen_url`: a plugin's scheme stays a
-    plugin's scheme), which goes only into the trainer's environment (`JobRunner`), never onto
+    plugin's scheme), without the password; and the password apart (`reopen_password`). The
+    last two go only into the trainer's environment, in two variables (`JobRunner`), never onto
     a command line, into a log or into an answer."""
     store = getattr(app.state, "store", None)
     url = getattr(store, "url", None)
@@ -92,16 +93,19 @@ def _store_urls(app: FastAPI) -> tuple[URL, str]:
     store_url = store.reopen_url()
     if store_url is None:
         raise StoreUnavailable("training jobs need a model store another process can open")
-    return url, store_url
+    return url, store_url, store.reopen_password()
 
 
 def _open(app: FastAPI) -> tuple[JobTable, JobRunner]:
     jobs: tuple[JobTable, JobRunner] | None = getattr(app.state, "jobs", None)
     if jobs is None:
-        table_url, store_url = _store_urls(app)
+        table_url, store_url, password = _store_urls(app)
         lease_s = app.state.settings.job_lease_s
         table = JobTable(table_url, stale_after_s=lease_s)
-        jobs = table, JobRunner(table, store_url=store_url, heartbeat_s=lease_s / 6)
+        runner = JobRunner(
+            table, store_url=store_url, store_password=password, heartbeat_s=lease_s / 6
+        )
+        jobs = table, runner
         app.state.jobs = jobs
     return jobs
 

@@ -61,15 +61,19 @@ def redact_url(url: str | URL) -> str:
 
 
 def normalise_url(url: str | URL) -> URL:
-    """Parse a store URL; plain `postgresql://` (and `postgres://`) become psycopg 3 URLs."""
-    try:
-        parsed = make_url(str(url) if isinstance(url, URL) else url)
-    except Exception:  # sqlalchemy raises ArgumentError and others, their text echoes the URL
-        raise InvalidArgument(
-            f"store_url: cannot parse {redact_url(url)!r} (expected sqlite:///path or "
-            "postgresql://user:password@host:port/database)",
-            field="store_url",
-        ) from None
+    """Parse a store URL (a URL object is taken as it is, password included); plain
+    `postgresql://` (and `postgres://`) become psycopg 3 URLs."""
+    if isinstance(url, URL):
+        parsed = url  # not `make_url(str(url))`: `str` masks the password as `***`
+    else:
+        try:
+            parsed = make_url(url)
+        except Exception:  # sqlalchemy raises ArgumentError and others, their text echoes it
+            raise InvalidArgument(
+                f"store_url: cannot parse {redact_url(url)!r} (expected sqlite:///path or "
+                "postgresql://user:password@host:port/database)",
+                field="store_url",
+            ) from None
     if parsed.drivername in ("postgresql", "postgres"):
         parsed = parsed.set(drivername="postgresql+psycopg")
     if parsed.get_backend_name() not in ("sqlite", "postgresql"):
@@ -79,6 +83,15 @@ def normalise_url(url: str | URL) -> URL:
             field="store_url",
         )
     return parsed
+
+
+def without_password(url: URL) -> URL:
+    """`url` with no password: what may be rendered into a string (an environment variable, a
+    conninfo), the password handed over apart. (`url.set(password=None)` would keep it: `set`
+    skips arguments that are None.)"""
+    return URL.create(
+        url.drivername, url.username, None, url.host, url.port, url.database, url.query
+    )
 
 
 def is_sqlite(url: URL) -> bool:

@@ -16,7 +16,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from sqlalchemy import delete, exists, or_, select
+from sqlalchemy import URL, delete, exists, or_, select
 from sqlalchemy.exc import DBAPIError, IntegrityError
 from sqlalchemy.orm import Session, selectinload, sessionmaker
 
@@ -39,7 +39,12 @@ from model_store.sql.convert import (
     model_entity,
     now,
 )
-from model_store.sql.engine import BEGIN_MODE_OPTION, create_store_engine, normalise_url
+from model_store.sql.engine import (
+    BEGIN_MODE_OPTION,
+    create_store_engine,
+    normalise_url,
+    without_password,
+)
 from model_store.sql.migrate import ensure_schema
 from model_store.sql.orm import EventRow, GoalRow, ModelRow, SchemaMetaRow, TagRow, VersionRow
 from model_store.sql.versions import VersionOps
@@ -55,7 +60,7 @@ class SqlModelStore(VersionOps, ModelStore):
 
     def __init__(
         self,
-        url: str,
+        url: str | URL,
         *,
         max_artifact_bytes: int = DEFAULT_MAX_ARTIFACT_BYTES,
         auto_migrate: bool = True,
@@ -89,13 +94,18 @@ class SqlModelStore(VersionOps, ModelStore):
         self._engine.dispose()
 
     def reopen_url(self) -> str:
-        """`ModelStore.reopen_url`: this URL, a SQLite path made absolute (the other process
-        may run in another directory)."""
+        """`ModelStore.reopen_url`: this URL without its password (`reopen_password` hands that
+        over apart), a SQLite path made absolute (the other process may run in another
+        directory)."""
         url = self.url
         if url.get_backend_name() == "sqlite" and url.database:
             url = url.set(database=str(Path(url.database).absolute()))
-        rendered: str = url.render_as_string(hide_password=False)
+        rendered: str = without_password(url).render_as_string()
         return rendered
+
+    def reopen_password(self) -> str | None:
+        """`ModelStore.reopen_password`: the password of this URL, if it has one."""
+        return self.url.password
 
     def _where(self) -> str:
         return f"model store database {self.url.render_as_string(hide_password=True)} unavailable"

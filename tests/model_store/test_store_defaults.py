@@ -6,6 +6,7 @@ from importlib.metadata import EntryPoint
 from pathlib import Path
 
 import pytest
+from sqlalchemy.engine import make_url
 
 from model_store import defaults
 from model_store.defaults import (
@@ -18,7 +19,7 @@ from model_store.defaults import (
 from model_store.errors import InvalidArgument
 from model_store.lineage import code_version
 from model_store.sql import SqlModelStore
-from model_store.sql.engine import normalise_url
+from model_store.sql.engine import normalise_url, without_password
 
 
 def test_default_url_prefers_env_then_data_dir(monkeypatch, tmp_path: Path) -> None:
@@ -86,3 +87,21 @@ def test_check_store_url_names_what_opening_would_refuse(tmp_path: Path) -> None
     check_store_url(f"sqlite:///{tmp_path / 'missing.db'}", create=True)
     with pytest.raises(InvalidArgument, match="scheme 'nosuch'"):
         check_store_url("nosuch://x", create=True)
+
+
+def test_a_url_object_keeps_its_password_and_another_process_gets_it_apart(
+    tmp_path: Path,
+) -> None:
+    """A URL object is taken as it is (`str` would mask its password as `***`, and the driver
+    would send that); what another process gets is the URL without the password, and the
+    password apart (`reopen_password`)."""
+    url = make_url("postgresql://u:s3cret@h:5432/d?sslmode=require")
+    parsed = normalise_url(url)
+    assert parsed.password == "s3cret" and parsed.drivername == "postgresql+psycopg"
+    assert store_factory(parsed) is SqlModelStore
+    bare = without_password(parsed)
+    assert bare.password is None and bare.query == parsed.query
+    assert bare.render_as_string() == "postgresql+psycopg://u@h:5432/d?sslmode=require"
+    with open_store(make_url(f"sqlite:///{tmp_path / 'm.db'}"), create=True) as store:
+        assert store.reopen_url() == f"sqlite:///{tmp_path / 'm.db'}"
+        assert store.reopen_password() is None

@@ -9,6 +9,8 @@
 | `sleep`    | prints `training started`, then sleeps a minute (to be cancelled)        |
 | `stubborn` | the same, but ignores SIGTERM (only SIGKILL stops it)                     |
 | `register` | registers one version of `particle/task/a2` in the store, then sleeps    |
+| `secrets`  | the same, opening the store as `coexist train` does, and says where the   |
+|            | password of its store and publish-lock connections came from (PostgreSQL) |
 
 Not a test module: `jobs_fakes.fake_command` runs it.
 """
@@ -46,6 +48,35 @@ def _register(store_url: str) -> None:
     print(f"registered {version.ref}", flush=True)
 
 
+def _password_source(password: str | None) -> str:
+    """Where a connection's password came from, without showing it (this goes to the log)."""
+    if not password:
+        return "none"
+    return "PGPASSWORD" if password == os.environ.get("PGPASSWORD") else "elsewhere"
+
+
+def _say_password_sources(store_url: str) -> None:
+    """The password each PostgreSQL connection of the trainer sent (libpq's, whatever its
+    source): the store's engine, and the publish lock's connection (`trainer.backends.once`)."""
+    from model_store.sql.engine import create_store_engine, normalise_url
+    from trainer.backends.once import lock_connection, publish_lock
+
+    engine = create_store_engine(store_url)
+    try:
+        connection = engine.raw_connection()
+        assert connection.driver_connection is not None  # psycopg's own connection
+        store_password = connection.driver_connection.info.password
+        connection.close()
+    finally:
+        engine.dispose()
+    print(f"store connection password: {_password_source(store_password)}", flush=True)
+    with (
+        publish_lock(store_url, "fake-job/secrets"),
+        lock_connection(normalise_url(store_url)) as c,
+    ):
+        print(f"publish lock connection password: {_password_source(c.info.password)}", flush=True)
+
+
 def main(mode: str) -> int:
     if mode == "ok":
         print("trained every batch", flush=True)
@@ -57,6 +88,11 @@ def main(mode: str) -> int:
         signal.signal(signal.SIGTERM, signal.SIG_IGN)
     if mode == "register":
         _register(os.environ["COEXIST_STORE_URL"])  # as the real trainer: never in argv
+    if mode == "secrets":
+        from model_store.defaults import default_store_url
+
+        _register(default_store_url())  # `COEXIST_STORE_URL`, as `coexist train` reads it
+        _say_password_sources(default_store_url())
     print(f"training started (pid {os.getpid()})", flush=True)
     time.sleep(60)
     return 0

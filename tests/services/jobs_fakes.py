@@ -24,8 +24,15 @@ from trainer.jobs import JobRunner, JobSpec, JobTable
 
 TOKEN = "jobs-cancel-t0ken"
 AUTH = {"Authorization": f"Bearer {TOKEN}"}
-OK, FAIL, SLEEP, STUBBORN, REGISTER = range(5)
-MODES = {OK: "ok", FAIL: "fail", SLEEP: "sleep", STUBBORN: "stubborn", REGISTER: "register"}
+OK, FAIL, SLEEP, STUBBORN, REGISTER, SECRETS = range(6)
+MODES = {
+    OK: "ok",
+    FAIL: "fail",
+    SLEEP: "sleep",
+    STUBBORN: "stubborn",
+    REGISTER: "register",
+    SECRETS: "secrets",
+}
 FAKE_TRAIN = Path(__file__).with_name("jobs_fake_train.py")
 GRACE_S = 0.5  # SIGTERM -> SIGKILL in these tests
 

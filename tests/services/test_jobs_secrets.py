@@ -2,10 +2,18 @@
 PostgreSQL role whose password is a unique marker runs a real `coexist train` job, and the
 marker is in no job log, no process's command line (`ps -eww -o args`, sampled while the trainer
 runs), no answer of any GET route, `/metrics`, nor the server's own logs. The trainer still
-reaches the store (it registers its network): the URL travels in its environment."""
+reaches the store (it registers its network): the URL travels in its environment.
+
+The password travels apart from the URL: a job's subprocess, as the jobs API starts it, has it
+in `PGPASSWORD` only, not in its command line nor in `COEXIST_STORE_URL` (read from `/proc`),
+and its store and publish-lock connections send it. The test server trusts 127.0.0.1, so a
+connection would succeed without any password: which password each connection sent is read from
+the connection itself (libpq's `PQpass`), never inferred from its success.
+"""
 
 from __future__ import annotations
 
+import re
 import subprocess
 import threading
 import time
@@ -17,6 +25,10 @@ from pathlib import Path
 import httpx
 import psycopg
 import pytest
+from fastapi.testclient import TestClient
+from jobs_fakes import AUTH as FAKE_AUTH
+from jobs_fakes import SECRETS, TOKEN, fake_command, wait_for
+from pydantic import SecretStr
 from replica_cluster import (
     ADMIN_TOKEN,
     PG_URL,
@@ -28,7 +40,12 @@ from replica_cluster import (
 from sqlalchemy.engine import make_url
 
 from model_store.errors import InvalidArgument
+from model_store.sql import SqlModelStore
 from model_store.sql.engine import normalise_url, redact_url
+from services.app import create_app
+from services.settings import Settings
+from trainer.backends.once import lock_connection
+from trainer.jobs.runner import read_log
 
 AUTH = {"Authorization": f"Bearer {ADMIN_TOKEN}"}
 
@@ -141,3 +158,60 @@ def test_a_jobs_store_password_is_in_no_log_command_line_or_answer(tmp_path: Pat
         for file in (tmp_path / "data").rglob("*"):  # the job's run directory, log included
             if file.is_file():
                 assert marker.encode() not in file.read_bytes(), file
+
+
+def _proc_environ(pid: int) -> dict[str, str]:
+    raw = Path(f"/proc/{pid}/environ").read_bytes().decode(errors="replace")
+    return dict(item.split("=", 1) for item in raw.split("\0") if "=" in item)
+
+
+@pytest.mark.postgres
+@pytest.mark.skipif(not Path("/proc/self/environ").exists(), reason="reads /proc")
+def test_a_job_subprocess_gets_the_password_apart_from_the_url(tmp_path: Path) -> None:
+    marker = f"pw-marker-{uuid.uuid4().hex}"
+    with role_with_password(marker) as store_url, SqlModelStore(store_url) as store:
+        role = make_url(store_url).username
+        settings = Settings(
+            admin_token=SecretStr(TOKEN), data_dir=tmp_path, store_url=store_url, grpc_enabled=False
+        )
+        app = create_app(settings, store=store)
+        client = TestClient(app)  # no lifespan: the job table and runner open on first use
+        assert client.get("/v1/jobs", headers=FAKE_AUTH).status_code == 200
+        table, runner = app.state.jobs  # as the jobs API built them from the store
+        runner.command = fake_command  # only the trainer is stood in for, argv and env are real
+        try:
+            # the server's own connections get the password from the URL object, not `***`
+            with lock_connection(store.url) as conn:
+                assert conn.info.password == marker
+            raw = table.engine.raw_connection()
+            assert raw.driver_connection is not None  # psycopg's own connection
+            assert raw.driver_connection.info.password == marker
+            raw.close()
+
+            answer = client.post(
+                "/v1/jobs", json={"kind": "task", "goals": "a2", "seed": SECRETS}, headers=FAKE_AUTH
+            )
+            assert answer.status_code == 202, answer.json()
+            run_dir = answer.json()["run_dir"]
+            started = wait_for(
+                lambda: re.search(r"training started \(pid (\d+)\)", read_log(run_dir, 8000)),
+                "the fake trainer to start",
+            )
+            pid = int(started.group(1))
+            argv = Path(f"/proc/{pid}/cmdline").read_bytes().decode(errors="replace")
+            environ = _proc_environ(pid)
+            assert "jobs_fake_train.py" in argv and marker not in argv
+            assert make_url(environ["COEXIST_STORE_URL"]).username == role
+            assert marker not in environ["COEXIST_STORE_URL"]
+            assert environ["PGPASSWORD"] == marker  # apart, and only there
+            assert [name for name, value in environ.items() if marker in value] == ["PGPASSWORD"]
+
+            log = read_log(run_dir, 8000)
+            assert "registered particle/task/a2/1" in log, log  # it reached the store
+            assert "store connection password: PGPASSWORD" in log, log
+            assert "publish lock connection password: PGPASSWORD" in log, log
+            assert marker not in log
+            assert store.get_version("particle/task/a2", 1).lineage.registered_by
+        finally:
+            runner.stop()
+            table.close()

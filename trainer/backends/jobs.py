@@ -30,6 +30,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, cast
 
+from sqlalchemy.engine import URL
+
 from model_store.defaults import open_store
 from model_store.store import ModelStore
 from trainer.config import GATE_RETRIES, ImpactConfig, JointConfig, SoftQConfig, TaskConfig
@@ -185,7 +187,7 @@ class BatchOutcome:
 
 
 def train_batch(
-    store_url: str,
+    store_url: str | URL,
     job: BatchJob,
     config: SoftQConfig,
     *,

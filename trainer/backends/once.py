@@ -30,13 +30,18 @@ import hashlib
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, cast
+from typing import TYPE_CHECKING, Any, cast
+
+from sqlalchemy.engine import URL
 
 from model_store.entities import Lineage, ModelVersion
-from model_store.sql.engine import is_sqlite, normalise_url
+from model_store.sql.engine import is_sqlite, normalise_url, without_password
 from model_store.store import ModelStore
 from trainer.learners import TrainedBatch
 from trainer.publish import publish_batch
+
+if TYPE_CHECKING:
+    import psycopg
 
 JOB_CONFIG_KEY = "job"  # lineage config key of the job marker
 PG_LOCK_TIMEOUT_S = 600  # a publish holds the lock for seconds; waiting longer means trouble
@@ -50,8 +55,19 @@ def lock_id(job_key: str) -> int:
     return int.from_bytes(hashlib.sha256(job_key.encode()).digest()[:8], "big", signed=True)
 
 
+def lock_connection(url: URL) -> psycopg.Connection[Any]:
+    """An autocommit connection to the PostgreSQL database at `url`, for the publish lock. The
+    password goes to psycopg as a keyword of its own, never into the conninfo string: a string
+    that holds it is one traceback or log line away from a leak. Where `url` has none, libpq
+    reads `PGPASSWORD` (how a job's subprocess gets it: `trainer.jobs.runner`)."""
+    import psycopg
+
+    conninfo = without_password(url.set(drivername="postgresql")).render_as_string()
+    return psycopg.connect(conninfo, password=url.password, autocommit=True, connect_timeout=5)
+
+
 @contextmanager
-def publish_lock(store_url: str, job_key: str) -> Iterator[None]:
+def publish_lock(store_url: str | URL, job_key: str) -> Iterator[None]:
     """Hold the job's publish lock (see the module docstring) for the `with` block."""
     url = normalise_url(store_url)
     if is_sqlite(url):
@@ -61,10 +77,7 @@ def publish_lock(store_url: str, job_key: str) -> Iterator[None]:
             fcntl.flock(lock_file, fcntl.LOCK_EX)  # released by close, also when the process dies
             yield
         return
-    import psycopg
-
-    conninfo = url.set(drivername="postgresql").render_as_string(hide_password=False)
-    with psycopg.connect(conninfo, autocommit=True, connect_timeout=5) as conn:
+    with lock_connection(url) as conn:
         conn.execute(f"SET lock_timeout = '{PG_LOCK_TIMEOUT_S}s'")
         conn.execute("SELECT pg_advisory_lock(%s)", (lock_id(job_key),))
         yield  # closing the session releases the lock
@@ -107,7 +120,7 @@ class _RegisterOnce:
 
 def publish_once(
     store: ModelStore,
-    store_url: str,
+    store_url: str | URL,
     batch: TrainedBatch,
     *,
     job_key: str,
@@ -121,9 +134,8 @@ def publish_once(
     The lock lives in the database `store` writes to: its SQL `url` (a plugin backend over a
     SQL database has one too), else `store_url`, which must then name that database."""
     once = cast(ModelStore, _RegisterOnce(store, job_key, on_register))
-    sql_url = getattr(store, "url", None)
-    lock_url = sql_url.render_as_string(hide_password=False) if sql_url is not None else store_url
-    with publish_lock(lock_url, job_key):
+    sql_url: URL | None = getattr(store, "url", None)  # the object: its password stays inside
+    with publish_lock(sql_url if sql_url is not None else store_url, job_key):
         return publish_batch(
             once,
             batch,

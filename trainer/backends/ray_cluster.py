@@ -20,8 +20,9 @@
 |                    | skips it; the job id is kept in `<run dir>/job-id` for resumed runs    |
 
 Workers open the store by URL: PostgreSQL for a real cluster; a SQLite file works when every
-worker sees the same file (a single machine). Each worker must have coexist installed (the
-trainer image of docker/ with the `ray` extra, or a Ray `runtime_env`).
+worker sees the same file (a single machine). Each task gets it as a URL object, the database's
+password inside, never rendered into a string (`portable_store_url`). Each worker must have
+coexist installed (the trainer image of docker/ with the `ray` extra, or a Ray `runtime_env`).
 Ray is imported only here, only when this backend is used.
 """
 
@@ -31,6 +32,8 @@ import uuid
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
+
+from sqlalchemy.engine import URL
 
 from model_store.defaults import open_store, store_factory
 from model_store.errors import StoreUnavailable
@@ -67,19 +70,27 @@ def job_id_for(run_dir: Path, resume: bool) -> str:
     return job_id
 
 
-def portable_store_url(store_url: str) -> str:
-    """The URL as a worker must see it: a SQLite path made absolute (workers' cwd differs); a
-    plugin backend's URL as given (its `ModelStore.reopen_url`, which any process can open)."""
-    if store_factory(store_url) is not SqlModelStore:
+def portable_store_url(store_url: str | URL, password: str | None = None) -> str | URL:
+    """The store as a worker must open it: coexist's SQL store as a URL object, a SQLite path
+    made absolute (workers' cwd differs) and `password` (what `ModelStore.reopen_url` leaves
+    out: `reopen_password`) put back into it; a plugin backend's URL as given (its
+    `reopen_url`, which any process can open).
+
+    The object, not a string: a Ray task's arguments travel pickled, so the password goes to
+    the workers inside it without ever being rendered into a URL string, and not through the
+    task's `runtime_env`, whose environment variables Ray's dashboard and logs show."""
+    if isinstance(store_url, str) and store_factory(store_url) is not SqlModelStore:
         return store_url
     url = normalise_url(store_url)
     if is_sqlite(url):
         url = url.set(database=str(Path(url.database or "").expanduser().absolute()))
-    return url.render_as_string(hide_password=False)
+    if password is not None:
+        url = url.set(password=password)
+    return url
 
 
 def run_on_ray(
-    store_url: str,
+    store_url: str | URL,
     stages: Sequence[Stage],
     *,
     run: RunState,
@@ -90,11 +101,13 @@ def run_on_ray(
     max_retries: int = DEFAULT_MAX_RETRIES,
     progress: ProgressFactory | None = None,
     on_register: RegisteredHook | None = None,
+    store_password: str | None = None,
 ) -> list[BatchOutcome]:
-    """Run the stages' jobs on Ray, in stage order; outcomes in job order."""
+    """Run the stages' jobs on Ray, in stage order; outcomes in job order. `store_password`:
+    the password `store_url` leaves out (`portable_store_url`)."""
     import ray
 
-    url = portable_store_url(store_url)
+    url = portable_store_url(store_url, store_password)
     started_here = not ray.is_initialized()
     if started_here:
         ray.init(address=address, include_dashboard=False, log_to_driver=True)

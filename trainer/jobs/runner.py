@@ -1,14 +1,16 @@
 """`JobRunner`: one thread that runs the queued training jobs, one subprocess at a time.
 
     runner = JobRunner(table, store_url="sqlite:////abs/models.db")  # run dirs: the rows' own
+    runner = JobRunner(table, store_url="postgresql://u@db/x", store_password=...)  # PostgreSQL
     runner.start()        # requeues jobs left running by a dead process, then works the queue
     runner.stop()         # stops the running subprocess and leaves its job for the next process
 
 Each job runs `python -m cli.main train <kind> ... --run-dir <run_root>/<id> --resume`
-(`spec.train_command`), stdout and stderr appended to `<run_dir>/log.txt`. The store URL, which
-may hold the database's password, reaches the trainer only in its environment
-(`COEXIST_STORE_URL`, readable by the same user and root, unlike the command line, which every
-user sees in `ps` and which the job's log repeats). One job at a
+(`spec.train_command`), stdout and stderr appended to `<run_dir>/log.txt`. The store reaches the
+trainer only in its environment (readable by the same user and root, unlike the command line,
+which every user sees in `ps` and which the job's log repeats): its URL without the password in
+`COEXIST_STORE_URL` (`ModelStore.reopen_url`), the database's password apart in `PGPASSWORD`
+(`ModelStore.reopen_password`), so that no string holds both. One job at a
 time per process: training takes every core there is. The loop wakes every `poll_s` (or at once
 on `wake()`), refreshes the running job's heartbeat every `heartbeat_s`, and re-runs `recover`
 every `stale_after_s / 2` so a job abandoned by another, dead, process is picked up too.
@@ -53,6 +55,10 @@ _PROJECT_ROOT = Path(__file__).resolve().parents[2]  # `-m cli.main` resolves fr
 # (spec, run directory) -> argv; tests swap in a stand-in for `coexist train`
 CommandFn = Callable[[JobSpec, Path], list[str]]
 STORE_URL_ENV = "COEXIST_STORE_URL"  # how the trainer learns the store (`default_store_url`)
+# The store's password, apart from its URL. libpq reads this variable for every connection whose
+# conninfo has no password, so the trainer's store (and its publish lock) connect with it without
+# a line of ours, and a printed or logged COEXIST_STORE_URL holds no secret. SQLite has none.
+STORE_PASSWORD_ENV = "PGPASSWORD"
 
 
 def read_log(run_dir: str | Path, max_chars: int) -> str:
@@ -106,12 +112,16 @@ class JobRunner:
         table: JobTable,
         *,
         store_url: str,
+        store_password: str | None = None,
         poll_s: float = 1.0,
         heartbeat_s: float = 5.0,
         cancel_grace_s: float = 10.0,
         command: CommandFn = train_command,
     ) -> None:
         self.table, self.store_url = table, store_url
+        self._store_env = {STORE_URL_ENV: store_url}
+        if store_password is not None:
+            self._store_env[STORE_PASSWORD_ENV] = store_password
         self.poll_s, self.heartbeat_s = poll_s, heartbeat_s
         self.cancel_grace_s, self.command = cancel_grace_s, command
         self._wake = threading.Event()
@@ -172,7 +182,7 @@ class JobRunner:
                 stdout=out,
                 stderr=subprocess.STDOUT,
                 stdin=subprocess.DEVNULL,
-                env={**os.environ, STORE_URL_ENV: self.store_url},
+                env={**os.environ, **self._store_env},
                 cwd=_PROJECT_ROOT,
                 start_new_session=True,
             )

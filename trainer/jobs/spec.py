@@ -110,8 +110,9 @@ GATE_FAILED_EXIT_CODE = 4
 
 def train_command(spec: JobSpec, run_dir: Path) -> list[str]:
     """`python -m cli.main train <kind> ... --resume`: always resumable from `run_dir`. No
-    store URL: a command line is public (`ps`, the job's log), and the URL may hold the
-    database's password, so the runner hands it over in the environment (`COEXIST_STORE_URL`)."""
+    store URL: a command line is public (`ps`, the job's log), and the store needs the
+    database's password, so the runner hands both over in the environment, apart
+    (`COEXIST_STORE_URL`, `PGPASSWORD`: `trainer.jobs.runner`)."""
     cmd = [sys.executable, "-m", "cli.main", "train", spec.kind, "--env", spec.env]
     if spec.kind != "joint":
         cmd += ["--goals", spec.goals]

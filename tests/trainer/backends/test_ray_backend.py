@@ -22,14 +22,14 @@ from typing import Any
 
 import psycopg
 import pytest
-from sqlalchemy.engine import make_url
+from sqlalchemy.engine import URL, make_url
 from typer.testing import CliRunner
 
 from model_store.entities import ModelVersion
 from model_store.sql import SqlModelStore
 from trainer.backends.jobs import impact_stage, joint_stage, task_stage
 from trainer.backends.once import JOB_CONFIG_KEY
-from trainer.backends.ray_cluster import job_id_for, run_on_ray
+from trainer.backends.ray_cluster import job_id_for, portable_store_url, run_on_ray
 from trainer.config import ImpactConfig, JointConfig, TaskConfig
 from trainer.zoo import RunState, run_impacts, run_joint, run_tasks
 
@@ -101,6 +101,22 @@ def _registry(store: SqlModelStore) -> dict[str, Any]:
             versions.append((v.version, v.sha256, lineage))
         out[model.name] = (model.aliases, model.tags, versions)
     return out
+
+
+def test_workers_get_the_store_as_a_url_object_the_password_put_back_into_it(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """What `coexist train --backend ray` hands the tasks: the store's URL without its password
+    and the password apart (`reopen_url`, `reopen_password`) become one URL object, which
+    travels pickled as the tasks' argument, never rendered into a string."""
+    url = portable_store_url("postgresql://u@db:5432/zoo", "s3cret")
+    assert isinstance(url, URL) and url.password == "s3cret"
+    assert url.drivername == "postgresql+psycopg" and "s3cret" not in repr(url)
+    assert ray.cloudpickle.loads(ray.cloudpickle.dumps(url)) == url
+    assert portable_store_url(url) == url  # a URL object with its password is kept as it is
+    monkeypatch.chdir(tmp_path)
+    local = portable_store_url("sqlite:///runs/models.db")
+    assert isinstance(local, URL) and local.database == str(tmp_path / "runs" / "models.db")
 
 
 def test_ray_zoo_is_registered_exactly_as_the_local_backend_registers_it(
