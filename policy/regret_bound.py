@@ -42,14 +42,23 @@ paper's kitchen cook hands the carrot over after cooking its own dish (the kitch
 the cook's `served` feature). Where an environment's observations cannot tell, ε applies
 everywhere.
 
-A finished task (R3). Where the ego's goal is reached for good (`Domain.goal_is_final`: a served
+A reached goal (R3). Where the ego's goal is reached for good (`Domain.goal_is_final`: a served
 dish stays served, and no later step costs the cook anything), no action changes the ego's own
-return, so its exact task Q is the same for every action. A trained network is only close to
-that: in the kitchen its residual preferences after the dish (a few α) are approximation error,
-yet eq. 9 reads them as confidence and keeps the impact network out. There the engine blends
-with the row's task Q replaced by its mean over the actions (`services.engine.engine.
-aail_bounded_guard`): π_t is uniform, w_t = 0 (eq. 9), every action lies in S_ε, and π_B is the
-impact networks' blend. The ego's regret is exactly 0 there, so the bound still holds.
+return, so its exact task Q is the same for every action. The same holds where the goal is
+reached and can be kept (`Domain.goal_kept` holds some action K, R4 below): the particle ego's
+own reward is 0 anywhere inside its target, so under the exact task Q every action of K is
+worth the same to it. A trained network is only close to that: its residual preferences there
+(a few α: where inside the target to rest, which way the kitchen cook faces) are approximation
+error, yet eq. 9 reads them as confidence, keeps the impact networks out, and R1 lets them
+share only the actions within ε of that spurious best. There the engine blends with the row's
+task Q replaced by its mean over the actions (`services.engine.engine.aail_bounded_guard`): π_t
+is uniform, w_t = 0 (eq. 9), every action lies in S_ε, and π_B is the impact networks' blend,
+restricted to K by R4. The ego's regret is 0 there (as long as it stays in K, which R4 sees to),
+so the bound still holds. Measured on tuning draws (`reports/paper/blend_choice.md`): where the
+partner's influence area lies inside the ego's target, the ego then helps more than the paper's
+AAIL does (the paper's AAIL keeps weighing its task network's residual preferences inside the
+target), never at the cost of its own target. With ε = 0 nothing is flattened: an explicit
+`regret_bound` of 0 is the task policy itself.
 
 Keeping the goal (R4). Where the goal is reached but can be lost (the particle world's target
 area) and ε > 0, let K be the actions after which the ego is still inside and can stay there by
@@ -68,8 +77,9 @@ explicit ε = 0 still gives the task policy itself.
 
 The engine's default ε is `DEFAULT_EPSILON_PER_ALPHA` × the task network's temperature α: an
 action keeps the blend's say when the task policy rates it at least e^-2 ≈ 0.14 as likely as its
-best. ε only acts once the ego's goal is reached (R2), where R4 keeps the goal, so a larger ε
-buys more help for the others without stranding the ego. Chosen by measurement on goal sets and
+best. ε only acts once the ego's goal is reached (R2); where R3 flattens the task Q (a goal that
+is final, or one that some action keeps) every action is within ε, so ε decides only on reached
+rows that no action keeps, and in environments that cannot say which actions keep the goal. Chosen by measurement on goal sets and
 pairs drawn with seeds the report does not use (`reports/paper/blend_choice.md`): before R4,
 ε = α let the ego step out of its target in five-agent scenes and α/2 was kept; with R4, 2α
 helps more than α/2 or α in five-agent scenes and on aligned pairs at no cost to the ego's own

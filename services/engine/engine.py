@@ -194,7 +194,7 @@ class InferenceEngine:
         inputs = member_inputs(checked, members, group, layout)
         q_members = forward_group(group, inputs, numpy_forward=self.numpy_forward)
         method, batch = request.method, checked.obs_BD.shape[0]
-        epsilon_B, finished_B = aail_bounded_guard(request, group, checked)
+        epsilon_B, finished_B, kept_BA = aail_bounded_guard(request, group, checked)
         q_task_BA = task_q(method, q_members[0], batch, finished_B)
         blend_method = BLEND_OF[method]
         if blend_method == "sl":  # the task/joint network alone: no impact network evaluated
@@ -219,7 +219,6 @@ class InferenceEngine:
         except FloatingPointError:  # float32 outputs overflowed: on huge observations, or ...
             raise overflow_error(group, checked.obs_BD, "observations") from None
         probs_BA, spent_B, total_B = blended.probs_BA, None, None
-        kept_BA = goal_kept_of(request, checked, epsilon_B)
         if kept_BA is not None:  # R4: no action that loses the reached goal where one keeps it
             probs_BA = keep_goal_rows(probs_BA, kept_BA)
         value_B = None
@@ -446,26 +445,42 @@ def task_q(
 
 def aail_bounded_guard(
     request: ActRequest, group: StackedGroup, checked: CheckedRequest
-) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """What `aail_bounded` needs from the environment (`policy.regret_bound`), one
-    `goal_reached` call for both: ε per row, (B,) (the request's, else
-    `DEFAULT_EPSILON_PER_ALPHA` × the task network's training α; 0 where the ego's own goal is
-    not reached yet, R2), and the rows, (B,) bool, whose goal is reached for good
-    (`Domain.goal_is_final`: a served dish), where the task Q is flat (R3; None where no row
-    is). (None, None) for the other methods."""
+) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None]:
+    """What `aail_bounded` needs from the environment (`policy.regret_bound`), from one
+    `goal_reached` call and, where a row's goal is reached, one `goal_kept` call:
+
+    - ε per row, (B,): the request's, else `DEFAULT_EPSILON_PER_ALPHA` × the task network's
+      training α; 0 where the ego's own goal is not reached yet (R2);
+    - the rows, (B,) bool, whose task Q is flat (R3): ε > 0 and the goal reached for good
+      (`Domain.goal_is_final`: a served dish) or reached with an action that keeps it; None
+      where no row is;
+    - the actions, (B, A) bool, that keep a reached goal on the rows that blend (R4; every
+      action elsewhere); None where nothing is to keep.
+
+    (None, None, None) for the other methods."""
     if request.method != "aail_bounded":
-        return None, None
+        return None, None, None
     if request.regret_bound is not None:
         epsilon = float(request.regret_bound)
     else:
         epsilon = DEFAULT_EPSILON_PER_ALPHA * float(group.nets[0].alpha or DEFAULT_TEMPERATURE)
     domain = checked.runtime.domain
+    batch = checked.obs_BD.shape[0]
     reached = domain.goal_reached(checked.obs_BD, checked.n_agents, request.ego_goal)
     if reached is None:
-        return np.full(checked.obs_BD.shape[0], epsilon), None
-    reached_B = np.asarray(reached, dtype=bool)
-    finished_B = reached_B if domain.goal_is_final and reached_B.any() else None
-    return np.where(reached_B, epsilon, 0.0), finished_B
+        return np.full(batch, epsilon), None, None
+    blending_B = np.asarray(reached, dtype=bool) & (epsilon > 0.0)
+    if not blending_B.any():
+        return np.zeros(batch), None, None
+    epsilon_B = np.where(blending_B, epsilon, 0.0)
+    if domain.goal_is_final:
+        return epsilon_B, blending_B, None
+    kept = domain.goal_kept(checked.obs_BD, checked.n_agents, request.ego_goal)
+    if kept is None:
+        return epsilon_B, None, None
+    kept_BA = np.where(blending_B[:, None], np.asarray(kept, dtype=bool), True)
+    flat_B = blending_B & kept_BA.any(axis=1)
+    return epsilon_B, (flat_B if flat_B.any() else None), kept_BA
 
 
 def spend_budget(
@@ -497,18 +512,3 @@ def spend_budget(
         spent_B, last_B = np.zeros_like(total_B), value_B
     step = budget_rows(probs_task_BA, probs_blend_BA, q_task_BA, value_B, spent_B, total_B, last_B)
     return step.probs_BA, step.spent_B, total_B, value_B
-
-
-def goal_kept_of(
-    request: ActRequest, checked: CheckedRequest, epsilon_B: np.ndarray | None
-) -> np.ndarray | None:
-    """(B, A) bool for R4 of `policy.regret_bound`: the actions that keep the ego's reached goal,
-    on the rows where `aail_bounded` blends (ε > 0); every action elsewhere. None where nothing
-    is to keep (another method, no row blending, or a goal that cannot be lost)."""
-    if request.method != "aail_bounded" or epsilon_B is None or not (epsilon_B > 0.0).any():
-        return None  # R4 is aail_bounded's alone
-    domain = checked.runtime.domain
-    kept_BA = domain.goal_kept(checked.obs_BD, checked.n_agents, request.ego_goal)
-    if kept_BA is None:
-        return None
-    return np.where((epsilon_B > 0.0)[:, None], kept_BA, True)

@@ -66,6 +66,7 @@ def reference(
                 sum(p * _q(store, names[g], pinned.get(names[g]), pair) for g, p in goals.items())
             )
     q_impact = np.array(q_impacts).reshape(1, len(q_impacts), 5)
+    kept = None
     if method == "aail_bounded":
         if regret_bound is None:
             regret_bound = DEFAULT_EPSILON_PER_ALPHA * alpha
@@ -74,13 +75,16 @@ def reference(
         x0, x1, y0, y1 = TARGET_BOXES_G4[goal_index(ego_goal)]
         if not (x0 <= x <= x1 and y0 <= y <= y1):
             regret_bound = 0.0
+        if regret_bound:
+            kept = np.array([_stays_inside(ego.astype(np.float32), a, ego_goal) for a in range(5)])
+            if kept.any():  # R3: the target reached and kept, the ego's reward is the same on K
+                q_task = np.full_like(q_task, q_task.mean())
     out = blend(cast(BlendMethod, method), q_task[None], q_impact, alpha, regret_bound=regret_bound)
     weights = out.partner_weights_BP[0] if method != "sl" else np.zeros(len(partners))
     probs = out.probs_BA[0]
-    if method == "aail_bounded" and regret_bound:  # R4: no action that loses the target area
-        kept = np.array([_stays_inside(ego.astype(np.float32), a, ego_goal) for a in range(5)])
-        if kept.any() and not kept.all() and probs[kept].sum() > 0:
-            probs = np.where(kept, probs, 0.0) / probs[kept].sum()
+    # R4: no action that loses the target area
+    if kept is not None and kept.any() and not kept.all() and probs[kept].sum() > 0:
+        probs = np.where(kept, probs, 0.0) / probs[kept].sum()
     return probs, out.task_entropy_B[0], out.task_weight_B[0], weights
 
 
@@ -145,7 +149,18 @@ def test_the_progress_guard_blends_only_inside_the_target(tiny_zoo) -> None:
         return np.array([r.probs for r in rows])
 
     bounded = probs("aail_bounded", regret_bound=1e6)
-    np.testing.assert_allclose(bounded[0], probs("aail")[0], atol=1e-12)
+    inside = reference(
+        tiny_zoo.store,
+        obs_BD[0],
+        "a2",
+        [(1, {"b3": 1.0})],
+        "aail_bounded",
+        tiny_zoo.alpha,
+        None,
+        1e6,
+    )
+    np.testing.assert_allclose(bounded[0], inside[0], atol=ATOL)  # R3 and R4 inside
+    assert not np.allclose(bounded[0], probs("sl")[0], atol=1e-3)  # it blends there
     np.testing.assert_allclose(bounded[1], probs("sl")[1], atol=1e-12)
     assert not np.allclose(probs("aail")[1], probs("sl")[1])  # the guard made a difference
     [single] = engine.act(
@@ -175,10 +190,11 @@ def test_the_blend_keeps_the_reached_target(tiny_zoo) -> None:
         [r.probs for r in engine.act(ActRequest("particle", "a2", obs_BD, partners, method="aail"))]
     )
     assert np.all(bounded[0][~kept[0]] == 0.0) and aail[0][~kept[0]].sum() > 1e-3
-    np.testing.assert_allclose(
-        bounded[0][kept[0]], aail[0][kept[0]] / aail[0][kept[0]].sum(), rtol=1e-9
-    )
-    np.testing.assert_allclose(bounded[1], aail[1], atol=1e-12)  # nothing to lose there
+    for row, probs in zip(obs_BD, bounded, strict=True):  # R3 (flat task Q), then R4
+        ref = reference(
+            tiny_zoo.store, row, "a2", [(1, {"b3": 1.0})], "aail_bounded", tiny_zoo.alpha, None, 1e6
+        )
+        np.testing.assert_allclose(probs, ref[0], atol=ATOL)
     np.testing.assert_allclose(act(obs_BD[:1], regret_bound=1e6)[0], bounded[0], atol=1e-12)
     sl = np.array(
         [r.probs for r in engine.act(ActRequest("particle", "a2", obs_BD, partners, method="sl"))]
