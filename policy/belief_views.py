@@ -132,17 +132,21 @@ def blend_goal_probs(
 
 
 def blend_goal_weights(
-    log_belief_G: np.ndarray, mass: float = 1.0, max_goals: int | None = None, below: float = 0.0
+    log_belief_G: np.ndarray,
+    mass: float = 1.0,
+    max_goals: int | None = None,
+    below: float = 0.0,
+    below_mass: float = 1.0,
 ) -> tuple[list[int], list[float]]:
     """`blend_goal_probs` as the kept goals' indices (ascending) and their probabilities;
     `below` > 0 also leaves out every goal of probability below it but the most probable (goal
-    pruning, `policy.belief_prune`)."""
+    pruning, `policy.belief_prune`), while the mass left out is at most `below_mass`."""
     log_b = _belief_vector(log_belief_G)
     _check_blend(mass, max_goals, below)
     probs = np.exp(log_b).tolist()
     whole = _whole(mass, max_goals, log_b.size, below)
     order = None if whole else np.argsort(-log_b, kind="stable")
-    kept, probs = _blend_kept(probs, order, mass, max_goals, below)
+    kept, probs = _blend_kept(probs, order, mass, max_goals, below, below_mass)
     total = math.fsum(probs)
     return kept, [p / total for p in probs]
 
@@ -158,26 +162,44 @@ def _blend_kept(
     mass: float,
     max_goals: int | None,
     below: float = 0.0,
+    below_mass: float = 1.0,
 ) -> tuple[list[int], list[float]]:
     """The blend's goals (ascending) and their unnormalised probabilities, from one row's
-    probabilities and, unless the blend is `_whole`, its goals by descending probability."""
+    probabilities and, unless the blend is `_whole`, its goals by descending probability.
+    `below` leaves out the goals under it only while their mass is at most `below_mass`."""
     if order is None:
         kept = [g for g, p in enumerate(probs) if p > 0]
     else:
-        kept, covered = [], 0.0
-        for g in order[: None if max_goals is None else int(max_goals)].tolist():
-            if probs[g] <= 0 or (kept and probs[g] < below):  # descending: the rest too
-                break
-            kept.append(g)
-            covered += probs[g]
-            if covered >= mass * (1 - 1e-12):  # rounding must not add a goal for 1e-16 of mass
-                break
-        kept.sort()
+        kept = _ordered_kept(probs, order, mass, max_goals, below)
+        if below > 0 and below_mass < 1:
+            left = math.fsum(probs) - math.fsum([probs[g] for g in kept])
+            if left > below_mass:  # too much mass under τ: blend as without it
+                kept = (
+                    [g for g, p in enumerate(probs) if p > 0]
+                    if _whole(mass, max_goals, len(probs))
+                    else _ordered_kept(probs, order, mass, max_goals, 0.0)
+                )
     if not kept:
         raise ValueError("log_belief_G: every goal has probability 0")
     if len(kept) < len(probs):
         probs = [probs[g] for g in kept]
     return kept, probs
+
+
+def _ordered_kept(
+    probs: list[float], order: np.ndarray, mass: float, max_goals: int | None, below: float
+) -> list[int]:
+    kept: list[int] = []
+    covered = 0.0
+    for g in order[: None if max_goals is None else int(max_goals)].tolist():
+        if probs[g] <= 0 or (kept and probs[g] < below):  # descending: the rest too
+            break
+        kept.append(g)
+        covered += probs[g]
+        if covered >= mass * (1 - 1e-12):  # rounding must not add a goal for 1e-16 of mass
+            break
+    kept.sort()
+    return kept
 
 
 def belief_views(
@@ -187,8 +209,10 @@ def belief_views(
     mass: float = 1.0,
     max_goals: int | None = None,
     below: float = 0.0,
+    below_mass: float = 1.0,
 ) -> list[BeliefView]:
-    """Per row p of a (P, G) log-belief: `blend_goal_weights(row, mass, max_goals, below)` and
+    """Per row p of a (P, G) log-belief: `blend_goal_weights(row, mass, max_goals, below,
+    below_mass)` and
     `belief_summary(row, goals, k)`, the same numbers bit for bit, with one exp, one sort and
     one sum for all rows instead of two exps and a sort per row (elementwise operations and
     the last-axis sum give every row what they give it alone; a division of arrays rounds as
@@ -209,7 +233,7 @@ def belief_views(
         views = compiled_views(log_b, goals, k)
         if views is not None:
             return views
-    return reference_views(log_b, goals, k, mass, max_goals, below)
+    return reference_views(log_b, goals, k, mass, max_goals, below, below_mass)
 
 
 def reference_views(
@@ -219,6 +243,7 @@ def reference_views(
     mass: float,
     max_goals: int | None,
     below: float = 0.0,
+    below_mass: float = 1.0,
 ) -> list[BeliefView]:
     """`belief_views` in numpy on checked arguments (a non-empty (P, G) float64 `log_b`): the
     compiled views' reference, and the beliefs they leave (a partial blend, a zero
@@ -237,7 +262,9 @@ def reference_views(
         if whole and positive:  # every goal kept: `_blend_kept` would copy the row as it is
             kept, probs = list(range(n_goals)), row
         else:
-            kept, probs = _blend_kept(row, None if whole else order[p], mass, max_goals, below)
+            kept, probs = _blend_kept(
+                row, None if whole else order[p], mass, max_goals, below, below_mass
+            )
         total = math.fsum(probs)
         views.append(BeliefView(kept, [q / total for q in probs], top, max(0.0, -entropies[p])))
     return views

@@ -27,9 +27,9 @@ Goal pruning (`belief.prune_below` τ > 0; `policy.belief_prune`, docs/method.md
 scores only the active goals (each partner's goals at or above τ, and its most probable), in
 the table scored ahead or on demand, and a partner whose step's error bound exceeds
 `belief.prune_error` δ gets the other goals scored too (the exact update). The act blends each
-partner's goals at or above τ of its new belief (and its most probable): a set that changes
-only when a goal crosses τ, so the engine stacks it once it comes twice (its "Goal
-distributions").
+partner's goals at or above τ of its new belief (and its most probable) where the goals left
+out hold at most δ of it, else the whole belief: a set that changes only when a goal crosses
+τ, so the engine stacks it once it comes twice (its "Goal distributions").
 
 State held: the settings (checked once), one log-belief row (G,) per inferred partner, the
 previous observation, the next step's index and per-partner counters, and what the last belief
@@ -537,6 +537,7 @@ class Session:
             settings.blend_mass,
             settings.blend_max_goals,
             settings.belief.prune_below,
+            settings.belief.prune_error,
         )
 
     def _act(self, obs_1D: np.ndarray, n_agents: int, views: list[BeliefView], t: int) -> ActResult:

@@ -203,3 +203,8 @@ def test_the_pruned_blend_is_the_belief_without_the_goals_below_tau() -> None:
         spread = (q_GA.max(axis=0) - q_GA.min(axis=0)).max()
         moved = np.abs(w @ q_GA - probs @ q_GA).max()
         assert moved <= distance * spread + 1e-12
+        # with a cap on the mass left out: pruned within it, else the whole belief
+        cap = float(rng.uniform(0.0, 0.3))
+        capped, _ = blend_goal_weights(log_b, below=tau, below_mass=cap)
+        positive = [g for g in range(n_goals) if np.exp(log_b[g]) > 0]  # dirichlet may underflow
+        assert capped == (kept if dropped <= cap else positive)
