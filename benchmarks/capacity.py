@@ -1,10 +1,12 @@
 """Capacity: how many robots one server holds, each a REST session stepping at a fixed rate
 (`HZ`) with inferred partners (`PARTNER_GOALS`), within a step-latency bound (`P99_MS`) and
-without errors; and act throughput under concurrent load, one worker against two.
+without errors; and act throughput under concurrent load, one worker against two; and the same
+load against Ray Serve running the same maths, the anchor.
 
 Run: `OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/capacity.py [--workers 1]
 [--session-store redis://127.0.0.1:6379/0] [--sessions 10,20,40,60,80] [--duration 10]
-[--processes 2] [--throughput]` (needs `taskset`; `--throughput` needs `wrk`).
+[--processes 2] [--throughput] [--servers coexist ray] [--alternations 2] [--method aail]
+[--ray-max-ongoing-requests N]` (needs `taskset`; `--throughput` needs `wrk`).
 
 | part        | what                                                                         |
 |-------------|------------------------------------------------------------------------------|
@@ -28,6 +30,17 @@ Run: `OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/capacity.py [--workers 
 |             | moved by other work on the machine than the latencies                         |
 | throughput  | `wrk -t2 -c32` closed loop on `POST /v1/act` (4 announced partners, the same  |
 |             | episode's observations), rounds of `--duration` s: median requests/s          |
+| anchor      | `--servers coexist ray`: the plain app of `alternative_servers.py` (its       |
+|             | numpy sessions: coexist's default belief, the AAIL act blending each partner's |
+|             | impact networks by it) as a one-replica Ray Serve deployment on a one-CPU Ray |
+|             | pinned to CPU 0, the replica on the server's one core (one worker only: the   |
+|             | sessions live in the replica's memory), under the same robots. Both servers   |
+|             | then act with method aail (the numpy sessions' only method; coexist's default |
+|             | is aail_bounded). Before Ray's ladder, its answers to `CHECK_STEPS` steps of a |
+|             | seeded session must equal a coexist `Session`'s in process on the same store  |
+|             | (probabilities within `PROBS_ATOL`, the same actions), else the run stops.    |
+|             | Each server runs its ladder alone, `--alternations` times, the order reversed |
+|             | each time; the summary gives the medians and coexist's over Ray's             |
 """
 
 from __future__ import annotations
@@ -60,6 +73,9 @@ from session_scene import (  # noqa: E402
 )
 from wrk_server import free_port, http_ok, lua_script, parse_wrk, stop, wait_ready  # noqa: E402
 
+SERVERS = ("coexist", "ray")
+CHECK_STEPS = 6  # steps of one seeded session checked against coexist's before Ray is timed
+PROBS_ATOL = 1e-5
 HZ = 10.0
 P99_MS = 20.0
 WARMUP_S = 1.0
@@ -156,11 +172,16 @@ async def _answer(reader: asyncio.StreamReader) -> tuple[int, bytes]:
 
 
 async def _robot(
-    port: int, bodies: list[bytes], start_at: float, until: float, out: dict[str, Any]
+    port: int,
+    create: bytes,
+    bodies: list[bytes],
+    start_at: float,
+    until: float,
+    out: dict[str, Any],
 ) -> None:
     reader, writer = await asyncio.open_connection("127.0.0.1", port)
     try:
-        writer.write(_request(port, "/v1/sessions", json.dumps(CREATE).encode()))
+        writer.write(_request(port, "/v1/sessions", create))
         status, created = await _answer(reader)
         if status != 201:
             out["errors"] += 1
@@ -169,9 +190,7 @@ async def _robot(
         # step 0 brings no evidence (nothing was observed before it); the cycle's first body
         # (the episode's last actions, wrapped) only from its second round on
         requests = [_request(port, path, b) for b in bodies]
-        first = _request(
-            port, path, json.dumps({"observation": json.loads(bodies[0])["observation"]}).encode()
-        )
+        first = _request(port, path, first_step(bodies))
         k = 0
         loop = asyncio.get_running_loop()
         while True:
@@ -195,7 +214,14 @@ async def _robot(
         writer.close()
 
 
-def _robots(port: int, n: int, duration: float, bodies: list[bytes], seed: int) -> dict[str, Any]:
+def first_step(bodies: list[bytes]) -> bytes:
+    """Step 0's body: the first body's observation without evidence (nothing observed yet)."""
+    return json.dumps({"observation": json.loads(bodies[0])["observation"]}).encode()
+
+
+def _robots(
+    port: int, create: bytes, n: int, duration: float, bodies: list[bytes], seed: int
+) -> dict[str, Any]:
     """One load process: `n` robots for `duration` s (after creating their sessions)."""
     import uvloop
 
@@ -206,7 +232,7 @@ def _robots(port: int, n: int, duration: float, bodies: list[bytes], seed: int) 
         begin = loop.time() + 1.0  # every session created by then
         until = begin + WARMUP_S + duration
         await asyncio.gather(
-            *(_robot(port, bodies, begin + rng.random() / HZ, until, out) for _ in range(n))
+            *(_robot(port, create, bodies, begin + rng.random() / HZ, until, out) for _ in range(n))
         )
         return out
 
@@ -215,6 +241,7 @@ def _robots(port: int, n: int, duration: float, bodies: list[bytes], seed: int) 
 
 def hold(
     port: int,
+    create: bytes,
     n: int,
     duration: float,
     processes: int,
@@ -230,7 +257,7 @@ def hold(
     cpu_before, redis_before = cpu_seconds(server_pid), redis_cpu_seconds(session_store)
     with multiprocessing.get_context("fork").Pool(processes) as pool:
         parts = pool.starmap(
-            _robots, [(port, s, duration, bodies, k) for k, s in enumerate(shares) if s]
+            _robots, [(port, create, s, duration, bodies, k) for k, s in enumerate(shares) if s]
         )
     server_cpu = cpu_seconds(server_pid) - cpu_before
     redis_cpu = redis_cpu_seconds(session_store) - redis_before
@@ -272,6 +299,162 @@ def throughput(port: int, duration: float, rounds: int, tmp: Path) -> float:
     return statistics.median(rates)
 
 
+# --- the anchor's answers against coexist's ------------------------------------------------
+def check_bodies(steps: int = CHECK_STEPS) -> list[bytes]:
+    """The robots' first `steps` step bodies: step 0 without evidence, then the episode's."""
+    obs_TD, act_TP = episode(N_AGENTS, 400, seed=3)
+    bodies = step_bodies(obs_TD, act_TP, observed=True)
+    return [first_step(bodies), *bodies[1:steps]]
+
+
+def coexist_session_answers(
+    store_url: str, create: dict[str, Any], bodies: list[bytes]
+) -> list[tuple[np.ndarray, int]]:
+    """(probs, action) of each step of a coexist `Session` in process on the store: the
+    engine `coexist serve` runs, the same settings as the robots' sessions."""
+    from model_store import open_store
+    from services.engine.engine import InferenceEngine
+    from services.sessions import Observed, Session, SessionPartner, SessionSettings
+
+    partners = tuple(SessionPartner(p["index"], infer=p["infer"]) for p in create["partners"])
+    extra = {"method": create["method"]} if "method" in create else {}
+    settings = SessionSettings(
+        create["env"], create["ego_goal"], partners, seed=create.get("seed"), **extra
+    )
+    answers = []
+    with open_store(store_url) as store:
+        session = Session(InferenceEngine(store), settings)
+        for body in bodies:
+            step = json.loads(body)
+            observed = [Observed(o["index"], o["action"]) for o in step.get("observed", [])]
+            result = session.step(step["observation"], observed).result
+            answers.append((np.asarray(result.probs, dtype=np.float64), int(result.action)))
+    return answers
+
+
+def http_session_answers(
+    client: Any, create: dict[str, Any], bodies: list[bytes]
+) -> list[tuple[np.ndarray, int]]:
+    """(probs, action) of each step of a session over HTTP; `client` posts to the server
+    (an `httpx.Client` with its base URL, or a test client)."""
+    created = client.post("/v1/sessions", json=create)
+    if created.status_code != 201:
+        raise SystemExit(f"creating a session: {created.status_code} {created.text[:500]}")
+    path = f"/v1/sessions/{created.json()['session_id']}/steps"
+    answers = []
+    for body in bodies:
+        reply = client.post(path, content=body, headers={"content-type": "application/json"})
+        if reply.status_code != 200:
+            raise SystemExit(f"a session step: {reply.status_code} {reply.text[:500]}")
+        answer = reply.json()
+        answers.append((np.asarray(answer["probs"], dtype=np.float64), int(answer["action"])))
+    return answers
+
+
+def check_same_answers(
+    kind: str, answers: list[tuple[np.ndarray, int]], reference: list[tuple[np.ndarray, int]]
+) -> None:
+    """Fail loudly unless every step's probabilities are coexist's within `PROBS_ATOL` and
+    its action the same."""
+    for t, ((probs, action), (ref_probs, ref_action)) in enumerate(
+        zip(answers, reference, strict=True)
+    ):
+        same_shape = probs.shape == ref_probs.shape
+        gap = float(np.max(np.abs(probs - ref_probs))) if same_shape else np.inf
+        if not gap <= PROBS_ATOL or action != ref_action:
+            raise SystemExit(
+                f"{kind}: step {t} answers {probs.tolist()} (action {action}), coexist "
+                f"{ref_probs.tolist()} (action {ref_action}): not the same maths, nothing timed"
+            )
+
+
+# --- one server's ladder -----------------------------------------------------------------------
+def run_server(kind: str, args: argparse.Namespace, url: str, tmp: Path) -> list[dict[str, Any]]:
+    """Start `kind` alone, check it (Ray) and measure throughput (if asked) and the ladder of
+    session counts up to the first level not held; the ladder's rows."""
+    import httpx
+    from alternatives_bench import start_alternative, stop_alternative
+
+    create = dict(CREATE, **({"method": args.method} if args.method else {}))
+    create_body = json.dumps(create).encode()
+    port = free_port()
+    if kind == "ray":
+        extra = (str(args.ray_max_ongoing_requests),) if args.ray_max_ongoing_requests else ()
+        server = start_alternative("ray", port, url, tmp / "ray.log", extra)
+    else:
+        server = start(url, port, args.workers, args.session_store)
+    rows = []
+    try:
+        if kind == "ray":
+            bodies = check_bodies()
+            with httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=30) as client:
+                answers = http_session_answers(client, create, bodies)
+            check_same_answers("ray", answers, coexist_session_answers(url, create, bodies))
+            print(f"ray: {len(bodies)} session steps answered as coexist's", flush=True)
+        if args.throughput:
+            rate = throughput(port, args.duration, args.rounds, tmp)
+            print(f"{kind}: act c=32: {rate:.0f} req/s (median of {args.rounds} rounds)")
+        counts = [int(c) for c in args.sessions.split(",") if c.strip()]  # "": none
+        workers = 1 if kind == "ray" else args.workers
+        store = None if kind == "ray" else args.session_store
+        if counts:  # every worker loads and stacks its networks first, untimed
+            hold(port, create_body, 4 * workers, 3.0, args.processes, workers, server.pid, None)
+        for n in counts:
+            r = hold(
+                port, create_body, n, args.duration, args.processes, workers, server.pid, store
+            )
+            r["held"] = r["p99_ms"] <= P99_MS and not r["errors"] and r["done"] >= 0.95
+            rows.append(r)
+            print(
+                f"| {kind} | {n} | {r['steps']} | {r['done']:.0%} | {r['p50_ms']:.2f} | "
+                f"{r['p99_ms']:.2f} | {r['errors']} | {r['cpu_ms']:.2f} | "
+                f"{r['redis_cpu_ms']:.3f} | {'yes' if r['held'] else 'no'} |",
+                flush=True,
+            )
+            if not r["held"]:
+                break
+    finally:
+        if kind == "ray":
+            stop_alternative(server)
+        else:
+            stop(server)
+    return rows
+
+
+def held(rows: list[dict[str, Any]]) -> int:
+    """The most sessions a ladder held (0: not its first level)."""
+    return max((int(r["sessions"]) for r in rows if r["held"]), default=0)
+
+
+def summary(ladders: dict[str, list[list[dict[str, Any]]]]) -> str:
+    """Per server: sessions held in each alternation and their median, and the median server
+    CPU per step over every level measured (a saturated server's too: its cost per step); the
+    ratios of the medians when both servers ran."""
+    lines = [
+        "| server | sessions held, each alternation | median | server CPU ms/step |",
+        "|---|---|---:|---:|",
+    ]
+    sessions: dict[str, float] = {}
+    cpu: dict[str, float] = {}
+    for kind, runs in ladders.items():
+        counts = [held(rows) for rows in runs]
+        sessions[kind] = float(statistics.median(counts))
+        cpu[kind] = float(statistics.median(r["cpu_ms"] for rows in runs for r in rows))
+        shown = ", ".join(map(str, counts))
+        lines.append(f"| {kind} | {shown} | {sessions[kind]:g} | {cpu[kind]:.2f} |")
+    if len(ladders) == 2:
+        held_ratio = (
+            f"{sessions['coexist'] / sessions['ray']:.1f}x"
+            if sessions["ray"]
+            else "Ray Serve held no level tried"
+        )
+        lines.append(
+            f"\ncoexist over Ray Serve: sessions held {held_ratio}; "
+            f"Ray's server CPU per step / coexist's {cpu['ray'] / cpu['coexist']:.1f}x"
+        )
+    return "\n".join(lines)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--workers", type=int, default=1)
@@ -280,53 +463,49 @@ def main() -> None:
     parser.add_argument("--duration", type=float, default=10.0)
     parser.add_argument("--processes", type=int, default=2)
     parser.add_argument("--throughput", action="store_true")
-    parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument("--rounds", type=int, default=3, help="throughput rounds")
+    parser.add_argument("--servers", nargs="+", choices=SERVERS, default=["coexist"])
+    parser.add_argument(
+        "--alternations", type=int, default=1, help="ladders per server, the order reversed"
+    )
+    parser.add_argument(
+        "--method", default=None, help="the sessions' method (default: the server's)"
+    )
+    parser.add_argument(
+        "--ray-max-ongoing-requests",
+        type=int,
+        help="the Ray Serve deployment's max_ongoing_requests (default: Serve's)",
+    )
     args = parser.parse_args()
     if args.workers > 1 and not args.session_store:
         raise SystemExit("--workers > 1 needs --session-store (sessions shared by the workers)")
+    if "ray" in args.servers:
+        if args.workers != 1 or args.session_store:
+            raise SystemExit("--servers ray: one worker, sessions in memory (as Ray's replica)")
+        if args.method not in (None, "aail"):
+            raise SystemExit("--servers ray: method aail only (the numpy sessions' method)")
+        args.method = "aail"
 
+    ladders: dict[str, list[list[dict[str, Any]]]] = {kind: [] for kind in args.servers}
     with tempfile.TemporaryDirectory() as tmp:
         url = f"sqlite:///{Path(tmp) / 'models.db'}"
         size = build_store(url)
-        port = free_port()
-        server = start(url, port, args.workers, args.session_store)
         store = args.session_store.split("://")[0] if args.session_store else "memory"
-        print(f"networks {size}; {args.workers} worker(s); sessions in {store}")
-        try:
-            if args.throughput:
-                rate = throughput(port, args.duration, args.rounds, Path(tmp))
-                print(f"act c=32: {rate:.0f} req/s (median of {args.rounds} rounds)")
-            counts = [int(s) for s in args.sessions.split(",") if s.strip()]  # "": none
-            if counts:
-                print(
-                    "\n| sessions | steps | done | p50 ms | p99 ms | errors | server CPU ms/step "
-                    "| Redis CPU ms/step | held |"
-                )
-                print("|---|---|---|---|---|---|---|---|---|")
-            if counts:  # every worker loads and stacks its networks first, untimed
-                hold(port, 4 * args.workers, 3.0, args.processes, args.workers, server.pid, None)
-            for n in counts:
-                r = hold(
-                    port,
-                    n,
-                    args.duration,
-                    args.processes,
-                    args.workers,
-                    server.pid,
-                    args.session_store,
-                )
-                held = r["p99_ms"] <= P99_MS and not r["errors"] and r["done"] >= 0.95
-                print(
-                    f"| {n} | {r['steps']} | {r['done']:.0%} | {r['p50_ms']:.2f} | "
-                    f"{r['p99_ms']:.2f} | {r['errors']} | {r['cpu_ms']:.2f} | "
-                    f"{r['redis_cpu_ms']:.3f} | "
-                    f"{'yes' if held else 'no'} |",
-                    flush=True,
-                )
-                if not held:
-                    break
-        finally:
-            stop(server)
+        print(
+            f"networks {size}; {args.workers} worker(s); sessions in {store}; "
+            f"method {args.method or 'the server default'}"
+        )
+        print(
+            "\n| server | sessions | steps | done | p50 ms | p99 ms | errors | "
+            "server CPU ms/step | Redis CPU ms/step | held |"
+        )
+        print("|---|---|---|---|---|---|---|---|---|---|")
+        for a in range(args.alternations):
+            order = args.servers if a % 2 == 0 else args.servers[::-1]
+            for kind in order:
+                ladders[kind].append(run_server(kind, args, url, Path(tmp)))
+    if args.sessions.strip():
+        print(f"\n{summary(ladders)}")
 
 
 if __name__ == "__main__":

@@ -3,10 +3,12 @@ pinned to one CPU, and `wrk` on the other posting a list of JSON bodies in turn 
 
 | function       | what                                                                  |
 |----------------|-----------------------------------------------------------------------|
-| `start_server` | `coexist serve --no-bootstrap` (REST only) on `taskset -c SERVER_CPU`, |
-|                | waits for `/readyz`                                                   |
+| `start_server` | `coexist serve --no-bootstrap` (REST; gRPC too with `grpc_port`) on   |
+|                | `taskset -c SERVER_CPU`, waits for `/readyz`                          |
 | `start_floor`  | a bare REST or gRPC server (`floor_servers.py`) on the same CPU, ready |
 | `wait_ready`   | polls a started server until it answers (or exits: SystemExit)       |
+| `http_ok`,     | whether a GET answers 200; whether a gRPC health check answers       |
+| `grpc_ok`      | SERVING                                                               |
 | `stop`         | ends a server started here and waits for it                           |
 | `lua_script`   | a wrk script POSTing the bodies in turn (one wrk thread: a counter)   |
 | `run_wrk`      | 1 s of warm-up, then the timed run, c = 1, on `taskset -c LOAD_CPU`   |
@@ -179,6 +181,11 @@ def http_ok(url: str, timeout: float = 1.0) -> bool:
 def _floor_answers(kind: str, port: int) -> bool:
     if kind == "rest":
         return http_ok(f"http://127.0.0.1:{port}/healthz")
+    return grpc_ok(port)
+
+
+def grpc_ok(port: int) -> bool:
+    """Whether the standard gRPC health service on `port` answers SERVING."""
     import grpc
     from grpc_health.v1 import health_pb2, health_pb2_grpc
 
