@@ -446,7 +446,7 @@ def summary(ladders: dict[str, list[list[dict[str, Any]]]]) -> str:
         held_ratio = (
             f"{sessions['coexist'] / sessions['ray']:.1f}x"
             if sessions["ray"]
-            else "Ray Serve held no level tried"
+            else f"{sessions['coexist']:g} against none of the levels tried"
         )
         lines.append(
             f"\ncoexist over Ray Serve: sessions held {held_ratio}; "
