@@ -55,7 +55,6 @@ import statistics
 import sys
 import tempfile
 from dataclasses import asdict, dataclass
-from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -325,7 +324,6 @@ def main() -> None:
     args.out.mkdir(parents=True, exist_ok=True)
     record = {
         "command": command,
-        "generated": f"{datetime.now(UTC):%Y-%m-%d %H:%M} UTC",
         "setup": setup,
         "target": TARGET,
         "ratios": found,

@@ -6,7 +6,13 @@ policies, each a Boltzmann policy of its task network (eq. 2):
 
     P(g | a_1..a_T) ∝ P(g) Π_t π_g(a_t | s_t),    π_g(a | s) = softmax(Q_g(s, ·) / α_g)[a]
 
-kept in log space, with two changes a deployment needs (`BeliefConfig`):
+kept in log space, with three changes a deployment needs (`BeliefConfig`):
+
+- noise η in [0, 1): the likelihood of an action is the Boltzmann policy mixed with uniform
+  action noise, p(a | s, g) = (1 - η) π_g(a | s) + η / |A| (`mix_uniform_noise`). A partner is
+  never exactly the ego's copy of its networks (another training seed, a person, noise), and at
+  the networks' α one unexpected action can cost a goal a factor of thousands; the mixture caps
+  that cost at (1 - η + η/|A|) / (η/|A|), so no single action rules the true goal out.
 
 - forgetting λ in (0, 1]: before each update the old log-belief is scaled by λ and the log-prior
   by 1 - λ, a geometric pull back toward the prior, so a partner who changes its mind is followed
@@ -21,6 +27,7 @@ kept in log space, with two changes a deployment needs (`BeliefConfig`):
 | `prior_log_probs`            | uniform, a given prior, or an announced goal     | (G,)         |
 | `initial_log_belief`         | the prior with the floor applied                 | like input   |
 | `boltzmann_log_likelihoods`  | log π_g(a_p | s_p) from Q-values (eq. 2)         | (P, G)       |
+| `mix_uniform_noise`          | log((1 - η) p + η/|A|) of log-likelihoods log p  | like input   |
 | `update_log_belief`          | one step: forget, multiply, normalise, floor     | (P, G)/(G,)  |
 | `PreparedUpdate`             | the same for fixed priors, checked once (faster) | (E, G)       |
 | `evidence_rows`              | which likelihood rows count as evidence          | (P,)/()      |
@@ -73,6 +80,7 @@ __all__ = [
     "boltzmann_log_likelihoods",
     "evidence_rows",
     "initial_log_belief",
+    "mix_uniform_noise",
     "prior_log_probs",
     "top_goals",
     "update_log_belief",
@@ -85,13 +93,22 @@ def _is_real(value: object) -> bool:
     )
 
 
+# η of the default likelihood: the share of a partner's actions it expects to be uniformly random,
+# whatever the goal (calibrated on partner types the inference report does not score,
+# `reports/inference`)
+DEFAULT_NOISE = 0.3
+
+
 @dataclass(frozen=True)
 class BeliefConfig:
     """How the belief is updated (module docstring); `validate` checks it for G goals."""
 
     forgetting: float = 0.95  # λ in (0, 1]: 1 = never forget
     floor: float = 1e-3  # ε in [0, 1/G): every goal keeps probability >= ε
-    temperature: float | None = None  # α of the likelihood; None: each task net's training α
+    # α of the likelihood; None: the engine's default (`LIKELIHOOD_TEMPERING` × each task
+    # network's training α, `services.engine.goal_inference`)
+    temperature: float | None = None
+    noise: float = DEFAULT_NOISE  # η in [0, 1): the likelihood's uniform action noise
     # goal pruning (`policy.belief_prune`): τ, goals below it are not scored while the step's
     # error bound stays <= δ, nor blended; 0 = off
     prune_below: float = 0.0
@@ -99,7 +116,7 @@ class BeliefConfig:
 
     def validate(self, n_goals: int) -> None:
         """ValueError naming the field (`belief.forgetting`, ...) when a value is out of range."""
-        lam, eps, alpha = self.forgetting, self.floor, self.temperature
+        lam, eps, alpha, eta = self.forgetting, self.floor, self.temperature, self.noise
         if not _is_real(lam) or not 0 < lam <= 1:
             raise ValueError(f"belief.forgetting: expected a number in (0, 1], got {lam!r}")
         if n_goals < 1:
@@ -126,6 +143,25 @@ class BeliefConfig:
             )
         if not _is_real(delta) or not 0 < delta <= 1:
             raise ValueError(f"belief.prune_error: expected a number in (0, 1], got {delta!r}")
+        check_noise(eta, "belief.noise")
+
+
+def check_noise(noise: object, field: str = "noise") -> float:
+    """η as a float; ValueError naming `field` unless it is a real number in [0, 1)."""
+    if not _is_real(noise) or not 0 <= noise < 1:  # type: ignore[operator]
+        raise ValueError(f"{field}: expected a number in [0, 1), got {noise!r}")
+    return float(noise)  # type: ignore[arg-type]
+
+
+def mix_uniform_noise(log_lik: np.ndarray, noise: float, n_actions: int) -> np.ndarray:
+    """log((1 - η) p + η / A) for log-likelihoods log p, elementwise (any shape): the likelihood
+    of an action under "the policy, except that a share η of the actions is uniformly random".
+    η = 0 returns `log_lik` itself (the same bits, no copy). -inf (p = 0) becomes log(η / A);
+    NaN and +inf stay, so a row that was no evidence (`evidence_rows`) still is none."""
+    if noise == 0:
+        return log_lik
+    with np.errstate(invalid="ignore"):  # NaN in is NaN out, meant
+        return np.logaddexp(log_lik + math.log1p(-noise), math.log(noise / n_actions))
 
 
 def prior_log_probs(
@@ -222,9 +258,11 @@ def boltzmann_log_likelihoods(
     actions_P: np.ndarray,
     alpha_G: np.ndarray | float,
     *,
+    noise: float = 0.0,
     validate: bool = True,
 ) -> np.ndarray:
-    """log π_g(a_p | s_p) = log softmax(Q_g(s_p) / α_g)[a_p] (eq. 2), shape (P, G).
+    """log π_g(a_p | s_p) = log softmax(Q_g(s_p) / α_g)[a_p] (eq. 2), shape (P, G); with
+    `noise` η > 0, log((1 - η) π_g(a_p | s_p) + η / A) (`mix_uniform_noise`).
 
     `q_PGA` (P, G, A): goal g's task Q-values on partner p's view; `actions_P` (P,) ints in
     0..A-1; `alpha_G` (G,) or a scalar, positive and finite. Non-finite Q-values give a
@@ -235,6 +273,7 @@ def boltzmann_log_likelihoods(
     alpha = np.asarray(alpha_G, dtype=np.float64)
     if validate:
         alpha = _check_likelihood_args(q, actions, alpha)
+        check_noise(noise)
     elif alpha.ndim == 1:
         alpha = alpha[:, None]
     with np.errstate(over="ignore", invalid="ignore"):  # see the docstring: NaN is handled later
@@ -242,8 +281,10 @@ def boltzmann_log_likelihoods(
         z /= alpha  # <= 0, the arg-max exactly 0 (a tiny α gives -inf, never NaN)
         log_norm = np.log(np.exp(z).sum(axis=2))  # >= log 1 = 0: the arg-max term is exp(0)
     if q.shape[0] == 1:  # one partner (the usual case): plain indexing, the same numbers
-        return z[0, :, int(actions[0])][None] - log_norm
-    return z[np.arange(q.shape[0]), :, actions] - log_norm  # (P, G): advanced indices first
+        lik = z[0, :, int(actions[0])][None] - log_norm
+    else:
+        lik = z[np.arange(q.shape[0]), :, actions] - log_norm  # (P, G): advanced indices first
+    return mix_uniform_noise(lik, noise, q.shape[2])
 
 
 def _check_likelihood_args(q: np.ndarray, actions: np.ndarray, alpha: np.ndarray) -> np.ndarray:

@@ -16,9 +16,10 @@ k counts the partner actions incorporated: b_0 is the prior (uniform), b_k the b
 k-th update; its top goal at k = 0 is the first goal of the catalogue (ties go by goal order),
 right for 1 episode in 35.
 
-Several belief settings (`beliefs`: forgetting λ, floor ε, likelihood temperature α) are tracked
-on the *same* trajectories (the first one drives the ego), so their curves differ by the belief
-maths alone; one likelihood pass per distinct α. `switch_at` makes the partner change its mind at
+Several belief settings (`beliefs`: forgetting λ, floor ε, likelihood temperature α and noise
+η) are tracked on the *same* trajectories (the first one drives the ego), so their curves differ
+by the belief maths alone; one likelihood pass per distinct α, each η mixed into it by
+`policy.belief.mix_uniform_noise` (what the engine does with `noise`). `switch_at` makes the partner change its mind at
 that step (its goal moves to another, seeded, goal), to show what forgetting and the floor buy.
 
 Goals can be indistinguishable by behaviour: a partner at rest in cell `d4` acts as the goals
@@ -54,6 +55,7 @@ from policy.belief import (
     belief_cross_entropy,
     blend_goal_probs,
     initial_log_belief,
+    mix_uniform_noise,
     prior_log_probs,
     update_log_belief,
 )
@@ -71,9 +73,12 @@ DEFAULT_BELIEFS = (BeliefConfig(), BeliefConfig(forgetting=1.0))
 
 
 def belief_label(config: BeliefConfig) -> str:
-    """ "λ = 0.95, ε = 0.001" (and the likelihood's α when it is not the networks' own)."""
+    """ "λ = 0.95, ε = 0.001" (and the likelihood's α when it is not the engine's default, its
+    noise η when there is some)."""
     label = f"λ = {config.forgetting:g}, ε = {config.floor:g}"
-    return label if config.temperature is None else f"{label}, α = {config.temperature:g}"
+    if config.temperature is not None:
+        label += f", α = {config.temperature:g}"
+    return label if config.noise == 0 else f"{label}, η = {config.noise:g}"
 
 
 def _nested_targets() -> np.ndarray:
@@ -301,6 +306,7 @@ def run_accuracy(
 
     configs = cfg.beliefs
     temperatures = list(dict.fromkeys(b.temperature for b in configs))  # one pass each
+    n_actions = engine_actions(cfg.env)
     log_prior_G = prior_log_probs(GOAL_IDS)
     belief_CEG = np.stack(
         [np.tile(initial_log_belief(log_prior_G, b), (n_eps, 1)) for b in configs]
@@ -357,9 +363,8 @@ def run_accuracy(
                 for alpha in temperatures
             }
             for c, belief in enumerate(configs):
-                updated = update_log_belief(
-                    belief_CEG[c, e][None], log_lik[belief.temperature], log_prior_G[None], belief
-                )
+                lik = mix_uniform_noise(log_lik[belief.temperature], belief.noise, n_actions)
+                updated = update_log_belief(belief_CEG[c, e][None], lik, log_prior_G[None], belief)
                 belief_CEG[c, e] = updated[0]
         trace_obs.append(obs_END[0, 0].copy())
         trace_actions.append(int(actions_E2[0, 1]))

@@ -4,6 +4,7 @@
 |----------------------|----------------------------------------------|-------------------------------|
 | `results.json`       | `coexist eval --suite inference`             | accuracy, switch, value       |
 | `latency.json`       | `benchmarks/session_bench.py`                | session step vs act latency   |
+| `calibration.json`   | `python -m evaluation.inference.calibration` | how the likelihood was chosen |
 | `discussion.md`      | a person, after reading the numbers          | copied into the README        |
 | `README.md`          | `render_readme(out)` (both commands call it) | tables, verdicts, figures     |
 | `accuracy_vs_k.png`, `cross_entropy.png`, `goal_switch.png`, `value.png` | `render_readme` | |
@@ -20,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from evaluation.command_line import variables_note
+from evaluation.inference.calibration import CALIBRATION, calibration_table
 from evaluation.inference.plots import (
     plot_accuracy,
     plot_cross_entropy,
@@ -39,6 +41,7 @@ from evaluation.inference.tables import (
     value_block,
 )
 from evaluation.paper.tables import table
+from services.engine.goal_inference import LIKELIHOOD_TEMPERING
 
 DISCUSSION = "discussion.md"
 
@@ -63,8 +66,9 @@ def _accuracy_section(results: dict[str, Any], out: Path) -> str:
     lines = [
         f"{acc['episodes']} episodes ({cfg['episodes_per_goal']} per true goal × 35 goals), "
         f"{cfg['k_max']} steps each, seed {cfg['seed']}, {acc['wall_s']:.0f} s. The first "
-        f"setting, the server's default ({default}; α: twice each task network's training α, "
-        "`LIKELIHOOD_TEMPERING`), drives "
+        f"setting, the server's default ({default}; α: {LIKELIHOOD_TEMPERING:g} × each task "
+        "network's training α, `LIKELIHOOD_TEMPERING`; η: the likelihood's uniform action "
+        "noise, `DEFAULT_NOISE`), drives "
         f"the ego, which blends impact networks by {blend_text(cfg)}; the others are tracked on "
         "the same trajectories. Top-1 with its Wilson 95 % interval; top-3: the true goal among the three most likely; *up to nesting*: the top "
         "goal is the true goal or its target area contains, or lies inside, the true one (a "
@@ -99,7 +103,46 @@ def _accuracy_section(results: dict[str, Any], out: Path) -> str:
     ]
     if results.get("partners"):
         lines += ["", partners_section(results["partners"])]
+    calibration = _load(out / CALIBRATION)
+    if calibration is not None:
+        lines += ["", calibration_section(calibration)]
     return "\n".join(lines)
+
+
+def calibration_section(calibration: dict[str, Any]) -> str:
+    """How the default likelihood was chosen (`evaluation.inference.calibration`)."""
+    best = calibration["candidates"][calibration["best"]]
+    verdict = (
+        "it beats the likelihood of before on the calibration types and is not below it "
+        "with `same`: adopted as the default"
+        if calibration["adopted"]
+        else "it does not beat the likelihood of before on the calibration types, or it is "
+        "below it with `same`: not adopted"
+    )
+    return "\n".join(
+        [
+            "### Choosing the likelihood on the calibration types",
+            "",
+            f"Command: `{calibration['command']}`"
+            + (
+                f" ({variables_note(calibration['command'])})"
+                if "$" in calibration["command"]
+                else ""
+            )
+            + ". p(a | s, g) = (1 − η) softmax(Q_g(s, ·) / α)[a] + η / |A|, α a multiple of "
+            f"the task networks' training α ({calibration['training_alpha']:g}). Top-3 after "
+            f"{calibration['k']} actions, {calibration['episodes']} episodes per partner type "
+            f"(seed {calibration['seed']}, not the suite's), every candidate on the same "
+            "trajectories (the ego driven by the first row); the candidate with the best mean "
+            "over the calibration types is adopted only if it beats the first row there and is "
+            "not below it with `same` (coexist's own networks, a guard, not a calibration type). "
+            "The scored types are not run here.",
+            "",
+            calibration_table(calibration),
+            "",
+            f"Best: {best['tempering']:g} × α, η = {best['noise']:g}; {verdict}.",
+        ]
+    )
 
 
 def partners_section(partners: dict[str, Any]) -> str:
@@ -125,7 +168,8 @@ def partners_section(partners: dict[str, Any]) -> str:
             "",
             "The default belief when the partner acts as each type says (its goal fixed). The "
             "likelihood's tempering (`LIKELIHOOD_TEMPERING` in `services/engine/goal_inference.py`) "
-            "was chosen on the calibration types; the bar (top-3 within 5 points of the accuracy "
+            "and its uniform action noise (`DEFAULT_NOISE` in `policy/belief.py`) were chosen on "
+            "the calibration types (below); the bar (top-3 within 5 points of the accuracy "
             "against coexist's own networks, `same`) is judged on the others.",
             "",
             table(
@@ -196,8 +240,8 @@ def render_readme(out: Path) -> Path:
     if results is not None:
         parts += [
             "## Setup",
-            f"- Command: `{results['command']}` ({results['generated']}"
-            f"{'; ' + variables_note(results['command']) if '$' in results['command'] else ''}).",
+            f"- Command: `{results['command']}`"
+            f"{' (' + variables_note(results['command']) + ')' if '$' in results['command'] else ''}.",
             "- The partner acts by its true goal's task policy softmax(Q/α) from the "
             f"**`{results['accuracy']['config']['partner_alias']}` population**, trained with "
             "another seed; the belief scores its actions with the "

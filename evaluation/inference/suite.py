@@ -8,16 +8,17 @@
 | check      | every network the runs need is served (fails before any episode)        | here               |
 | networks   | which versions each population has, with their gate verdicts            | here               |
 | accuracy   | belief vs k, 35 goals × 6 seeds, for the server's default belief        | `inference`        |
-|            | (λ 0.95, ε 1e-3), λ = 1, plain Bayes (λ 1, ε 0), λ = 0.8 and a tempered |                    |
-|            | likelihood (α = 0.1, 5× the training α), on the same trajectories       |                    |
+|            | (λ 0.95, ε 1e-3), λ = 1, plain Bayes (λ 1, ε 0), λ = 0.8, a tempered    |                    |
+|            | likelihood (α = 0.1, 5× the training α) and the default without its     |                    |
+|            | uniform action noise (η = 0), on the same trajectories                  |                    |
 | matched    | the default belief when the partner is driven by the likelihood         | `inference`        |
 |            | networks themselves (`partner_alias` = `alias`): what model mismatch    |                    |
 |            | costs                                                                   |                    |
 | switch     | the settings above, the partner changing its goal at k = 25             | `inference`        |
 | partners   | the default belief against every partner type that acts towards its goal | `inference`        |
 |            | (`evaluation.partner_types`): top-3 after `PARTNER_K` actions; the types |                    |
-|            | in `CALIBRATION_TYPES` chose the likelihood's tempering and are not      |                    |
-|            | scored by the bar                                                        |                    |
+|            | in `CALIBRATION_TYPES` chose the likelihood (tempering and noise:        |                    |
+|            | `inference.calibration`) and are not scored by the bar                   |                    |
 | value      | SL, AAIL announced, AAIL inferred on the paper's scenarios and pairs    | `inference_value`  |
 
 `results.json` holds every number the report shows (the figures and README are drawn from it by
@@ -30,7 +31,6 @@ import json
 import math
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
-from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -47,13 +47,14 @@ from evaluation.inference.value import Comparison, ValueConfig, ValueResult, run
 from model_store.errors import ModelStoreError
 from model_store.naming import impact_model_name, task_model_name
 from model_store.store import ModelStore
-from policy.belief import BeliefConfig
+from policy.belief import DEFAULT_NOISE, BeliefConfig
 from services.engine import InferenceEngine
 
 ProgressFactory = Callable[[str, int], Callable[[int, int], None]]  # (label, total) -> callback
 # partner types for goal inference (an idle or switching partner shows no goal to infer)
 INFERENCE_PARTNER_TYPES = ("same", "other_seed", "eps_0.1", "eps_0.3", "hot", "scripted")
-CALIBRATION_TYPES = ("eps_0.3", "hot", "scripted")  # chose `LIKELIHOOD_TEMPERING`
+# chose the likelihood (`LIKELIHOOD_TEMPERING`, `DEFAULT_NOISE`: `evaluation.inference.calibration`)
+CALIBRATION_TYPES = ("eps_0.3", "hot", "scripted")
 PARTNER_K = 30  # the bar: top-3 after 30 actions within 5 points of the own networks' ("same")
 REPORT_KS = (1, 5, 10, 20, 50)
 SUITE_BELIEFS = (
@@ -62,6 +63,8 @@ SUITE_BELIEFS = (
     BeliefConfig(forgetting=1.0, floor=0.0),  # plain Bayes
     BeliefConfig(forgetting=0.8),
     BeliefConfig(temperature=0.1),  # tempered: 5x the networks' training α of 0.02
+    # the default likelihood without its uniform action noise: what the noise changes
+    *((BeliefConfig(noise=0.0),) if DEFAULT_NOISE else ()),
 )
 
 
@@ -243,7 +246,6 @@ def run_inference_suite(
         )
         partners[name] = partner_json(result)
     return {
-        "generated": f"{datetime.now(UTC):%Y-%m-%d %H:%M} UTC",
         "command": command,
         "fast": config.fast,
         "networks": networks_summary(store, config),

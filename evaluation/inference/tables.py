@@ -184,7 +184,7 @@ def latency_section(latency: dict[str, Any] | None) -> str:
         for name, ratio in latency["ratios"].items()
     ]
     lines = [
-        f"Command: `{latency['command']}` ({latency['generated']}).",
+        f"Command: `{latency['command']}`.",
         "",
         latency["setup"],
         "",

@@ -152,7 +152,13 @@ def run_inferred(
         for r in active.tolist():
             if previous is not None:  # the session's step: update with a_{t-1} on o_{t-1}
                 log_lik_1G = engine.goal_log_likelihoods(
-                    env, previous[0][r], [1], [int(previous[1][r])], alias=config.alias
+                    env,
+                    previous[0][r],
+                    [1],
+                    [int(previous[1][r])],
+                    alias=config.alias,
+                    temperature=belief_cfg.temperature,
+                    noise=belief_cfg.noise,
                 )
                 belief_BG[r] = update_log_belief(
                     belief_BG[r][None], log_lik_1G, log_prior_G[None], belief_cfg

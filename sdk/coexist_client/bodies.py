@@ -255,7 +255,7 @@ def session_body(
 ) -> dict[str, Any]:
     """The JSON body of `POST /v1/sessions` (also an Episode's settings): `act_body`'s
     fields without the observation, `infer` marked on partners (who may be `{i: None}`), plus
-    `belief` (forgetting, floor, temperature, blend_mass, blend_max_goals, prune_below,
+    `belief` (forgetting, floor, temperature, noise, blend_mass, blend_max_goals, prune_below,
     prune_error; left out: the server's defaults)."""
     partners = settings.pop("partners", None)
     body = policy_settings(env, ego_goal, **settings)

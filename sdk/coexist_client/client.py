@@ -183,7 +183,7 @@ def open_session(
     """A session: settings given once, then `step(obs)` (or `act(obs)`) per step, step t
     seeded with seed + t. Partners' goals are announced, or inferred by the server from their
     actions: `partners={1: None}` (uniform prior) or `infer=[1]` (the announced goal is the
-    prior); `belief`: forgetting, floor, temperature, blend_mass, blend_max_goals,
+    prior); `belief`: forgetting, floor, temperature, noise, blend_mass, blend_max_goals,
     prune_below, prune_error (left out: the server's). Over gRPC an `Episode` stream; over HTTP a REST session, or with `episode`
     and no goal inferred plain `POST /v1/act` per step (no state on the server)."""
     body = session_body(env, ego_goal, infer=infer, belief=belief, **settings)

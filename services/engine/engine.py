@@ -340,9 +340,11 @@ class InferenceEngine:
         alias: str = "production",
         versions: Mapping[str, int] | None = None,
         temperature: float | None = None,
+        noise: float = 0.0,
     ) -> np.ndarray:
         """(P, G) log π_g(actions[p] | partner p's view of the ego's `observation`), goals in
-        the env's catalogue order: every task network in one stacked pass."""
+        the env's catalogue order: every task network in one stacked pass; `noise` η > 0 mixes
+        each policy with uniform action noise, log((1 - η) π_g + η / A)."""
         return goal_log_likelihoods(
             self.cache,
             env,
@@ -352,6 +354,7 @@ class InferenceEngine:
             alias=alias,
             versions=versions,
             temperature=temperature,
+            noise=noise,
         )
 
     def recover_partner_actions(

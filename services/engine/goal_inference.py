@@ -14,6 +14,8 @@ The belief itself (prior, forgetting, floor) is pure maths in `policy.belief`.
 |          | (`policy.row_forward`)                                                     |
 | softmax  | log softmax(Q_g / α_g)[a_p] (`policy.belief.boltzmann_log_likelihoods`'s  |
 |          | arithmetic on the forward's layout: `_log_likelihoods`)                    |
+| noise    | with `noise` η > 0: log((1 - η) π_g(a_p) + η / A)                          |
+|          | (`policy.belief.mix_uniform_noise`)                                        |
 | ahead    | `likelihood_table`: the same pass for every action a, before the actions   |
 |          | are known; `LikelihoodTable.pick` then gives the same numbers (a session   |
 |          | computes step t + 1's table right after answering step t)                  |
@@ -26,14 +28,17 @@ training α (lineage; else `DEFAULT_TEMPERATURE`): a partner is modelled as acti
 task policy (eq. 2), tempered. Why tempered: a person or another robot does not act as the
 ego's copy of its networks would (another training seed, noise, a hotter policy); at the
 networks' own α one unexpected action all but rules its true goal out. The factor was
-calibrated on partner types the report does not score (`reports/inference/partners.md`).
+calibrated on partner types the report does not score (`reports/inference`, its discussion).
+`noise` η (a session's `belief.noise`) mixes the tempered policy with uniform action noise, which
+caps what one unexpected action can cost a goal; the engine's own default is 0 (the plain
+tempered policy), a session's is `policy.belief.DEFAULT_NOISE`.
 
 Approximation for N > 2 agents: the partner's task network sees only its pair with the ego (the
 ego's observation does not hold the partner's views of the other agents in general), as the
 impact networks do. With N = 2 the pair is the whole scene and there is nothing to approximate.
 
 Errors: `InvalidRequest` naming `env`, `observation`, `partners[i].index`, `observed` (not one
-action per partner), `observed[i].action`, `temperature`, `alias`, `versions[name]`;
+action per partner), `observed[i].action`, `temperature`, `noise`, `alias`, `versions[name]`;
 `ModelNotFound` (field `partners`) when a goal has no task network under the alias / version.
 
 A session, which checked its inputs already, calls `checked_log_likelihoods` (the same pass
@@ -57,6 +62,7 @@ import numpy as np
 
 from envs.base import Domain
 from model_store.errors import brief
+from policy.belief import check_noise, mix_uniform_noise
 from policy.belief_compiled import compiled_log_softmax
 from policy.row_forward import COMPILED as ROW_FORWARD
 from policy.row_forward import row_forward
@@ -67,7 +73,7 @@ from services.engine.model_cache import ModelCache
 from services.engine.networks import StackedGroup, overflow_error
 from services.engine.validation import check_alias, check_observations, check_versions
 
-LIKELIHOOD_TEMPERING = 2.0  # the default likelihood's α over each network's training α
+LIKELIHOOD_TEMPERING = 4.0  # the default likelihood's α over each network's training α
 # whether a pass's rows are each what a pass of that row alone gives, bit for bit (then any
 # subset of a table's partners can be served): the compiled forward computes each row alone;
 # numpy's batched matmul may round a row differently with other rows
@@ -281,9 +287,11 @@ def goal_log_likelihoods(
     alias: str,
     versions: Mapping[str, int] | None,
     temperature: float | None,
+    noise: float = 0.0,
 ) -> np.ndarray:
     """log π_g(actions[p] | partner p's view of `observation`) for every goal g, (P, G) in the
-    env's goal order. `observation` is the ego's observation when the partners acted."""
+    env's goal order (mixed with uniform action noise η = `noise`). `observation` is the ego's
+    observation when the partners acted."""
     runtime = env_runtime(env)
     obs_D, n_agents = _check_observation(observation, runtime, "observation")
     indices = _check_partners(partners, n_agents)
@@ -294,6 +302,10 @@ def goal_log_likelihoods(
         raise InvalidRequest(
             "temperature", f"expected a finite number > 0, got {brief(temperature)}"
         )
+    try:
+        noise = check_noise(noise)
+    except ValueError:
+        raise InvalidRequest("noise", f"expected a number in [0, 1), got {brief(noise)}") from None
     check_alias(alias)
     pinned = {} if versions is None else versions
     check_versions(pinned)
@@ -307,6 +319,7 @@ def goal_log_likelihoods(
         alias=alias,
         versions=pinned,
         temperature=temperature,
+        noise=noise,
     )
 
 
@@ -322,19 +335,22 @@ def checked_log_likelihoods(
     versions: Mapping[str, int],
     temperature: float | None,
     goals: np.ndarray | None = None,
+    noise: float = 0.0,
 ) -> np.ndarray:
     """`goal_log_likelihoods` on arguments its checks passed: `obs_D` a finite float32 (D,)
     observation of `n_agents` agents, partner indices in 1..n_agents-1 (none twice), int64
-    actions in range, a valid alias and pins, a temperature None or finite > 0. Internal, for a
-    caller that checked them already (a session: its settings once, each step's observation
-    and `observed` entries; it checks the indices against the stored observation's agents).
-    `goals` (ascending catalogue indices): only those goals' columns, (P, len(goals))."""
+    actions in range, a valid alias and pins, a temperature None or finite > 0, a noise in
+    [0, 1). Internal, for a caller that checked them already (a session: its settings once,
+    each step's observation and `observed` entries; it checks the indices against the stored
+    observation's agents). `goals` (ascending catalogue indices): only those goals' columns,
+    (P, len(goals))."""
     group = task_group(cache_, runtime, alias, versions)
     if not len(partners):
         return np.zeros((0, len(group.nets) if goals is None else len(goals)))
     q_GPA = _q_values(group, runtime, obs_D, n_agents, tuple(partners), goals)
     cache_.stats.likelihood_passes += 1
-    return _log_likelihoods(q_GPA, actions_P, *_alphas(group, temperature, goals))
+    lik = _log_likelihoods(q_GPA, actions_P, *_alphas(group, temperature, goals))
+    return mix_uniform_noise(lik, noise, q_GPA.shape[2])
 
 
 def task_group(
@@ -384,10 +400,11 @@ class LikelihoodTable:
     the actions are known: a session scores step t + 1's evidence (the partners' actions at
     o_t) with the table it computed right after answering step t (`likelihood_table`).
 
-    `pick` returns exactly what `checked_log_likelihoods` would on the same observation and
-    networks, bit for bit: z - log_norm subtracted per element either way. Rows are
-    independent with the compiled forward, so any subset of a table's partners is served;
-    with numpy a table serves its own partner tuple only (`ROWS_INDEPENDENT`).
+    `pick` returns exactly what `checked_log_likelihoods` would on the same observation,
+    networks and noise, bit for bit: z - log_norm subtracted, and the noise mixed in, per
+    element either way. Rows are independent with the compiled forward, so any subset of a
+    table's partners is served; with numpy a table serves its own partner tuple only
+    (`ROWS_INDEPENDENT`).
     """
 
     group: StackedGroup  # the task networks it was computed with
@@ -425,6 +442,7 @@ def likelihood_table(
     versions: Mapping[str, int],
     temperature: float | None,
     goals: np.ndarray | None = None,
+    noise: float = 0.0,
 ) -> LikelihoodTable:
     """The `LikelihoodTable` of `partners` on `obs_D`, arguments as `checked_log_likelihoods`
     takes them (errors too: `ModelNotFound`, an observation whose Q-values overflow)."""
@@ -436,7 +454,12 @@ def likelihood_table(
         z_GPA, log_norm_GP = _scaled(q_GPA, alpha, tiny)
         z_GPA -= log_norm_GP[:, :, None]  # in place: the same subtraction as `_log_likelihoods`'
     cache_.stats.likelihood_tables += 1
-    return LikelihoodTable(group, partners, z_GPA, None if goals is None else tuple(goals.tolist()))
+    return LikelihoodTable(
+        group,
+        partners,
+        mix_uniform_noise(z_GPA, noise, q_GPA.shape[2]),
+        None if goals is None else tuple(goals.tolist()),
+    )
 
 
 def recover_partner_actions(

@@ -247,7 +247,7 @@ def session_settings(settings: pb.EpisodeSettings) -> SessionSettings:
     b = settings.belief
     belief = {
         k: getattr(b, k)
-        for k in ("forgetting", "floor", "temperature", "prune_below", "prune_error")
+        for k in ("forgetting", "floor", "temperature", "noise", "prune_below", "prune_error")
         if b.HasField(k)
     }
     blend = {k: getattr(b, k) for k in ("blend_mass", "blend_max_goals") if b.HasField(k)}

@@ -17,6 +17,7 @@ from typing import Annotated
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from policy.belief import DEFAULT_NOISE
 from services.rest.bounded import (
     MAX_LIST,
     Matrix,
@@ -61,7 +62,14 @@ class BeliefIn(RequestBody):
     )
     temperature: float | None = Field(
         default=None,
-        description="α of the partners' Boltzmann policies (default: each task model's training α)",
+        description="α of the partners' Boltzmann policies (default: `LIKELIHOOD_TEMPERING` "
+        "times each task model's training α)",
+    )
+    noise: float = Field(
+        default=DEFAULT_NOISE,
+        description="η in [0, 1): the likelihood expects this share of a partner's actions to "
+        "be uniformly random, (1 - η) π_g(a | s) + η / |A|, so that no single unexpected action "
+        "rules a goal out; 0: the plain Boltzmann policy",
     )
     blend_mass: float = Field(
         default=1.0,

@@ -12,8 +12,8 @@ Every bad input becomes `InvalidRequest(field, message)` in the REST body's nami
 |                              | 1; with `infer` it is the belief's prior                         |
 | `partners[i].infer`          | not with method jl (a joint network needs announced goals)       |
 | `belief.forgetting`, `.floor`,| `policy.belief.BeliefConfig.validate`                           |
-| `.temperature`, `.prune_below`,|                                                                |
-| `.prune_error`               |                                                                  |
+| `.temperature`, `.noise`,    |                                                                  |
+| `.prune_below`, `.prune_error`|                                                                 |
 | `belief.blend_mass`          | a number in (0, 1]                                               |
 | `belief.blend_max_goals`     | null (no bound) or an integer >= 1                               |
 | `observed`                   | none at step 0 (there is no previous observation to judge the    |

@@ -37,7 +37,7 @@ from policy.belief import BeliefConfig
 from services.sessions.errors import SessionNotFound, SessionStateInvalid
 from services.sessions.messages import SessionPartner, SessionSettings, SessionState
 
-FORMAT = b"CS3"  # bump when the layout or a field's meaning changes
+FORMAT = b"CS4"  # bump when the layout or a field's meaning changes
 TAG_BYTES = 32
 ID_TAG_CHARS = 11  # 66 bits of the id's HMAC: a foreign or mistyped id is told apart
 DTYPES: dict[str, np.dtype[Any]] = {"float64": np.dtype("<f8"), "float32": np.dtype("<f4")}
@@ -140,6 +140,7 @@ def settings_json(settings: SessionSettings) -> bytes:
                 settings.belief.forgetting,
                 settings.belief.floor,
                 settings.belief.temperature,
+                settings.belief.noise,
                 settings.belief.prune_below,
                 settings.belief.prune_error,
             ],
@@ -151,7 +152,7 @@ def settings_json(settings: SessionSettings) -> bytes:
 
 def settings_from_json(data: bytes) -> SessionSettings:
     d = orjson.loads(data)
-    forgetting, floor, temperature, prune_below, prune_error = d["belief"]
+    forgetting, floor, temperature, noise, prune_below, prune_error = d["belief"]
     return SessionSettings(
         env=d["env"],
         ego_goal=d["ego_goal"],
@@ -169,6 +170,7 @@ def settings_from_json(data: bytes) -> SessionSettings:
             forgetting=forgetting,
             floor=floor,
             temperature=temperature,
+            noise=noise,
             prune_below=prune_below,
             prune_error=prune_error,
         ),

@@ -9,7 +9,8 @@ the inferred partners took between o_{t-1} and o_t (or `action=None`: recover it
 o_t with the env's `recover_action`). The session first updates each observed partner's belief
 with the Boltzmann likelihood π_g(a_{t-1} | the partner's view of o_{t-1}) of every goal g
 (eq. 2 of the paper, all task networks in one pass: `engine.goal_log_likelihoods` on the STORED
-previous observation), by `policy.belief.update_log_belief` (forgetting toward the prior, floor).
+previous observation; tempered and mixed with uniform action noise by `belief.temperature` and
+`belief.noise`), by `policy.belief.update_log_belief` (forgetting toward the prior, floor).
 It then acts on o_t with each inferred partner's goal distribution =
 `policy.belief.blend_goal_probs` of its new belief (default: every goal, in catalogue order, so
 the act's networks are the same at every step; `blend_mass` < 1 or `blend_max_goals` keep only
@@ -313,6 +314,7 @@ class Session:
                     versions=settings.versions,
                     temperature=settings.belief.temperature,
                     goals=goals,
+                    noise=settings.belief.noise,
                 )
             except EngineError:
                 return False
@@ -401,6 +403,7 @@ class Session:
                 alias=settings.alias,
                 versions=settings.versions,
                 temperature=settings.belief.temperature,
+                noise=settings.belief.noise,
             )
         # = update_log_belief(log_belief_PG[rows], log_lik_EG, log_prior_PG[rows], belief)
         if rows == list(range(count)):  # every inferred partner, in order: no copies
@@ -475,6 +478,7 @@ class Session:
             versions=settings.versions,
             temperature=settings.belief.temperature,
             goals=goals,
+            noise=settings.belief.noise,
         )
 
     def _scored_ahead(

@@ -17,6 +17,7 @@ from policy.belief import (
     boltzmann_log_likelihoods,
     evidence_rows,
     initial_log_belief,
+    mix_uniform_noise,
     prior_log_probs,
     top_goals,
     update_log_belief,
@@ -120,6 +121,61 @@ def test_likelihoods_match_log_of_the_policy_and_skip_checks_gives_the_same() ->
     np.testing.assert_array_equal(unchecked, got)
     scalar = boltzmann_log_likelihoods(q_PGA, actions, 0.5)
     np.testing.assert_array_equal(scalar[:, 1], got[:, 1])
+
+
+# --- the likelihood mixed with uniform action noise -------------------------------------------
+
+
+def test_the_noisy_likelihood_of_the_three_goal_example_by_hand() -> None:
+    # η = 0.2, A = 2: (1 - η) π + η / A = 0.8 [3/4, 1/2, 1/4] + 0.1 = [0.7, 0.5, 0.3]
+    lik = boltzmann_log_likelihoods(Q_3GOALS_1GA, np.array([0]), np.ones(3), noise=0.2)
+    np.testing.assert_allclose(np.exp(lik), [[0.7, 0.5, 0.3]], rtol=1e-12)
+    b = update_log_belief(_uniform()[None], lik, _uniform(), BAYES)
+    np.testing.assert_allclose(np.exp(b), [[0.7 / 1.5, 0.5 / 1.5, 0.3 / 1.5]], rtol=1e-12)
+
+
+@pytest.mark.parametrize("noise", [0.01, 0.1, 0.5, 0.9])
+def test_noisy_likelihoods_are_the_formula_on_the_policy(noise: float) -> None:
+    # p(a | s, g) = (1 - η) softmax(Q_g(s) / α_g)[a] + η / A, computed directly in probabilities
+    rng = np.random.default_rng(3)
+    q_PGA = rng.normal(size=(3, 4, 5)) * 10
+    alpha_G = np.array([0.05, 0.5, 1.0, 3.0])
+    actions = np.array([4, 0, 2])
+    got = boltzmann_log_likelihoods(q_PGA, actions, alpha_G, noise=noise)
+    for p in range(3):
+        for g in range(4):
+            pi = boltzmann(q_PGA[p, g], alpha_G[g])
+            want = (1 - noise) * pi[actions[p]] + noise / 5
+            assert got[p, g] == pytest.approx(math.log(want), rel=1e-12, abs=1e-14)
+    plain = boltzmann_log_likelihoods(q_PGA, actions, alpha_G)
+    np.testing.assert_array_equal(mix_uniform_noise(plain, noise, 5), got)
+    unchecked = boltzmann_log_likelihoods(q_PGA, actions, alpha_G, noise=noise, validate=False)
+    np.testing.assert_array_equal(unchecked, got)
+
+
+def test_the_noise_caps_what_one_action_can_cost_a_goal() -> None:
+    # an action the goal's policy never takes (α tiny: p = 0, log p = -inf): log(η / A) instead,
+    # so the log-odds against the goal that does take it grow by at most log((1 - η + η/A) / (η/A))
+    q_1GA = np.array([[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]])
+    noise = 0.3
+    plain = boltzmann_log_likelihoods(q_1GA, np.array([1]), np.full(2, 1e-310))
+    assert plain[0, 0] == -np.inf
+    lik = boltzmann_log_likelihoods(q_1GA, np.array([1]), np.full(2, 1e-310), noise=noise)
+    assert lik[0, 0] == pytest.approx(math.log(noise / 3), rel=1e-12)
+    assert lik[0, 1] - lik[0, 0] == pytest.approx(math.log((1 - noise + noise / 3) / (noise / 3)))
+    b = update_log_belief(_uniform(2), lik[0], _uniform(2), BAYES)
+    assert np.exp(b[0]) == pytest.approx(1 / 9, rel=1e-12)  # 0.1 / (0.1 + 0.8)
+
+
+def test_mixing_keeps_what_is_no_evidence_and_zero_noise_is_the_identity() -> None:
+    lik = np.array([[np.nan, -1.0], [np.inf, -2.0], [-np.inf, -np.inf]])
+    mixed = mix_uniform_noise(lik, 0.1, 5)
+    assert np.isnan(mixed[0, 0]) and mixed[1, 0] == np.inf
+    np.testing.assert_allclose(mixed[2], math.log(0.02), rtol=1e-12)
+    np.testing.assert_array_equal(evidence_rows(mixed), evidence_rows(lik) | [False, False, True])
+    assert mix_uniform_noise(lik, 0.0, 5) is lik
+    with pytest.raises(ValueError, match=r"^noise: expected"):
+        boltzmann_log_likelihoods(Q_3GOALS_1GA, np.array([0]), np.ones(3), noise=1.0)
 
 
 # --- stability, floor, recovery --------------------------------------------------------------
@@ -277,6 +333,11 @@ def test_prior_errors_name_the_field(kwargs: dict, field: str) -> None:
         (BeliefConfig(temperature=0.0), "belief.temperature"),
         (BeliefConfig(temperature=-1.0), "belief.temperature"),
         (BeliefConfig(temperature=float("inf")), "belief.temperature"),
+        (BeliefConfig(noise=-0.01), "belief.noise"),
+        (BeliefConfig(noise=1.0), "belief.noise"),
+        (BeliefConfig(noise=float("nan")), "belief.noise"),
+        (BeliefConfig(noise=True), "belief.noise"),
+        (BeliefConfig(noise="0.1"), "belief.noise"),  # type: ignore[arg-type]
     ],
 )
 def test_config_errors_name_the_field(config: BeliefConfig, field: str) -> None:
@@ -289,6 +350,8 @@ def test_config_errors_name_the_field(config: BeliefConfig, field: str) -> None:
 def test_good_configs_pass() -> None:
     BeliefConfig().validate(35)
     BeliefConfig(forgetting=1, floor=0, temperature=0.02).validate(35)
+    BeliefConfig(noise=0).validate(35)
+    BeliefConfig(noise=0.999).validate(35)
     BeliefConfig(floor=0.49).validate(2)
 
 

@@ -30,6 +30,7 @@ from http_live_server import inference_app, live_http_server
 from session_zoo import random_observation, session_zoo_template
 
 from model_store.sql import SqlModelStore
+from policy.belief import BeliefConfig
 from services.engine import InferenceEngine
 from services.rest import sessions_router
 from services.sessions import Observed, Session, SessionPartner, SessionSettings
@@ -73,8 +74,12 @@ def observations_of(seed: int) -> list[np.ndarray]:
     return [random_observation(rng) for _ in ACTIONS]
 
 
-def core_answers(engine: InferenceEngine, obs: list[np.ndarray]) -> list[Any]:
-    settings = SessionSettings("particle", "a2", (SessionPartner(1),), seed=3)
+def core_answers(
+    engine: InferenceEngine, obs: list[np.ndarray], belief: BeliefConfig | None = None
+) -> list[Any]:
+    settings = SessionSettings(
+        "particle", "a2", (SessionPartner(1),), seed=3, belief=belief or BeliefConfig()
+    )
     session = Session(engine, settings)
     return [
         session.step(o, [] if a is None else [Observed(1, a)])
@@ -127,6 +132,32 @@ def test_an_announced_goal_as_prior_and_belief_settings(base_url: str) -> None:
         assert belief.goal == "e4" and belief.top[0][1] == pytest.approx(0.9)
         assert session.info().settings["belief"]["floor"] == 0.0
         session.close()
+
+
+def test_the_likelihood_noise_reaches_the_server_over_http_and_grpc(
+    base_url: str, engine: InferenceEngine
+) -> None:
+    obs = observations_of(4)
+    want = core_answers(engine, obs, BeliefConfig(noise=0.2))
+    assert want[-1].beliefs != core_answers(engine, obs)[-1].beliefs  # the noise matters
+    with (
+        CoexistClient(base_url) as client,
+        client.create_session(
+            "particle", "a2", partners={1: None}, seed=3, belief={"noise": 0.2}
+        ) as session,
+    ):
+        assert session.info().settings["belief"]["noise"] == 0.2
+        for o, a, w in zip(obs, ACTIONS, want, strict=True):
+            assert_same(session.step(o, observed=None if a is None else {1: a}), w)
+    with (
+        live_grpc_server(engine.store) as live,
+        GrpcCoexistClient(live.target) as grpc_client,
+        grpc_client.episode(
+            "particle", "a2", partners={1: None}, seed=3, belief={"noise": 0.2}
+        ) as episode,
+    ):
+        for o, a, w in zip(obs, ACTIONS, want, strict=True):
+            assert_same(episode.act(o, observed=None if a is None else {1: a}), w)
 
 
 def test_a_replayed_step_is_a_conflict(base_url: str) -> None:

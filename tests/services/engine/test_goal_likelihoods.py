@@ -35,6 +35,7 @@ from policy.belief import (
 )
 from policy.qnet import QNetSpec, qnet_from_safetensors
 from services.engine import DEFAULT_TEMPERATURE, InferenceEngine, InvalidRequest, ModelNotFound
+from services.engine.environments import env_runtime
 
 SPEC = qnet_spec(obs_dim=8, n_actions=5, hidden=(16,))
 G = len(GOAL_IDS)
@@ -170,6 +171,41 @@ def test_training_alpha_per_goal_and_the_temperature_override(
     assert not np.allclose(hot, got, atol=0.01)
 
 
+@pytest.mark.parametrize("noise", [0.05, 0.3])
+def test_the_noise_mixes_each_policy_with_uniform_actions(
+    engine: InferenceEngine, store: SqlModelStore, noise: float
+) -> None:
+    # log((1 - η) π_g(a) + η / A) with π_g the naive network's policy, in probabilities
+    naive = Naive(store)
+    rng = np.random.default_rng(5)
+    obs = _obs(rng, 3)
+    got = engine.goal_log_likelihoods("particle", obs, [2, 1], [4, 0], noise=noise)
+    want = np.log((1 - noise) * np.exp(naive.log_likelihoods(obs, [2, 1], [4, 0])) + noise / 5)
+    np.testing.assert_allclose(got, want, atol=ATOL)
+    # still a distribution over the actions, and the same numbers from a table made ahead
+    per_action = [
+        engine.goal_log_likelihoods("particle", obs, [1], [a], noise=noise) for a in range(5)
+    ]
+    np.testing.assert_allclose(np.exp(per_action).sum(axis=0), 1.0, atol=1e-5)
+    runtime = env_runtime("particle")
+    versions: dict[str, int] = {}
+    table = goal_inference.likelihood_table(
+        engine.cache,
+        runtime,
+        obs,
+        3,
+        (2, 1),
+        alias="production",
+        versions=versions,
+        temperature=None,
+        noise=noise,
+    )
+    group = goal_inference.task_group(engine.cache, runtime, "production", versions)
+    picked = table.pick(group, [2, 1], np.array([4, 0]))
+    assert picked is not None
+    np.testing.assert_array_equal(picked, got)  # bit for bit
+
+
 def test_pinned_versions_and_aliases_are_honoured(
     engine: InferenceEngine, store: SqlModelStore
 ) -> None:
@@ -295,6 +331,10 @@ def test_one_stacked_group_and_one_forward_of_all_networks(
         ({"env": "nowhere"}, "env"),
         ({"temperature": 0.0}, "temperature"),
         ({"temperature": float("nan")}, "temperature"),
+        ({"noise": 1.0}, "noise"),
+        ({"noise": -0.1}, "noise"),
+        ({"noise": float("nan")}, "noise"),
+        ({"noise": "0.1"}, "noise"),
         ({"alias": "Not An Alias!"}, "alias"),
         ({"versions": {task_model_name("particle", "a2"): 0}}, "versions[particle/task/a2]"),
     ],
@@ -307,7 +347,7 @@ def test_bad_input_names_the_field(engine: InferenceEngine, kwargs: dict, field:
         "actions": [0],
     }
     args.update(kwargs)
-    extra = {k: args.pop(k) for k in ("temperature", "alias", "versions") if k in args}
+    extra = {k: args.pop(k) for k in ("temperature", "noise", "alias", "versions") if k in args}
     with pytest.raises(InvalidRequest) as err:
         engine.goal_log_likelihoods(
             args["env"], args["observation"], args["partners"], args["actions"], **extra

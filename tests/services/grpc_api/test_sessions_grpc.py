@@ -78,10 +78,18 @@ def test_an_episode_gives_the_answers_and_beliefs_of_a_rest_session(
             "ego_goal": "a2",
             "seed": 9,
             "partners": [{"index": 1, "goal": "c1", "infer": True}, {"index": 2, "goal": "b3"}],
-            "belief": {"forgetting": 0.9, "floor": 0.002, "blend_mass": 0.95, "blend_max_goals": 4},
+            "belief": {
+                "forgetting": 0.9,
+                "floor": 0.002,
+                "noise": 0.15,
+                "blend_mass": 0.95,
+                "blend_max_goals": 4,
+            },
         },
     ).json()
-    belief = pb.BeliefSettings(forgetting=0.9, floor=0.002, blend_mass=0.95, blend_max_goals=4)
+    belief = pb.BeliefSettings(
+        forgetting=0.9, floor=0.002, noise=0.15, blend_mass=0.95, blend_max_goals=4
+    )
     rng = np.random.default_rng(2)
     obs_TD = [random_observation(rng, n_agents=3) for _ in range(6)]
     actions = [None, 3, 1, 4, 4, 0]
@@ -184,6 +192,15 @@ def test_new_settings_keep_the_belief_and_inference_may_start_mid_stream(live: L
             lambda s: [
                 pb.EpisodeStep(
                     settings=episode_settings(belief=pb.BeliefSettings(floor=0.5)),
+                    observation=OBS_2,
+                )
+            ],
+        ),
+        (
+            "belief.noise",
+            lambda s: [
+                pb.EpisodeStep(
+                    settings=episode_settings(belief=pb.BeliefSettings(noise=1.0)),
                     observation=OBS_2,
                 )
             ],

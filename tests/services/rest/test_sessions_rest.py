@@ -16,6 +16,7 @@ from session_zoo import partner_action, random_observation, session_zoo_template
 
 from envs.particle.world import observations
 from model_store.sql import SqlModelStore
+from policy.belief import DEFAULT_NOISE, BeliefConfig
 from services.app import create_app
 from services.engine import InferenceEngine
 from services.rest import install_error_handlers, router, sessions_router
@@ -79,6 +80,7 @@ def test_create_step_get_delete(client: TestClient) -> None:
         {"index": 1, "goal": None, "goal_probs": None, "infer": True}
     ]
     assert body["settings"]["belief"]["forgetting"] == 0.95
+    assert body["settings"]["belief"]["noise"] == DEFAULT_NOISE
     belief = body["settings"]["belief"]  # the default blend: every goal of the belief
     assert (belief["blend_mass"], belief["blend_max_goals"]) == (1.0, None)
 
@@ -107,12 +109,24 @@ def test_create_step_get_delete(client: TestClient) -> None:
     assert error_of(client.delete(f"/v1/sessions/{sid}"), 404)["code"] == "session_not_found"
 
 
-def test_the_answers_equal_the_session_core(client: TestClient, engine: InferenceEngine) -> None:
+@pytest.mark.parametrize("noise", [None, 0.25])
+def test_the_answers_equal_the_session_core(
+    client: TestClient, engine: InferenceEngine, noise: float | None
+) -> None:
+    extra = {} if noise is None else {"belief": {"noise": noise}}
     sid = create(
-        client, partners=[{"index": 1, "goal": "c1", "infer": True}, {"index": 2, "goal": "b3"}]
+        client,
+        partners=[{"index": 1, "goal": "c1", "infer": True}, {"index": 2, "goal": "b3"}],
+        **extra,
     )
+    belief = BeliefConfig() if noise is None else BeliefConfig(noise=noise)
+    assert client.get(f"/v1/sessions/{sid}").json()["settings"]["belief"]["noise"] == belief.noise
     settings = SessionSettings(
-        "particle", "a2", (SessionPartner(1, "c1", infer=True), SessionPartner(2, "b3")), seed=4
+        "particle",
+        "a2",
+        (SessionPartner(1, "c1", infer=True), SessionPartner(2, "b3")),
+        seed=4,
+        belief=belief,
     )
     core, rng = Session(engine, settings), np.random.default_rng(3)
     for t in range(4):
@@ -240,6 +254,9 @@ def test_observed_at_step_0_is_a_422(client: TestClient) -> None:
     [
         ("belief.forgetting", {"belief": {"forgetting": 0}}),
         ("belief.floor", {"belief": {"floor": 0.2}}),
+        ("belief.noise", {"belief": {"noise": 1.0}}),
+        ("belief.noise", {"belief": {"noise": -0.1}}),
+        ("belief.noise", {"belief": {"noise": "0.1"}}),
         ("belief.blend_mass", {"belief": {"blend_mass": 1.5}}),
         ("belief.blend_max_goals", {"belief": {"blend_max_goals": 0}}),
         ("belief.prune_below", {"belief": {"prune_below": 0.0005}}),  # below the floor

@@ -100,7 +100,7 @@ def test_workers_take_turns_on_one_session(engine: InferenceEngine, url: str) ->
 def test_foreign_tampered_and_silent_stores_are_named(engine: InferenceEngine, url: str) -> None:
     import redis
 
-    from services.sessions.codec import SessionCodec
+    from services.sessions.codec import FORMAT, SessionCodec
 
     here = worker(engine, url)
     other_secret = "another-deployment-" + new_secret().decode()
@@ -116,7 +116,7 @@ def test_foreign_tampered_and_silent_stores_are_named(engine: InferenceEngine, u
     bad, good = (here.post("/v1/sessions", json=CREATE).json()["session_id"] for _ in range(2))
     key = f"coexist:{SessionCodec(SECRET.encode()).namespace()}:s:{bad}"
     with redis.Redis.from_url(url) as client:
-        client.hset(key, "r", b"CS3" + b"\0" * 40)
+        client.hset(key, "r", FORMAT + b"\0" * 40)
         client.hincrby(key, "v", 1)
     step = here.post(f"/v1/sessions/{bad}/steps", json={"observation": OBS})
     assert "integrity check" in error_of(step, 410, "session_state_invalid")

@@ -47,7 +47,9 @@ def test_a_default_step_is_the_act_with_the_whole_belief(engine: InferenceEngine
         obs = random_observation(rng)
         action = int(rng.integers(5))
         if t:
-            lik = engine.goal_log_likelihoods("particle", previous, [1], [action])
+            lik = engine.goal_log_likelihoods(
+                "particle", previous, [1], [action], noise=config.noise
+            )
             log_b = update_log_belief(log_b[None], lik, log_prior[None], config)[0]
         goal_probs = blend_goal_probs(log_b, GOAL_IDS)
         assert list(goal_probs) == list(GOAL_IDS)

@@ -90,8 +90,11 @@ def test_belief_moves_to_the_goal_whose_policy_the_partner_follows(
     assert answers[0].beliefs[0].observed_action is None
 
 
-def test_a_step_acts_with_the_beliefs_blend_and_seed_plus_t(engine: InferenceEngine) -> None:
-    config = BeliefConfig(forgetting=0.9, floor=1e-3)
+@pytest.mark.parametrize("noise", [0.0, 0.1])
+def test_a_step_acts_with_the_beliefs_blend_and_seed_plus_t(
+    engine: InferenceEngine, noise: float
+) -> None:
+    config = BeliefConfig(forgetting=0.9, floor=1e-3, noise=noise)
     settings = SessionSettings(
         "particle",
         "a2",
@@ -108,8 +111,13 @@ def test_a_step_acts_with_the_beliefs_blend_and_seed_plus_t(engine: InferenceEng
     for t in range(3):
         obs = random_observation(rng, n_agents=3)
         observed = [Observed(1, 2)] if t else []
-        if t:  # the update by hand: a_{t-1} = 2 judged on the previous observation
-            lik = engine.goal_log_likelihoods("particle", previous, [1], [2])
+        if t:  # the update by hand: a_{t-1} = 2 judged on the previous observation, the
+            # policy mixed with uniform actions: (1 - η) π_g(2) + η / 5
+            plain = engine.goal_log_likelihoods("particle", previous, [1], [2])
+            lik = engine.goal_log_likelihoods("particle", previous, [1], [2], noise=noise)
+            np.testing.assert_allclose(
+                np.exp(lik), (1 - noise) * np.exp(plain) + noise / 5, rtol=1e-12
+            )
             log_b = update_log_belief(log_b[None], lik, log_prior[None], config)[0]
         goal_probs = blend_goal_probs(log_b, GOAL_IDS, 0.9, 3)
         expected = engine.act(
@@ -310,6 +318,8 @@ BAD_SETTINGS = [
     ("belief.forgetting", dict(belief=BeliefConfig(forgetting=1.5))),
     ("belief.floor", dict(belief=BeliefConfig(floor=0.5))),
     ("belief.temperature", dict(belief=BeliefConfig(temperature=0.0))),
+    ("belief.noise", dict(belief=BeliefConfig(noise=1.0))),
+    ("belief.noise", dict(belief=BeliefConfig(noise=-0.5))),
     ("belief.blend_mass", dict(blend_mass=0.0)),
     ("belief.blend_max_goals", dict(blend_max_goals=0)),
 ]

@@ -114,6 +114,30 @@ def test_a_step_scored_ahead_is_the_step_scored_on_demand(
     assert used > 0
 
 
+@pytest.mark.parametrize("n_agents", [2, 4])
+def test_a_noisy_likelihood_scored_ahead_is_the_one_scored_on_demand(
+    engine: InferenceEngine, n_agents: int
+) -> None:
+    # the table holds the mixed likelihood of every action: picking from it is the pass's bits
+    belief = BeliefConfig(noise=0.2)
+    ahead = Session(engine, settings(n_agents, belief=belief))
+    on_demand = Session(engine, settings(n_agents, belief=belief), prefetch=False)
+    plain = Session(engine, settings(n_agents, belief=BeliefConfig(noise=0.0)), prefetch=False)
+    rng = np.random.default_rng(10 + n_agents)
+    obs = random_observation(rng, n_agents)
+    for session in (ahead, on_demand, plain):
+        session.step(obs)
+    partners = list(range(1, n_agents))
+    for _ in range(4):
+        assert ahead.prepare_next() is True
+        before = engine.stats.likelihood_tables_used
+        obs, observed = random_observation(rng, n_agents), observed_of(rng, partners)
+        got = ahead.step(obs, observed)
+        assert engine.stats.likelihood_tables_used == before + 1
+        assert_same_step(got, on_demand.step(obs, observed))
+        assert got.beliefs != plain.step(obs, observed).beliefs  # the noise is applied
+
+
 def test_a_step_without_evidence_prepares_nothing_after_the_first(
     engine: InferenceEngine,
 ) -> None:

@@ -225,7 +225,7 @@ def read_record(store: SharedSessionStore, session_id: str) -> bytes:
     ("change", "named"),
     [
         (lambda r: r[:-5] + bytes([r[-5] ^ 1]) + r[-4:], "integrity check"),
-        (lambda r: b"CS0" + r[len(FORMAT) :], "format 'CS0', this server reads CS3"),
+        (lambda r: b"CS0" + r[len(FORMAT) :], f"format 'CS0', this server reads {FORMAT.decode()}"),
         (lambda r: r[:20], "integrity check"),
     ],
     ids=["tampered", "other-format", "truncated"],

@@ -46,7 +46,7 @@ class PartnerSpec(_message.Message):
     def __init__(self, index: _Optional[int] = ..., goal: _Optional[str] = ..., goal_probs: _Optional[_Mapping[str, float]] = ..., infer: _Optional[bool] = ...) -> None: ...
 
 class BeliefSettings(_message.Message):
-    __slots__ = ("forgetting", "floor", "temperature", "blend_mass", "blend_max_goals", "prune_below", "prune_error")
+    __slots__ = ("forgetting", "floor", "temperature", "blend_mass", "blend_max_goals", "prune_below", "prune_error", "noise")
     FORGETTING_FIELD_NUMBER: _ClassVar[int]
     FLOOR_FIELD_NUMBER: _ClassVar[int]
     TEMPERATURE_FIELD_NUMBER: _ClassVar[int]
@@ -54,6 +54,7 @@ class BeliefSettings(_message.Message):
     BLEND_MAX_GOALS_FIELD_NUMBER: _ClassVar[int]
     PRUNE_BELOW_FIELD_NUMBER: _ClassVar[int]
     PRUNE_ERROR_FIELD_NUMBER: _ClassVar[int]
+    NOISE_FIELD_NUMBER: _ClassVar[int]
     forgetting: float
     floor: float
     temperature: float
@@ -61,7 +62,8 @@ class BeliefSettings(_message.Message):
     blend_max_goals: int
     prune_below: float
     prune_error: float
-    def __init__(self, forgetting: _Optional[float] = ..., floor: _Optional[float] = ..., temperature: _Optional[float] = ..., blend_mass: _Optional[float] = ..., blend_max_goals: _Optional[int] = ..., prune_below: _Optional[float] = ..., prune_error: _Optional[float] = ...) -> None: ...
+    noise: float
+    def __init__(self, forgetting: _Optional[float] = ..., floor: _Optional[float] = ..., temperature: _Optional[float] = ..., blend_mass: _Optional[float] = ..., blend_max_goals: _Optional[int] = ..., prune_below: _Optional[float] = ..., prune_error: _Optional[float] = ..., noise: _Optional[float] = ...) -> None: ...
 
 class ActRequest(_message.Message):
     __slots__ = ("env", "ego_goal", "observation", "state", "ego_index", "partners", "method", "temperature", "seed", "alias", "versions", "regret_bound", "budget", "budget_spent", "budget_total", "budget_value")
