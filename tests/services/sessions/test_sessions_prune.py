@@ -76,6 +76,7 @@ def test_each_step_is_within_delta_of_the_exact_update(
             observations[t - 1],
             [e.index for e in entries],
             [int(e.action or 0) for e in entries],
+            noise=belief.noise,  # the session's likelihood: its policy mixed with uniform noise
         )
         exact = update_log_belief(held, lik, prior, belief)
         distance = tv(got, exact)
