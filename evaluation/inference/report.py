@@ -125,7 +125,7 @@ def calibration_section(calibration: dict[str, Any]) -> str:
             "",
             f"Command: `{calibration['command']}`"
             + (
-                f" ({variables_note(calibration['command'])})"
+                f" ({variables_note(calibration['command']).rstrip('.')})"
                 if "$" in calibration["command"]
                 else ""
             )
@@ -241,7 +241,7 @@ def render_readme(out: Path) -> Path:
         parts += [
             "## Setup",
             f"- Command: `{results['command']}`"
-            f"{' (' + variables_note(results['command']) + ')' if '$' in results['command'] else ''}.",
+            f"{' (' + variables_note(results['command']).rstrip('.') + ')' if '$' in results['command'] else ''}.",
             "- The partner acts by its true goal's task policy softmax(Q/α) from the "
             f"**`{results['accuracy']['config']['partner_alias']}` population**, trained with "
             "another seed; the belief scores its actions with the "
