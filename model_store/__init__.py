@@ -7,6 +7,8 @@ Layers (ORM rows never leave `model_store.sql`):
     store.py         the abstract ModelStore interface and its semantics
     sql/             SqlModelStore on SQLite (default) or PostgreSQL; Alembic in migrations/
     naming.py        model names, aliases and refs (`name@alias`, `name/3`)
+    checks.py        what every backend checks before it writes (a new model, a registration)
+    artifacts.py     the checks of a version's spec, weights and lineage
     defaults.py      default_store_url(), open_store()
 
 Typical use:

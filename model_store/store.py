@@ -32,6 +32,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from collections.abc import Mapping, Sequence
+from contextlib import AbstractContextManager
 from typing import Self
 
 from model_store.entities import Event, Lineage, ModelVersion, Page, RegisteredModel
@@ -149,6 +150,14 @@ class ModelStore(ABC):
         It travels apart from the URL, so that no string holds both: a job's subprocess gets it
         in `PGPASSWORD`, which libpq reads (`trainer.jobs.runner`), a Ray worker inside the
         store's URL object (`trainer.backends.ray_cluster.portable_store_url`)."""
+        return None
+
+    def lock(self, key: str) -> AbstractContextManager[None] | None:
+        """A lock named `key` that every process opening this store (`reopen_url`) shares, held
+        for a `with` block and released when its holder dies; None where the backend offers
+        none (the default). coexist's Ray backend holds it while a batch looks for the versions
+        an earlier attempt registered and registers the rest (`trainer.backends.once`); on a
+        store without it, that lock lives in the store's SQL database."""
         return None
 
     def close(self) -> None:  # noqa: B027 - optional hook, most stores hold nothing

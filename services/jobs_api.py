@@ -12,10 +12,13 @@
 |        |                      |       | running; `cancelled` once its subprocess is gone); 409 naming |
 |        |                      |       | the status of a finished job; 404 unknown id                  |
 
-Jobs live in the model store's database (`training_jobs`), their run directories and logs under
-`<data_dir>/jobs/<id>`. The runner thread starts with the app when unfinished jobs are waiting
-(a restarted server resumes them, `--resume` skips finished batches) and otherwise on the first
-submit; it stops with the app, leaving a running job for the next start. Jobs need a SQL store.
+Jobs live in a SQL database (`training_jobs`): `COEXIST_JOBS_URL`, else the model store's own
+database, else, for a store backend without SQL, the SQLite file `<data_dir>/jobs.db`; their run
+directories and logs live under `<data_dir>/jobs/<id>`. A job's subprocess opens the model store
+by its URL (`ModelStore.reopen_url`), whatever its backend: a plugin's is found by its scheme. The
+runner thread starts with the app when unfinished jobs are waiting (a restarted server resumes
+them, `--resume` skips finished batches) and otherwise on the first submit; it stops with the
+app, leaving a running job for the next start. Jobs need a store another process can open.
 
 One trainer per job: the trainer dies with the server process that started it, even on
 `kill -9` (its parent-death signal), holds its run directory's lock while it lives, and a
@@ -43,18 +46,22 @@ from pydantic import Field
 from sqlalchemy import URL
 
 import services.registry  # noqa: F401  (first: importing services.deps first is a cycle)
-from model_store.errors import StoreUnavailable
+from model_store.errors import InvalidArgument, StoreUnavailable
+from model_store.sql.engine import normalise_url
+from model_store.store import ModelStore
 
 # isort: split
 from services.deps import ReadAuth, WriteAuth
 from services.rest.bounded import RequestBody
 from services.rest.json_body import FastJsonRoute
+from services.settings import Settings
 from trainer.jobs import JobRunner, JobSpec, JobStatus, JobTable
 from trainer.jobs.runner import append_log, read_log, read_log_from
 from trainer.jobs.spec import MAX_SEED, MAX_STEPS, MAX_TEXT
 from trainer.jobs.table import CANCELLED_WHILE_QUEUED
 
 LOG_CHUNK_BYTES = 1 << 20  # the most one `offset` read of a log returns
+JOBS_DATABASE = "jobs.db"  # the job table's file in the data directory, for a store without SQL
 
 
 class JobRequest(RequestBody):
@@ -78,22 +85,37 @@ class JobRequest(RequestBody):
 
 
 def _store_urls(app: FastAPI) -> tuple[URL, str, str | None]:
-    """The job table's database URL (the store's own SQL database, SQLite paths made absolute),
-    kept a URL object so that its password is never rendered into a string here; the URL a
-    job's subprocess opens the store by (`ModelStore.reopen_url`: a plugin's scheme stays a
-    plugin's scheme), without the password; and the password apart (`reopen_password`). The
-    last two go only into the trainer's environment, in two variables (`JobRunner`), never onto
-    a command line, into a log or into an answer."""
+    """The job table's database URL (`_jobs_database`); the URL a job's subprocess opens the
+    store by (`ModelStore.reopen_url`: a plugin's scheme stays a plugin's scheme), without the
+    password; and the password apart (`reopen_password`). The last two go only into the
+    trainer's environment, in two variables (`JobRunner`), never onto a command line, into a
+    log or into an answer."""
     store = getattr(app.state, "store", None)
-    url = getattr(store, "url", None)
-    if store is None or url is None:
-        raise StoreUnavailable("training jobs need a SQL model store (and it is not open)")
-    if url.get_backend_name() == "sqlite" and url.database:
-        url = url.set(database=str(Path(url.database).absolute()))
+    if store is None:
+        raise StoreUnavailable("training jobs need a model store (and it is not open)")
     store_url = store.reopen_url()
     if store_url is None:
         raise StoreUnavailable("training jobs need a model store another process can open")
-    return url, store_url, store.reopen_password()
+    return _jobs_database(app.state.settings, store), store_url, store.reopen_password()
+
+
+def _jobs_database(settings: Settings, store: ModelStore) -> URL:
+    """`COEXIST_JOBS_URL`, else the store's own SQL database, else the SQLite file `jobs.db` in
+    the data directory (a backend without SQL), SQLite paths made absolute; kept a URL object
+    so that its password is never rendered into a string here."""
+    if settings.jobs_url is not None:
+        try:
+            url = normalise_url(settings.jobs_url.get_secret_value())
+        except InvalidArgument as err:  # its message names the store's setting, not this one
+            why = err.message.removeprefix("store_url: ")
+            raise InvalidArgument(f"COEXIST_JOBS_URL: {why}", field="jobs_url") from None
+    else:
+        own = getattr(store, "url", None)  # a SQL store's (a plugin over SQL has one too)
+        file = str(settings.data_dir / JOBS_DATABASE)
+        url = own if isinstance(own, URL) else URL.create("sqlite", database=file)
+    if url.get_backend_name() == "sqlite" and url.database:
+        url = url.set(database=str(Path(url.database).absolute()))
+    return url
 
 
 def _open(app: FastAPI) -> tuple[JobTable, JobRunner]:
@@ -116,7 +138,8 @@ async def _lifespan(app: FastAPI) -> AsyncIterator[None]:
     and runner given to the app before it started (`app.state.jobs`, as tests do) are the
     giver's: they are used, and left running."""
     given = getattr(app.state, "jobs", None)
-    if getattr(app.state, "store", None) is not None and hasattr(app.state.store, "url"):
+    store = getattr(app.state, "store", None)
+    if store is not None and store.reopen_url() is not None:
         table, runner = _open(app)
         if table.has_unfinished():
             runner.start()

@@ -100,6 +100,10 @@ by the test suite and by Ray.
 |                               |                    |               | sixth of it; a job whose lease ran out is resumed |
 |                               |                    |               | by another (or the restarted) server, and a       |
 |                               |                    |               | runner that could not renew it stops its trainer  |
+| `COEXIST_JOBS_URL`            | see meaning        | server        | the SQL database of the training jobs' table      |
+|                               |                    |               | (`sqlite:///…`, `postgresql://…`; a secret: never |
+|                               |                    |               | shown); unset: the model store's database when it |
+|                               |                    |               | is SQL, else `sqlite:///{DATA_DIR}/jobs.db`       |
 | `COEXIST_SHUTDOWN_GRACE_S`    | 10                 | server        | on SIGTERM: how long in-flight HTTP requests and  |
 |                               |                    |               | gRPC calls may take to finish; HTTP requests      |
 |                               |                    |               | clients had sent but the server had not read yet  |
@@ -186,6 +190,7 @@ class Settings(BaseSettings):
     shutdown_grace_s: int = Field(default=10, ge=0, le=3600)
     otel_enabled: bool = False  # OpenTelemetry spans (services.tracing; the `otel` extra)
     job_lease_s: float = Field(default=30.0, ge=1.0, le=3600)
+    jobs_url: SecretStr | None = None  # the job table's SQL database; None: see the table
 
     @model_validator(mode="after")
     def _streams_leave_workers(self) -> Settings:

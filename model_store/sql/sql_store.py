@@ -20,14 +20,11 @@ from sqlalchemy import URL, delete, exists, or_, select
 from sqlalchemy.exc import DBAPIError, IntegrityError
 from sqlalchemy.orm import Session, selectinload, sessionmaker
 
-from model_store.entities import MODEL_KINDS, Event, Page, RegisteredModel
+from model_store.checks import check_kind, check_new_model
+from model_store.entities import Event, Page, RegisteredModel
 from model_store.errors import AlreadyExists, Conflict, InvalidArgument, StoreUnavailable, brief
 from model_store.naming import (
-    MAX_SIZE,
     path_prefixes,
-    validate_env,
-    validate_goal,
-    validate_model_name,
     validate_tags,
     validate_text,
 )
@@ -138,20 +135,16 @@ class SqlModelStore(VersionOps, ModelStore):
         tags: Mapping[str, str] | None = None,
         exist_ok: bool = False,
     ) -> RegisteredModel:
-        validate_model_name(name)
-        validate_env(env)
-        if kind not in MODEL_KINDS:
-            raise InvalidArgument(f"kind: {brief(kind)} is not one of {MODEL_KINDS}", field="kind")
-        if isinstance(goals, str) or not goals:
-            raise InvalidArgument("goals: expected a non-empty list of goals", field="goals")
-        goal_list = [validate_goal(g, f"goals[{i}]") for i, g in enumerate(goals)]
-        for key, value in (("obs_dim", obs_dim), ("n_actions", n_actions)):
-            if not isinstance(value, int) or isinstance(value, bool) or not 1 <= value <= MAX_SIZE:
-                raise InvalidArgument(
-                    f"{key}: expected an integer in 1..{MAX_SIZE}, got {brief(value)}", field=key
-                )
-        validate_text(description, "description")
-        tag_map = validate_tags(tags or {})
+        goal_list, tag_map = check_new_model(
+            name,
+            env=env,
+            kind=kind,
+            goals=goals,
+            obs_dim=obs_dim,
+            n_actions=n_actions,
+            description=description,
+            tags=tags,
+        )
         with self._session(write=True) as session:
             existing = session.execute(select(ModelRow.id).where(ModelRow.name == name)).first()
             if existing is None:
@@ -207,11 +200,7 @@ class SqlModelStore(VersionOps, ModelStore):
         if env is not None:
             stmt = stmt.where(ModelRow.env == env)
         if kind is not None:
-            if kind not in MODEL_KINDS:
-                raise InvalidArgument(
-                    f"kind: {brief(kind)} is not one of {MODEL_KINDS}", field="kind"
-                )
-            stmt = stmt.where(ModelRow.kind == kind)
+            stmt = stmt.where(ModelRow.kind == check_kind(kind))
         if goal is not None:
             stmt = stmt.where(exists().where(GoalRow.model_id == ModelRow.id, GoalRow.goal == goal))
         if tag is not None:

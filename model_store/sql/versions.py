@@ -10,7 +10,8 @@ from contextlib import AbstractContextManager
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from model_store.artifacts import check_artifact, check_lineage, sha256_hex
+from model_store.artifacts import check_artifact, sha256_hex
+from model_store.checks import check_registration
 from model_store.entities import Lineage, ModelVersion
 from model_store.errors import (
     AlreadyExists,
@@ -26,7 +27,6 @@ from model_store.naming import (
     parse_ref,
     ref_candidates,
     validate_alias,
-    validate_idempotency_key,
 )
 from model_store.sql import queries as q
 from model_store.sql.convert import now, version_entity
@@ -78,12 +78,7 @@ class VersionOps:
         aliases: Sequence[str] = ("latest",),
         idempotency_key: str | None = None,
     ) -> ModelVersion:
-        if isinstance(aliases, str):
-            raise InvalidArgument("aliases: expected a list of aliases", field="aliases")
-        if idempotency_key is not None:
-            validate_idempotency_key(idempotency_key)
-        alias_list = [validate_alias(a, "aliases") for a in dict.fromkeys(aliases)]
-        check_lineage(lineage)
+        alias_list = check_registration(aliases, idempotency_key, lineage)
         with self._session() as session:
             model = q.find_model(session, name)
             sizes = (model.obs_dim, model.n_actions)

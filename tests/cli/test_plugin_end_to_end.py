@@ -6,8 +6,10 @@ folder of its own, put on PYTHONPATH, and then, with nothing of coexist edited:
 - `coexist env check tinyline`, `coexist train zoo --env tinyline`, `coexist serve`,
   `coexist run --env tinyline --server ...`, a training job through `POST /v1/jobs` and the
   console's live episode all work, every process finding the env by its entry point;
-- the store URL's scheme `tinyline` picks the plugin's backend in the CLI, the server and the
-  job's subprocess (each writes its command into the backend's `.opened` file)."""
+- the store URL's scheme `tinyline` picks the plugin's backend, which keeps no SQL database, in
+  the CLI, the server, the job's subprocess and Ray workers (each writes its command into the
+  backend's `opened` file); the job's networks land in that store, and the job table in the
+  SQLite file the server keeps beside its data for a store without SQL."""
 
 from __future__ import annotations
 
@@ -15,10 +17,12 @@ import json
 import os
 import secrets
 import shutil
+import sqlite3
 import subprocess
 import sys
 import time
 from collections.abc import Iterator
+from contextlib import closing
 from pathlib import Path
 
 import httpx
@@ -42,7 +46,7 @@ def installed(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, st
     env = {
         **os.environ,
         "PYTHONPATH": str(root / "site"),
-        "COEXIST_STORE_URL": f"tinyline://{root / 'data' / 'models.db'}",
+        "COEXIST_STORE_URL": f"tinyline://{root / 'data' / 'models'}",
         "COEXIST_DATA_DIR": str(root / "data"),
         "COEXIST_ADMIN_TOKEN": secrets.token_hex(16),
         "ROOT": str(root),
@@ -126,15 +130,23 @@ def test_check_train_serve_run_job_and_console(installed: dict[str, str]) -> Non
         server.terminate()
         server.wait(timeout=30)
 
-    opened = (root / "data" / "models.db.opened").read_text().splitlines()
+    opened = (root / "data" / "models" / "opened").read_text().splitlines()
     commands = {" ".join(line.split()[1:3]) for line in opened}
     # the CLI, the server and the job's subprocess each picked the backend by the scheme
     assert {"train zoo", "serve --no-bootstrap", "train task"} <= commands, opened
+    # the job's network (c0: the zoo trained c1 and c3) is in the plugin's own files, and the
+    # job's row in the SQLite file the server keeps beside its data for a store without SQL
+    state = json.loads((root / "data" / "models" / "state.json").read_text())
+    assert state["models"]["tinyline/task/c0"]["versions"], state["models"].keys()
+    with closing(sqlite3.connect(root / "data" / "jobs.db")) as jobs:
+        rows = jobs.execute("SELECT status FROM training_jobs").fetchall()
+    assert rows == [(status,)]
+    assert not (root / "data" / "models.db").exists()  # nothing fell back to coexist's SQL store
 
 
 def test_ray_workers_open_the_store_by_its_scheme(installed: dict[str, str]) -> None:
     root = Path(installed["ROOT"])
-    opened = root / "data" / "models.db.opened"
+    opened = root / "data" / "models" / "opened"
     before = opened.read_text().splitlines() if opened.exists() else []
     trained = _run(
         installed, "train", "task", "--env", "tinyline", "--goals", "c4", "--steps", "50",

@@ -12,7 +12,8 @@ version forever. Two pieces make publishing idempotent:
 | marker           | the key is written into each version's lineage config (`config["job"]`) |
 | publish lock     | held while a batch checks for markers and registers: PostgreSQL         |
 |                  | `pg_advisory_lock(hash(key))` on a connection of its own, SQLite an     |
-|                  | exclusive `flock` on `<database>.publish.lock` next to the file         |
+|                  | exclusive `flock` on `<database>.publish.lock` next to the file; a     |
+|                  | backend without SQL gives its own (`ModelStore.lock`)                   |
 
 Under the lock, a member whose model already has a version marked with the job key is not
 registered again: that version is returned instead (a model twice in one batch, a gate retry's
@@ -131,11 +132,14 @@ def publish_once(
 ) -> list[ModelVersion]:
     """`publish_batch` with the job marker, under the publish lock, skipping marked members.
 
-    The lock lives in the database `store` writes to: its SQL `url` (a plugin backend over a
-    SQL database has one too), else `store_url`, which must then name that database."""
+    The lock is the store's own (`ModelStore.lock`) where its backend offers one, else it lives
+    in the database `store` writes to: its SQL `url` (a plugin backend over a SQL database has
+    one too), else `store_url`, which must then name that database."""
     once = cast(ModelStore, _RegisterOnce(store, job_key, on_register))
     sql_url: URL | None = getattr(store, "url", None)  # the object: its password stays inside
-    with publish_lock(sql_url if sql_url is not None else store_url, job_key):
+    with store.lock(job_key) or publish_lock(
+        sql_url if sql_url is not None else store_url, job_key
+    ):
         return publish_batch(
             once,
             batch,
