@@ -33,6 +33,7 @@ ACCEL = 5.0  # MPE2's default action sensitivity
 REACHED = 0.1
 DIRECTIONS = np.array([(0, 0), (-1, 0), (1, 0), (0, -1), (0, 1)], dtype=np.float64)
 SPEED_BOUND = 3.0  # the observation space's bound on a velocity (forces and damping keep it under)
+DT, DAMPING = 0.1, 0.25  # MPE2 World's step and damping (agents of mass 1, no speed limit)
 
 
 class LandmarksEnv(ParallelEnv):
@@ -151,8 +152,19 @@ class LandmarksDomain(DomainCounts):
         own = np.asarray(obs_BD, dtype=np.float64)[:, :2]
         return np.linalg.norm(own - landmark, axis=1) < REACHED
 
-    def goal_kept(self, obs_BD: np.ndarray, n_agents: int, goal: str) -> None:
-        return None
+    def goal_kept(self, obs_BD: np.ndarray, n_agents: int, goal: str) -> np.ndarray:
+        """(B, 5) bool: after the action, and wherever resting from then on lets it coast, the
+        agent is still within `REACHED` of its landmark. MPE2's step moves the agent with its
+        current velocity, then damps it and adds the action: p' = p + dt v, v' = (1 - damping) v
+        + dt a. Resting then coasts a further dt v' / damping along a straight line, so the two
+        ends decide (the disc is convex). Collisions are left out: the agent's own dynamics."""
+        landmark = LANDMARKS[check_goal(self, goal)]
+        own = np.asarray(obs_BD, dtype=np.float64)[:, :4]
+        p_B12 = own[:, None, :2] + DT * own[:, None, 2:]
+        v_BA2 = own[:, None, 2:] * (1.0 - DAMPING) + DIRECTIONS[None] * (ACCEL * DT)
+        rest_BA2 = p_B12 + DT * v_BA2 / DAMPING
+        near_B1 = np.linalg.norm(p_B12 - landmark, axis=-1) < REACHED
+        return near_B1 & (np.linalg.norm(rest_BA2 - landmark, axis=-1) < REACHED)
 
 
 LANDMARKS_DOMAIN = LandmarksDomain()
