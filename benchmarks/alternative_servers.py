@@ -73,7 +73,8 @@ FLAT_STD_RTOL = 1e-12  # a Q-vector whose std is below this fraction of max |Q| 
 ALIAS = "production"
 STATE_DIM = 4  # a particle's block: x, y, vx, vy
 # coexist's default belief (`policy.belief.BeliefConfig`, `services.engine.goal_inference`)
-LIKELIHOOD_TEMPERING = 2.0  # the likelihood's α over each task network's training α
+LIKELIHOOD_TEMPERING = 4.0  # the likelihood's α over each task network's training α
+LIKELIHOOD_NOISE = 0.3  # η: the likelihood mixes the tempered policy with uniform actions
 FORGETTING = 0.95  # λ: each update pulls the belief back toward the prior by 1 - λ
 FLOOR = 1e-3  # ε: every goal keeps probability >= ε
 TOP_GOALS = 3  # goals listed per partner in a step's answer
@@ -370,7 +371,8 @@ class NumpySessions:
     def _updated(self, session: _Session, observed: Sequence[tuple[int, int]]) -> np.ndarray:
         """The beliefs after one observed action per listed partner (a new array): the
         Boltzmann likelihood of every goal's task network on the partner's view [partner,
-        ego] of the previous observation, forgetting toward the prior, then the floor."""
+        ego] of the previous observation, mixed with uniform action noise, forgetting toward
+        the prior, then the floor."""
         if session.previous is None:
             raise ValueError("observed: none at step 0 (no previous observation)")
         indices = [index for index, _ in observed]
@@ -385,7 +387,9 @@ class NumpySessions:
         z /= self.likelihood_alpha_G11
         log_norm_GE = np.log(np.exp(z).sum(axis=2))
         rows = np.arange(len(indices))
-        log_lik_EG = (z[:, rows, actions_E] - log_norm_GE).T
+        policy_EG = np.exp(z[:, rows, actions_E] - log_norm_GE).T
+        n_actions = q_GEA.shape[2]
+        log_lik_EG = np.log((1.0 - LIKELIHOOD_NOISE) * policy_EG + LIKELIHOOD_NOISE / n_actions)
         which = [session.partners.index(i) for i in indices]
         log_belief_PG = session.log_belief_PG.copy()
         x = FORGETTING * log_belief_PG[which] + log_lik_EG + self.pull_G

@@ -43,5 +43,8 @@ def test_a_short_run_prints_a_row_per_catalogue() -> None:
     rows = [line for line in done.stdout.splitlines() if line.startswith("| ")]
     assert [row.split("|")[1].strip() for row in rows[1:]] == ["35", "40"]
     for row in rows[1:]:
-        p50, p99, cpu = (float(cell) for cell in row.strip("|").split("|")[1:])
+        cells = [cell.strip() for cell in row.strip("|").split("|")]
+        assert cells[1] == "0"  # no pruning asked for: τ = 0 and nothing pruned
+        p50, p99, cpu = (float(cell) for cell in cells[2:5])
         assert 0 < p50 <= p99 and cpu > 0
+        assert cells[5:] == ["-", "-", "-"]

@@ -30,4 +30,5 @@ def test_a_short_run_prints_every_case() -> None:
     cases = ["35 x 1", "35 x 4", "1 x 1024", "4 x 256"]
     assert [(row[0], int(row[1])) for row in cells] == [(c, w) for c in cases for w in widths]
     for row in cells:
-        assert len(row) == 7 and all(float(c) > 0 for c in row[2:])
+        assert len(row) == 7 and all(float(c) > 0 for c in row[2:5])  # times and their ratio
+        assert all(float(c) >= 0 for c in row[5:])  # rates, one decimal: a tiny one prints 0.0
