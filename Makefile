@@ -6,7 +6,7 @@ PY ?= python3
 comma := ,
 VENV ?= .venv
 BIN := $(VENV)/bin
-DEPS := pyproject.toml setup.py VERSION sdk/pyproject.toml $(wildcard policy/*.c policy/*.h services/rest/*.c)
+DEPS := pyproject.toml setup.py VERSION sdk/pyproject.toml docker/requirements.lock $(wildcard policy/*.c policy/*.h services/rest/*.c)
 
 .PHONY: setup setup-serve demo serve test lint clean
 
@@ -16,10 +16,14 @@ $(BIN)/python:
 
 # $(call install,EXTRAS): the CPU build of torch first, exactly (a bare `torch` requirement
 # would pull CUDA wheels), then the client (sdk/, its own distribution), then the server.
+# The images' lock constrains every dependency it names, so a fresh clone installs the versions
+# the images run and the tests were run on, whatever the index published since; the dev tools
+# the lock does not name float within pyproject's ranges.
+LOCK := docker/requirements.lock
 define install
 	$(BIN)/pip install --quiet "torch==2.13.0"
-	$(BIN)/pip install --quiet -e ./sdk
-	$(BIN)/pip install --quiet -e ".[$(1)]"
+	$(BIN)/pip install --quiet -c $(LOCK) -e ./sdk
+	$(BIN)/pip install --quiet -c $(LOCK) -e ".[$(1)]"
 endef
 
 $(VENV)/.installed-serve: $(DEPS) | $(BIN)/python
