@@ -64,7 +64,8 @@ _BLEND_SIGNATURE = types.void(
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _boltzmann(q, alpha, out):
-    """`maths.boltzmann` (eq. 2) of one Q-vector into `out`."""
+    """`maths.boltzmann` (eq. 2) of one Q-vector into `out`; returns the sum of its
+    exponentials (with `_log_policy`, the policy's logarithm without a logarithm per action)."""
     top = q[0]
     for a in range(1, q.size):
         if q[a] > top:
@@ -75,33 +76,49 @@ def _boltzmann(q, alpha, out):
         total += out[a]
     for a in range(q.size):
         out[a] = out[a] / total
+    return total
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _renormalised(p, out):
-    """p divided by its sum (as `policy._validate.prob_array` hands policies to `maths`)."""
+    """p divided by its sum (as `policy._validate.prob_array` hands policies to `maths`);
+    returns that sum."""
     total = 0.0
     for a in range(p.size):
         total += p[a]
     for a in range(p.size):
         out[a] = p[a] / total
+    return total
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _entropy(p):
-    """`maths.normalized_entropy` of the (renormalised) policy p, in [0, 1]; 0 for one action."""
+def _log_policy(q, alpha, log_shift, out):
+    """log of `_boltzmann(q, alpha)` renormalised once: (q - max q)/α minus `log_shift` (the log
+    of the exponentials' sum plus the log of the renormalising sum). Finite where the policy
+    underflowed to 0, and there never read: every sum below skips p = 0."""
+    top = q.max()
+    for a in range(q.size):
+        out[a] = (q[a] - top) / alpha - log_shift
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _entropy(p, log_p):
+    """`maths.normalized_entropy` of the (renormalised) policy p, in [0, 1]; 0 for one action.
+    Σ p log p with log p given (`_log_policy`): the same sum, one log per row, not per action."""
     if p.size == 1:
         return 0.0
     h = 0.0
     for a in range(p.size):
         if p[a] > 0:
-            h -= p[a] * math.log(p[a])
+            h -= p[a] * log_p[a]
     return min(max(h / math.log(p.size), 0.0), 1.0)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _kl_bits(p, m):
-    """`maths._kl_to_mixture_bits`: KL(p ‖ m) in bits (inf where m underflowed to 0)."""
+    """`maths._kl_to_mixture_bits`: KL(p ‖ m) in bits (inf where m underflowed to 0). The log of
+    the ratio, not a difference of logs: near a copy (p ≈ m) the difference cancels to its
+    rounding and the square root of eq. 10 magnifies it."""
     total = 0.0
     for a in range(p.size):
         if p[a] > 0:
@@ -212,22 +229,23 @@ def blend_rows(
                         raise FloatingPointError("a Q-value is NaN or infinite")
     partners_out[:] = 0.0
     # working memory, one block (an allocation costs more than a row's arithmetic)
-    work = np.empty((5 + n_slots) * n_actions)
+    work = np.empty((6 + n_slots) * n_actions)
     pi_task = work[:n_actions]
     p_task = work[n_actions : 2 * n_actions]  # the task policy as `maths` sees it (renormalised)
-    scratch = work[2 * n_actions : 3 * n_actions]
-    pi_impact = work[3 * n_actions : 4 * n_actions]
-    z_task = work[4 * n_actions : 5 * n_actions]
-    z_impact = work[5 * n_actions :].reshape((n_slots, n_actions))
+    log_p_task = work[2 * n_actions : 3 * n_actions]
+    scratch = work[3 * n_actions : 4 * n_actions]
+    pi_impact = work[4 * n_actions : 5 * n_actions]
+    z_task = work[5 * n_actions : 6 * n_actions]
+    z_impact = work[6 * n_actions :].reshape((n_slots, n_actions))
     for b in range(n_rows):
         q, weights, out = q_task[b], partners_out[b], q_out[b]
         active = 0
         for s in range(n_slots):
             if mask[b, s]:
                 active += 1
-        _boltzmann(q, alpha[b], pi_task)
-        _renormalised(pi_task, p_task)
-        entropy_out[b] = _entropy(p_task)
+        sums = _boltzmann(q, alpha[b], pi_task) * _renormalised(pi_task, p_task)
+        _log_policy(q, alpha[b], math.log(sums), log_p_task)
+        entropy_out[b] = _entropy(p_task, log_p_task)
         if method == SL:
             out[:] = q
             weight_out[b] = 1.0
@@ -245,12 +263,11 @@ def blend_rows(
             weight_out[b] = 1.0 / (1.0 + active)
             _boltzmann(out, alpha[b], probs_out[b])
             continue
-        # AAIL. Eq. 9 on the task policy renormalised once more (`maths.task_weight` checks
-        # the policy it is given); the task alone without an active partner
+        # AAIL. Eq. 9 on the task policy's normalised entropy (the reference renormalises the
+        # policy once more first, a change in the last bit); the task alone without a partner
         w_t = 1.0
         if active > 0 and n_actions > 1:
-            _renormalised(p_task, scratch)
-            w_t = 1.0 - float(n_actions) ** _entropy(scratch) / n_actions
+            w_t = 1.0 - float(n_actions) ** entropy_out[b] / n_actions
         weight_out[b] = w_t
         # eq. 10: the JS distance of the task policy to each active impact policy, then ŵ
         total = 0.0

@@ -274,8 +274,8 @@ class StackedQNet(nn.Module):
         last = len(self.weights) - 1
         for k, (w, b) in enumerate(zip(self.weights, self.biases, strict=True)):
             h = torch.baddbmm(b.unsqueeze(1), h, w.transpose(1, 2))
-            if k < last:
-                h = _activate(h, self.spec.activation)
+            if k < last:  # in place: autograd's backward of relu and tanh reads their output
+                h = h.relu_() if self.spec.activation == "relu" else h.tanh_()
         return h
 
     def _check_member(self, g: int) -> None:
