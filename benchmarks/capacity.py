@@ -1,9 +1,10 @@
 """Capacity: how many robots one server holds, each a REST session stepping at a fixed rate
 (`HZ`) with inferred partners (`PARTNER_GOALS`), within a step-latency bound (`P99_MS`) and
-without errors; and act throughput under concurrent load, one worker against two; and the same
-load against Ray Serve running the same maths, the anchor.
+without errors; and act throughput under concurrent load, one worker against two; the same
+robots on two replicas sharing their sessions, each robot's steps alternating between them;
+and the same load against Ray Serve running the same maths, the anchor.
 
-Run: `OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/capacity.py [--workers 1]
+Run: `OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/capacity.py [--workers 1 | --replicas 2]
 [--session-store redis://127.0.0.1:6379/0] [--sessions 10,20,40,60,80] [--duration 10]
 [--processes 2] [--throughput] [--servers coexist ray] [--alternations 2] [--method aail]
 [--ray-max-ongoing-requests N]` (needs `taskset`; `--throughput` needs `wrk`).
@@ -14,6 +15,11 @@ Run: `OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/capacity.py [--workers 
 |             | every particle network at the trainer's size (`session_scene.build_store`),   |
 |             | REST only; one worker pinned to CPU 0, two workers on both CPUs; sessions in  |
 |             | memory, or in the shared store of `--session-store` (required for W > 1)     |
+| replicas    | `--replicas R`: R such servers of one worker each, unpinned, on one model     |
+|             | store and one `--session-store` with one session secret (as the compose       |
+|             | file's replicas); a robot creates its session on the first and sends step k   |
+|             | to replica k mod R over its own connection to each: every step is served by a |
+|             | replica that did not serve the one before (R > 1)                             |
 | robots      | N sessions (5 agents, partners 1-4 inferred), each on its own keep-alive      |
 |             | connection, stepping a seeded episode (`session_scene.episode`, the partners' |
 |             | true actions in `observed`) on a fixed 10 Hz schedule from a random phase     |
@@ -89,7 +95,16 @@ CREATE = {
 
 
 # --- the server --------------------------------------------------------------------------------
-def start(store_url: str, port: int, workers: int, session_store: str | None) -> Any:
+def start(
+    store_url: str,
+    port: int,
+    workers: int,
+    session_store: str | None,
+    secret: str | None = None,
+    pin: bool = True,
+) -> Any:
+    """`coexist serve` (REST only) on `port`, ready; pinned to CPU 0 when it has one worker
+    and `pin`. Replicas share `secret`, the key that signs their shared session records."""
     env = {
         **os.environ,
         "COEXIST_DEV_MODE": "1",
@@ -99,10 +114,10 @@ def start(store_url: str, port: int, workers: int, session_store: str | None) ->
     }
     if session_store:
         env["COEXIST_SESSION_STORE_URL"] = session_store
-        env["COEXIST_SESSION_SECRET"] = os.urandom(24).hex()
-    pin = ["taskset", "-c", "0"] if workers == 1 else []
+        env["COEXIST_SESSION_SECRET"] = secret or os.urandom(24).hex()
+    taskset = ["taskset", "-c", "0"] if workers == 1 and pin else []
     command = [
-        *pin,
+        *taskset,
         str(ROOT / ".venv/bin/coexist"),
         "serve",
         "--no-bootstrap",
@@ -153,6 +168,7 @@ def redis_cpu_seconds(url: str | None) -> float:
 
 # --- the robots --------------------------------------------------------------------------------
 def _request(port: int, path: str, body: bytes) -> bytes:
+    """A keep-alive HTTP/1.1 POST of `body` to `path`, as bytes."""
     head = (
         f"POST {path} HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n"
         f"Content-Type: application/json\r\nContent-Length: {len(body)}\r\n\r\n"
@@ -172,16 +188,19 @@ async def _answer(reader: asyncio.StreamReader) -> tuple[int, bytes]:
 
 
 async def _robot(
-    port: int,
+    ports: list[int],
     create: bytes,
     bodies: list[bytes],
     start_at: float,
     until: float,
     out: dict[str, Any],
 ) -> None:
-    reader, writer = await asyncio.open_connection("127.0.0.1", port)
+    """One robot: its session created on `ports[0]`, step k sent to `ports[k % len(ports)]`,
+    one keep-alive connection to each."""
+    links = [await asyncio.open_connection("127.0.0.1", port) for port in ports]
     try:
-        writer.write(_request(port, "/v1/sessions", create))
+        reader, writer = links[0]
+        writer.write(_request(ports[0], "/v1/sessions", create))
         status, created = await _answer(reader)
         if status != 201:
             out["errors"] += 1
@@ -189,8 +208,8 @@ async def _robot(
         path = f"/v1/sessions/{json.loads(created)['session_id']}/steps"
         # step 0 brings no evidence (nothing was observed before it); the cycle's first body
         # (the episode's last actions, wrapped) only from its second round on
-        requests = [_request(port, path, b) for b in bodies]
-        first = _request(port, path, first_step(bodies))
+        requests = [[_request(port, path, b) for b in bodies] for port in ports]
+        first = _request(ports[0], path, first_step(bodies))
         k = 0
         loop = asyncio.get_running_loop()
         while True:
@@ -200,7 +219,8 @@ async def _robot(
             delay = due - loop.time()
             if delay > 0:
                 await asyncio.sleep(delay)
-            writer.write(requests[k % len(requests)] if k else first)
+            reader, writer = links[k % len(links)]
+            writer.write(requests[k % len(links)][k % len(bodies)] if k else first)
             status, _ = await _answer(reader)
             if due >= start_at + WARMUP_S:
                 out["latencies"].append(loop.time() - due)
@@ -211,7 +231,8 @@ async def _robot(
     except (OSError, asyncio.IncompleteReadError):
         out["errors"] += 1
     finally:
-        writer.close()
+        for _, writer in links:
+            writer.close()
 
 
 def first_step(bodies: list[bytes]) -> bytes:
@@ -220,7 +241,7 @@ def first_step(bodies: list[bytes]) -> bytes:
 
 
 def _robots(
-    port: int, create: bytes, n: int, duration: float, bodies: list[bytes], seed: int
+    ports: list[int], create: bytes, n: int, duration: float, bodies: list[bytes], seed: int
 ) -> dict[str, Any]:
     """One load process: `n` robots for `duration` s (after creating their sessions)."""
     import uvloop
@@ -232,7 +253,10 @@ def _robots(
         begin = loop.time() + 1.0  # every session created by then
         until = begin + WARMUP_S + duration
         await asyncio.gather(
-            *(_robot(port, create, bodies, begin + rng.random() / HZ, until, out) for _ in range(n))
+            *(
+                _robot(ports, create, bodies, begin + rng.random() / HZ, until, out)
+                for _ in range(n)
+            )
         )
         return out
 
@@ -240,26 +264,29 @@ def _robots(
 
 
 def hold(
-    port: int,
+    ports: list[int],
     create: bytes,
     n: int,
     duration: float,
     processes: int,
-    workers: int,
-    server_pid: int,
+    pinned: bool,
+    server_pids: list[int],
     session_store: str | None,
 ) -> dict[str, float]:
+    """`n` robots on `ports` for `duration` s from `processes` load processes (on CPU 1 when
+    the server is `pinned` to CPU 0): the level's latencies, errors and CPU per step."""
     obs_TD, act_TP = episode(N_AGENTS, 400, seed=3)
     bodies = step_bodies(obs_TD, act_TP, observed=True)
     shares = [n // processes + (k < n % processes) for k in range(processes)]
-    if workers == 1:  # the server has CPU 0: the load takes CPU 1
+    if pinned:  # the server has CPU 0: the load takes CPU 1
         os.sched_setaffinity(0, {1})
-    cpu_before, redis_before = cpu_seconds(server_pid), redis_cpu_seconds(session_store)
+    cpu_before = sum(cpu_seconds(pid) for pid in server_pids)
+    redis_before = redis_cpu_seconds(session_store)
     with multiprocessing.get_context("fork").Pool(processes) as pool:
         parts = pool.starmap(
-            _robots, [(port, create, s, duration, bodies, k) for k, s in enumerate(shares) if s]
+            _robots, [(ports, create, s, duration, bodies, k) for k, s in enumerate(shares) if s]
         )
-    server_cpu = cpu_seconds(server_pid) - cpu_before
+    server_cpu = sum(cpu_seconds(pid) for pid in server_pids) - cpu_before
     redis_cpu = redis_cpu_seconds(session_store) - redis_before
     os.sched_setaffinity(0, set(range(os.cpu_count() or 1)))
     latencies = np.concatenate([p["latencies"] for p in parts]) * 1e3
@@ -377,12 +404,19 @@ def run_server(kind: str, args: argparse.Namespace, url: str, tmp: Path) -> list
 
     create = dict(CREATE, **({"method": args.method} if args.method else {}))
     create_body = json.dumps(create).encode()
-    port = free_port()
+    ports = [free_port() for _ in range(1 if kind == "ray" else args.replicas)]
+    port = ports[0]
+    servers = []
     if kind == "ray":
         extra = (str(args.ray_max_ongoing_requests),) if args.ray_max_ongoing_requests else ()
-        server = start_alternative("ray", port, url, tmp / "ray.log", extra)
+        servers.append(start_alternative("ray", port, url, tmp / "ray.log", extra))
     else:
-        server = start(url, port, args.workers, args.session_store)
+        secret = os.urandom(24).hex()
+        pin = args.replicas == 1
+        for p in ports:
+            servers.append(start(url, p, args.workers, args.session_store, secret, pin))
+    server = servers[0]
+    pids = [s.pid for s in servers]
     rows = []
     try:
         if kind == "ray":
@@ -395,14 +429,13 @@ def run_server(kind: str, args: argparse.Namespace, url: str, tmp: Path) -> list
             rate = throughput(port, args.duration, args.rounds, tmp)
             print(f"{kind}: act c=32: {rate:.0f} req/s (median of {args.rounds} rounds)")
         counts = [int(c) for c in args.sessions.split(",") if c.strip()]  # "": none
-        workers = 1 if kind == "ray" else args.workers
+        workers = 1 if kind == "ray" else args.workers * len(ports)
+        pinned = workers == 1
         store = None if kind == "ray" else args.session_store
         if counts:  # every worker loads and stacks its networks first, untimed
-            hold(port, create_body, 4 * workers, 3.0, args.processes, workers, server.pid, None)
+            hold(ports, create_body, 4 * workers, 3.0, args.processes, pinned, pids, None)
         for n in counts:
-            r = hold(
-                port, create_body, n, args.duration, args.processes, workers, server.pid, store
-            )
+            r = hold(ports, create_body, n, args.duration, args.processes, pinned, pids, store)
             r["held"] = r["p99_ms"] <= P99_MS and not r["errors"] and r["done"] >= 0.95
             rows.append(r)
             print(
@@ -417,7 +450,8 @@ def run_server(kind: str, args: argparse.Namespace, url: str, tmp: Path) -> list
         if kind == "ray":
             stop_alternative(server)
         else:
-            stop(server)
+            for s in servers:
+                stop(s)
     return rows
 
 
@@ -458,6 +492,12 @@ def summary(ladders: dict[str, list[list[dict[str, Any]]]]) -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--workers", type=int, default=1)
+    parser.add_argument(
+        "--replicas",
+        type=int,
+        default=1,
+        help="servers sharing --session-store (each robot's steps alternate between them)",
+    )
     parser.add_argument("--session-store", default=None, help="Redis or PostgreSQL URL")
     parser.add_argument("--sessions", default="10,20,40,60,80,100")
     parser.add_argument("--duration", type=float, default=10.0)
@@ -477,10 +517,16 @@ def main() -> None:
         help="the Ray Serve deployment's max_ongoing_requests (default: Serve's)",
     )
     args = parser.parse_args()
-    if args.workers > 1 and not args.session_store:
-        raise SystemExit("--workers > 1 needs --session-store (sessions shared by the workers)")
+    if args.workers < 1 or args.replicas < 1:
+        raise SystemExit("--workers and --replicas: at least 1")
+    if (args.workers > 1 or args.replicas > 1) and not args.session_store:
+        raise SystemExit(
+            "--workers > 1 or --replicas > 1 needs --session-store (sessions shared by them)"
+        )
+    if args.replicas > 1 and args.throughput:
+        raise SystemExit("--throughput: one server (its workers); not with --replicas")
     if "ray" in args.servers:
-        if args.workers != 1 or args.session_store:
+        if args.workers != 1 or args.replicas != 1 or args.session_store:
             raise SystemExit("--servers ray: one worker, sessions in memory (as Ray's replica)")
         if args.method not in (None, "aail"):
             raise SystemExit("--servers ray: method aail only (the numpy sessions' method)")
@@ -492,7 +538,8 @@ def main() -> None:
         size = build_store(url)
         store = args.session_store.split("://")[0] if args.session_store else "memory"
         print(
-            f"networks {size}; {args.workers} worker(s); sessions in {store}; "
+            f"networks {size}; {args.replicas} replica(s) of {args.workers} worker(s); "
+            f"sessions in {store}; "
             f"method {args.method or 'the server default'}"
         )
         print(
