@@ -1,13 +1,14 @@
 """Capacity: how many robots one server holds, each a REST session stepping at a fixed rate
 (`HZ`) with inferred partners (`PARTNER_GOALS`), within a step-latency bound (`P99_MS`) and
 without errors; and act throughput under concurrent load, one worker against two; the same
-robots on two replicas sharing their sessions, each robot's steps alternating between them;
-and the same load against Ray Serve running the same maths, the anchor.
+robots on two replicas sharing their sessions, each robot's steps alternating between them
+(or each robot kept to one); and the same load against Ray Serve running the same maths, the
+anchor.
 
-Run: `OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/capacity.py [--workers 1 | --replicas 2]
-[--session-store redis://127.0.0.1:6379/0] [--sessions 10,20,40,60,80] [--duration 10]
-[--processes 2] [--throughput] [--servers coexist ray] [--alternations 2] [--method aail]
-[--ray-max-ongoing-requests N]` (needs `taskset`; `--throughput` needs `wrk`).
+Run: `OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/capacity.py [--workers 1]
+[--replicas 2 [--sticky]] [--session-store redis://127.0.0.1:6379/0] [--sessions 10,20,40,60,80]
+[--duration 10] [--processes 2] [--throughput] [--servers coexist ray] [--alternations 2]
+[--method aail] [--ray-max-ongoing-requests N]` (needs `taskset`; `--throughput` needs `wrk`).
 
 | part        | what                                                                         |
 |-------------|------------------------------------------------------------------------------|
@@ -19,7 +20,8 @@ Run: `OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/capacity.py [--workers 
 |             | store and one `--session-store` with one session secret (as the compose       |
 |             | file's replicas); a robot creates its session on the first and sends step k   |
 |             | to replica k mod R over its own connection to each: every step is served by a |
-|             | replica that did not serve the one before (R > 1)                             |
+|             | replica that did not serve the one before (R > 1). `--sticky`: robot i keeps  |
+|             | to replica i mod R (as Envoy routes a session), the figure to plan with       |
 | robots      | N sessions (5 agents, partners 1-4 inferred), each on its own keep-alive      |
 |             | connection, stepping a seeded episode (`session_scene.episode`, the partners' |
 |             | true actions in `observed`) on a fixed 10 Hz schedule from a random phase     |
@@ -241,9 +243,10 @@ def first_step(bodies: list[bytes]) -> bytes:
 
 
 def _robots(
-    ports: list[int], create: bytes, n: int, duration: float, bodies: list[bytes], seed: int
+    routes: list[list[int]], create: bytes, duration: float, bodies: list[bytes], seed: int
 ) -> dict[str, Any]:
-    """One load process: `n` robots for `duration` s (after creating their sessions)."""
+    """One load process: a robot per route (the ports its steps go to, in turn) for `duration`
+    s (after creating their sessions)."""
     import uvloop
 
     async def run() -> dict[str, Any]:
@@ -255,7 +258,7 @@ def _robots(
         await asyncio.gather(
             *(
                 _robot(ports, create, bodies, begin + rng.random() / HZ, until, out)
-                for _ in range(n)
+                for ports in routes
             )
         )
         return out
@@ -272,19 +275,28 @@ def hold(
     pinned: bool,
     server_pids: list[int],
     session_store: str | None,
+    sticky: bool = False,
 ) -> dict[str, float]:
     """`n` robots on `ports` for `duration` s from `processes` load processes (on CPU 1 when
-    the server is `pinned` to CPU 0): the level's latencies, errors and CPU per step."""
+    the server is `pinned` to CPU 0): the level's latencies, errors and CPU per step. Each
+    robot's steps go to every port in turn, or (`sticky`) robot i's to port i mod len(ports)."""
     obs_TD, act_TP = episode(N_AGENTS, 400, seed=3)
     bodies = step_bodies(obs_TD, act_TP, observed=True)
+    routes = [[ports[i % len(ports)]] if sticky else ports for i in range(n)]
     shares = [n // processes + (k < n % processes) for k in range(processes)]
+    starts = [sum(shares[:k]) for k in range(processes)]
     if pinned:  # the server has CPU 0: the load takes CPU 1
         os.sched_setaffinity(0, {1})
     cpu_before = sum(cpu_seconds(pid) for pid in server_pids)
     redis_before = redis_cpu_seconds(session_store)
     with multiprocessing.get_context("fork").Pool(processes) as pool:
         parts = pool.starmap(
-            _robots, [(ports, create, s, duration, bodies, k) for k, s in enumerate(shares) if s]
+            _robots,
+            [
+                (routes[start : start + s], create, duration, bodies, k)
+                for k, (start, s) in enumerate(zip(starts, shares, strict=True))
+                if s
+            ],
         )
     server_cpu = sum(cpu_seconds(pid) for pid in server_pids) - cpu_before
     redis_cpu = redis_cpu_seconds(session_store) - redis_before
@@ -435,7 +447,17 @@ def run_server(kind: str, args: argparse.Namespace, url: str, tmp: Path) -> list
         if counts:  # every worker loads and stacks its networks first, untimed
             hold(ports, create_body, 4 * workers, 3.0, args.processes, pinned, pids, None)
         for n in counts:
-            r = hold(ports, create_body, n, args.duration, args.processes, pinned, pids, store)
+            r = hold(
+                ports,
+                create_body,
+                n,
+                args.duration,
+                args.processes,
+                pinned,
+                pids,
+                store,
+                args.sticky,
+            )
             r["held"] = r["p99_ms"] <= P99_MS and not r["errors"] and r["done"] >= 0.95
             rows.append(r)
             print(
@@ -498,6 +520,9 @@ def main() -> None:
         default=1,
         help="servers sharing --session-store (each robot's steps alternate between them)",
     )
+    parser.add_argument(
+        "--sticky", action="store_true", help="with --replicas: robot i keeps to replica i mod R"
+    )
     parser.add_argument("--session-store", default=None, help="Redis or PostgreSQL URL")
     parser.add_argument("--sessions", default="10,20,40,60,80,100")
     parser.add_argument("--duration", type=float, default=10.0)
@@ -523,6 +548,8 @@ def main() -> None:
         raise SystemExit(
             "--workers > 1 or --replicas > 1 needs --session-store (sessions shared by them)"
         )
+    if args.sticky and args.replicas == 1:
+        raise SystemExit("--sticky: with --replicas > 1 only")
     if args.replicas > 1 and args.throughput:
         raise SystemExit("--throughput: one server (its workers); not with --replicas")
     if "ray" in args.servers:
@@ -538,7 +565,8 @@ def main() -> None:
         size = build_store(url)
         store = args.session_store.split("://")[0] if args.session_store else "memory"
         print(
-            f"networks {size}; {args.replicas} replica(s) of {args.workers} worker(s); "
+            f"networks {size}; {args.replicas} replica(s) of {args.workers} worker(s)"
+            f"{', sticky' if args.sticky else ''}; "
             f"sessions in {store}; "
             f"method {args.method or 'the server default'}"
         )

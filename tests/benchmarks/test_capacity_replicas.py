@@ -1,7 +1,8 @@
 """benchmarks/capacity.py with `--replicas 2`: two `coexist serve` processes on one model store
 and one Redis session store, every robot's steps alternating between them. A step that reached
 a replica without the session would be a 404 and count as an error; the level must have none
-and (nearly) every scheduled step done. Also the flags it refuses."""
+and (nearly) every scheduled step done. The same with `--sticky` (each robot kept to one
+replica, the robots spread over both). Also the flags it refuses."""
 
 from __future__ import annotations
 
@@ -32,20 +33,23 @@ def _rows(out: str) -> list[list[str]]:
 
 @pytest.mark.slow
 @pytest.mark.redis
-def test_two_replicas_serve_every_robot_step_by_step() -> None:
+@pytest.mark.parametrize("sticky", [False, True], ids=["alternating", "sticky"])
+def test_two_replicas_serve_every_robot_step_by_step(sticky: bool) -> None:
     with redis_url() as url:
         done = subprocess.run(
             [
                 *CAPACITY,
                 *("--replicas", "2", "--session-store", url),
                 *("--sessions", "3", "--duration", "2", "--processes", "1"),
+                *(["--sticky"] if sticky else []),
             ],
             capture_output=True,
             text=True,
             timeout=600,
         )
     assert done.returncode == 0, done.stderr[-2000:]
-    assert "2 replica(s) of 1 worker(s); sessions in redis" in done.stdout
+    said = "2 replica(s) of 1 worker(s)" + (", sticky" if sticky else "") + "; sessions in redis"
+    assert said in done.stdout
     (row,) = [r for r in _rows(done.stdout) if r[1] == "3"]
     sessions, steps, errors = int(row[1]), int(row[2]), int(row[6])
     assert errors == 0, row
@@ -62,6 +66,7 @@ def test_two_replicas_serve_every_robot_step_by_step() -> None:
             "not with --replicas",
         ),
         (["--replicas", "2", "--session-store", "redis://x", "--servers", "ray"], "one worker"),
+        (["--sticky"], "with --replicas > 1 only"),
     ],
 )
 def test_replicas_flags_refused_by_name(flags: list[str], said: str) -> None:
