@@ -571,7 +571,7 @@ def main() -> None:
             f"method {args.method or 'the server default'}"
         )
         print(
-            "\n| server | sessions | steps | done | p50 ms | p99 ms | errors | "
+            "\n| server | sessions | steps | done | median step, ms | 99th percentile, ms | errors | "
             "server CPU ms/step | Redis CPU ms/step | held |"
         )
         print("|---|---|---|---|---|---|---|---|---|---|")
