@@ -27,6 +27,8 @@ import math
 import numpy as np
 from numba import njit, types
 
+from policy.kernel_maths import LOG2_E, exp, log
+
 SL, NAIL, AAIL = 0, 1, 2  # `blend_rows`' method codes (aail_bounded is AAIL with `bounded`)
 FLAT_STD_RTOL = 1e-12  # policy.blend.FLAT_STD_RTOL
 
@@ -65,16 +67,23 @@ _BLEND_SIGNATURE = types.void(
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _largest(v):
+    """The largest entry of a non-empty vector (a loop: the array method would take a
+    reference to v, an atomic operation, on every row)."""
+    top = v[0]
+    for a in range(1, v.size):
+        top = max(top, v[a])
+    return top
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _boltzmann(q, alpha, out):
     """`maths.boltzmann` (eq. 2) of one Q-vector into `out`; returns the sum of its
     exponentials (with `_log_policy`, the policy's logarithm without a logarithm per action)."""
-    top = q[0]
-    for a in range(1, q.size):
-        if q[a] > top:
-            top = q[a]
+    top = _largest(q)
     total = 0.0
     for a in range(q.size):
-        out[a] = math.exp((q[a] - top) / alpha)
+        out[a] = exp((q[a] - top) / alpha)
         total += out[a]
     for a in range(q.size):
         out[a] = out[a] / total
@@ -98,7 +107,7 @@ def _log_policy(q, alpha, log_shift, out):
     """log of `_boltzmann(q, alpha)` renormalised once: (q - max q)/α minus `log_shift` (the log
     of the exponentials' sum plus the log of the renormalising sum). Finite where the policy
     underflowed to 0, and there never read: every sum below skips p = 0."""
-    top = q.max()
+    top = _largest(q)
     for a in range(q.size):
         out[a] = (q[a] - top) / alpha - log_shift
 
@@ -117,24 +126,64 @@ def _entropy(p, log_p):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _kl_bits(p, m):
-    """`maths._kl_to_mixture_bits`: KL(p ‖ m) in bits (inf where m underflowed to 0). The log of
-    the ratio, not a difference of logs: near a copy (p ≈ m) the difference cancels to its
-    rounding and the square root of eq. 10 magnifies it."""
-    total = 0.0
-    for a in range(p.size):
-        if p[a] > 0:
-            total += p[a] * math.log2(p[a] / m[a])
-    return total
+def _impact_policies(q_impact, b, mask, alpha, out):
+    """The renormalised Boltzmann policy (eq. 2) of each active partner slot s of row b, into
+    out[s A : (s + 1) A] (an inactive slot's: uniform, never read). As `_boltzmann` then
+    `_renormalised` per slot, but with every exponential in one loop over the block, which
+    LLVM vectorises (`policy.kernel_maths`)."""
+    n_slots, n_actions = q_impact.shape[1], q_impact.shape[2]
+    for s in range(n_slots):
+        row = s * n_actions
+        if mask[b, s]:
+            top = q_impact[b, s, 0]
+            for a in range(1, n_actions):
+                top = max(top, q_impact[b, s, a])
+            for a in range(n_actions):
+                out[row + a] = (q_impact[b, s, a] - top) / alpha
+        else:
+            for a in range(n_actions):
+                out[row + a] = 0.0
+    for i in range(n_slots * n_actions):
+        out[i] = exp(out[i])
+    for s in range(n_slots):
+        row = s * n_actions
+        for _ in range(2):  # divided by the sum, then renormalised as `maths` sees a policy
+            total = 0.0
+            for a in range(n_actions):
+                total += out[row + a]
+            for a in range(n_actions):
+                out[row + a] = out[row + a] / total
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _js_distance(p, q, m):
-    """`maths.js_distance` (eq. 10) of two renormalised policies; `m` is scratch."""
-    for a in range(p.size):
-        m[a] = 0.5 * (p[a] + q[a])
-    divergence = 0.5 * _kl_bits(p, m) + 0.5 * _kl_bits(q, m)
-    return math.sqrt(min(max(divergence, 0.0), 1.0))
+def _js_distances(p, pi_impact, b, mask, log_ratios, distances):
+    """`maths.js_distance` (eq. 10) of the task policy p to each active slot's policy in
+    `pi_impact` (`_impact_policies`' layout), into `distances` (P,) (0 for inactive slots);
+    `log_ratios` (2 P A) is scratch. KL(x ‖ m) in bits is Σ x log2(x / m) over x > 0 (inf where
+    m underflowed to 0): the log of the ratio, not a difference of logs, since near a copy
+    (x ≈ m) the difference cancels to its rounding and the square root of eq. 10 magnifies
+    it. The ratios of every slot are formed first and their logarithms taken in one loop over
+    the block (vectorised); a term with x = 0 has ratio 1, so adds 0."""
+    n_actions = p.size
+    n_slots = distances.size
+    for s in range(n_slots):
+        for a in range(n_actions):
+            x = pi_impact[s * n_actions + a]
+            m = 0.5 * (p[a] + x)
+            log_ratios[2 * s * n_actions + a] = p[a] / m if p[a] > 0 else 1.0
+            log_ratios[(2 * s + 1) * n_actions + a] = x / m if x > 0 else 1.0
+    for i in range(2 * n_slots * n_actions):
+        log_ratios[i] = log(log_ratios[i])
+    for s in range(n_slots):
+        distances[s] = 0.0
+        if mask[b, s]:
+            to_task = 0.0  # KL(p ‖ m), in nats
+            to_impact = 0.0  # KL(π_s ‖ m)
+            for a in range(n_actions):
+                to_task += p[a] * log_ratios[2 * s * n_actions + a]
+                to_impact += pi_impact[s * n_actions + a] * log_ratios[(2 * s + 1) * n_actions + a]
+            divergence = (0.5 * to_task + 0.5 * to_impact) * LOG2_E
+            distances[s] = math.sqrt(min(max(divergence, 0.0), 1.0))
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -157,7 +206,8 @@ def _standardise(q, z):
         squares += z[a] * z[a]
     std = math.sqrt(squares / n)
     if std <= FLAT_STD_RTOL:
-        z[:] = 0.0
+        for a in range(n):
+            z[a] = 0.0
         return 0.0
     for a in range(n):
         z[a] = z[a] / std
@@ -169,7 +219,7 @@ def _bound(probs, q_task, pi_task, epsilon):
     """Eq. R1 (`regret_bound.bound_rows`) of one row, in place: the actions within ε of the
     task's best share the task policy's mass on them as the blend says, every other action
     keeps its task probability; the task policy itself where the blend puts nothing on them."""
-    lowest = q_task.max() - epsilon
+    lowest = _largest(q_task) - epsilon
     task_mass = 0.0
     blend_mass = 0.0
     for a in range(q_task.size):
@@ -231,14 +281,15 @@ def blend_rows(
                         raise FloatingPointError("a Q-value is NaN or infinite")
     partners_out[:] = 0.0
     # working memory, one block (an allocation costs more than a row's arithmetic)
-    work = np.empty((6 + n_slots) * n_actions)
+    work = np.empty((4 + 4 * n_slots) * n_actions)
     pi_task = work[:n_actions]
     p_task = work[n_actions : 2 * n_actions]  # the task policy as `maths` sees it (renormalised)
     log_p_task = work[2 * n_actions : 3 * n_actions]
-    scratch = work[3 * n_actions : 4 * n_actions]
-    pi_impact = work[4 * n_actions : 5 * n_actions]
-    z_task = work[5 * n_actions : 6 * n_actions]
-    z_impact = work[6 * n_actions :].reshape((n_slots, n_actions))
+    z_task = work[3 * n_actions : 4 * n_actions]
+    block = n_slots * n_actions
+    pi_impact = work[4 * n_actions : 4 * n_actions + block]  # slot s at [s A, (s + 1) A)
+    log_ratios = work[4 * n_actions + block : 4 * n_actions + 3 * block]
+    z_impact = work[4 * n_actions + 3 * block :].reshape((n_slots, n_actions))
     for b in range(n_rows):
         q, weights, out = q_task[b], partners_out[b], q_out[b]
         active = 0
@@ -272,13 +323,11 @@ def blend_rows(
             w_t = 1.0 - float(n_actions) ** entropy_out[b] / n_actions
         weight_out[b] = w_t
         # eq. 10: the JS distance of the task policy to each active impact policy, then ŵ
+        _impact_policies(q_impact, b, mask, alpha[b], pi_impact)
+        _js_distances(p_task, pi_impact, b, mask, log_ratios, weights)
         total = 0.0
         for s in range(n_slots):
-            if mask[b, s]:
-                _boltzmann(q_impact[b, s], alpha[b], scratch)
-                _renormalised(scratch, pi_impact)
-                weights[s] = _js_distance(p_task, pi_impact, scratch)
-                total += weights[s]
+            total += weights[s]
         for s in range(n_slots):
             if total > 0:
                 weights[s] = weights[s] / total
