@@ -92,8 +92,10 @@ class EnvTrainer(Protocol):
         *,
         seed: int,
         progress: ProgressFn | None,
+        ego_task_nets: StackedQNet | None = None,
     ) -> TrainedBatch:
-        """The joint-learner baseline; ValueError(`no_joint_reason`) where there is none: the
+        """The joint-learner baseline, gated against `ego_task_nets` (each combination's ego's
+        task network) where given; ValueError(`no_joint_reason`) where there is none: the
         default, which a trainer without the baseline inherits by subclassing `EnvTrainer`."""
         raise ValueError(self.no_joint_reason)
 

@@ -60,12 +60,20 @@ def train_joint(
     *,
     seed: int,
     progress: ProgressFn | None = None,
+    ego_task_nets: StackedQNet | None = None,
 ) -> TrainedBatch:
     """JL networks, one per (ego goal, partner goals...) combination, on the team reward.
 
-    `partner_task_nets[k]` stacks, for every combination, the task net of its k-th partner."""
+    `partner_task_nets[k]` stacks, for every combination, the task net of its k-th partner;
+    with `ego_task_nets` (every combination's ego's task net) each network is gated against
+    it (`trainer.particle.gates.joint_gates`), else it has no gate."""
     return env_trainer(config.env_name()).train_joint(
-        combos, partner_task_nets, config, seed=seed, progress=progress
+        combos,
+        partner_task_nets,
+        config,
+        seed=seed,
+        progress=progress,
+        ego_task_nets=ego_task_nets,
     )
 
 

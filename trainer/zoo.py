@@ -17,7 +17,7 @@ import hashlib
 import json
 import logging
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Literal
 
@@ -317,24 +317,58 @@ def run_joint(
     run: RunState,
     progress: ProgressFactory,
     env: str = "particle",
+    gate_retries: int = GATE_RETRIES,
 ) -> list[TrainedBatch]:
-    """JL networks; combinations with the same number of agents train together."""
+    """JL networks; combinations with the same number of agents train together, each gated
+    against its ego's task network. The combinations that failed train again, alone of their
+    size, with a fresh seed and twice the steps of their last attempt, up to `gate_retries`
+    times (`JointConfig`); each attempt registers its networks, `production` only where
+    passed."""
     batches = []
     for size, group in combos_by_size(combos):
-        key = "joint:" + ";".join("+".join(c) for c in group)
-        if key in run.done:
-            continue
-        partner_nets, parents = load_partner_nets(store, env, group)
-        batch = train_joint(
-            group,
-            partner_nets,
-            config,
-            seed=seed + JOINT_SEED_OFFSET + size,
-            progress=progress(f"joint {size} agents", config.total_steps),
-        )
-        run.record(key, publish_batch(store, batch, env=env, parents=parents))
-        batches.append(batch)
+        left, steps = list(group), config.total_steps
+        for attempt in range(gate_retries + 1):
+            name = "joint" if attempt == 0 else f"joint-retry-{attempt}"
+            key = f"{name}:" + ";".join("+".join(c) for c in left)
+            if key in run.done:  # resumed: this attempt was trained and registered
+                left = joint_without(store, env, left, "production")
+                if not left:
+                    break
+                steps *= 2
+                continue
+            partner_nets, parents = load_partner_nets(store, env, left)
+            ego_nets, _ = load_task_nets(store, env, [c[0] for c in left])
+            attempt_config = replace(config, total_steps=steps)
+            batch = train_joint(
+                left,
+                partner_nets,
+                attempt_config,
+                seed=seed + JOINT_SEED_OFFSET + size + RETRY_SEED_STEP * attempt,
+                progress=progress(f"{name} {size} agents", steps),
+                ego_task_nets=ego_nets,
+            )
+            run.record(key, publish_batch(store, batch, env=env, parents=parents))
+            batches.append(batch)
+            left = [c for g, c in enumerate(left) if batch.gate_passed(g) is False]
+            if not left:
+                break
+            steps *= 2
     return batches
+
+
+def joint_without(
+    store: ModelStore, env: str, combos: Sequence[tuple[str, ...]], alias: str
+) -> list[tuple[str, ...]]:
+    """Combinations whose joint network has no version under `alias`."""
+    from model_store.naming import joint_model_name
+
+    left = []
+    for combo in combos:
+        try:
+            store.resolve(f"{joint_model_name(env, combo[0], combo[1:])}@{alias}")
+        except NotFound:
+            left.append(combo)
+    return left
 
 
 def production_parents_required(env: str) -> bool:

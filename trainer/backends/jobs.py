@@ -208,7 +208,14 @@ def train_batch(
             batch = train_impacts(goals, partner_nets, cast(ImpactConfig, config), seed=job.seed)
         else:
             slot_nets, parents = load_partner_nets(store, env, job.members)
-            batch = train_joint(job.members, slot_nets, cast(JointConfig, config), seed=job.seed)
+            ego_nets, _ = load_task_nets(store, env, [m[0] for m in job.members])
+            batch = train_joint(
+                job.members,
+                slot_nets,
+                cast(JointConfig, config),
+                seed=job.seed,
+                ego_task_nets=ego_nets,
+            )
         registered = publish_once(
             store,
             store_url,

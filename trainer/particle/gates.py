@@ -24,6 +24,15 @@ Impact gate (per partner goal h), two checks that must both pass:
 - directions (`trainer.particle.directions`): from states spread over the world, the network's
   preferred push must raise the partner's value where that value says a push helps, and no push
   it clearly needs may be dead. Episodes alone passed networks that never pushed left or down.
+
+Joint gate (per goal combination: the JL baseline), on seeded random starts, every partner
+acting with its own task network at α (as the JL trained beside them), run twice on the same
+starts: the JL network as the ego, then the ego's own task network (SL, what coexist serves
+without partners). Sampled at α both, with the partners' actions drawn from one generator
+seeded alike. Passed when the JL ego reaches its own target in at least SL's share of episodes
+less `success_slack`, and the team return (Σ over agents) is within max(`return_margin` ×
+|SL's|, `return_slack`) of SL's or above: a JL that does not earn the team what SL earns it has
+not learned the team's reward.
 """
 
 from __future__ import annotations
@@ -42,7 +51,8 @@ from envs.particle.scripted import scripted_actions
 from envs.particle.world import box_distance, in_target, observations, random_states
 from policy.qnet import StackedQNet
 from policy.torch_ops import sample_boltzmann_t
-from trainer.config import ImpactConfig, TaskConfig
+from trainer.config import ImpactConfig, JointConfig, TaskConfig
+from trainer.frozen import FrozenTaskNets
 from trainer.particle.directions import dead_pushes, direction_checks
 
 # (state_BN4, obs_BND) -> actions_BN
@@ -94,6 +104,28 @@ class ImpactGate:
             f"{self.toward_share:.0%} toward{dead}",
             f"{self.partner_return:.2f} (partner)",
             f"{self.partner_return_resting_ego:.2f} (resting ego)",
+        ]
+
+
+@dataclass(frozen=True)
+class JointGate:
+    goal: str  # the combination, "ego+partner+..."
+    success_rate: float  # the JL ego reached its own target
+    sl_success_rate: float  # the ego's own task network did, on the same starts
+    team_return: float  # mean Σ over agents, JL ego
+    sl_team_return: float
+    passed: bool
+    FAILURE_NOTE: ClassVar[str] = ""
+
+    def metrics(self) -> dict[str, Any]:
+        return asdict(self)
+
+    def summary_cells(self) -> list[str]:
+        """Success rate against SL's, team return, SL's team return."""
+        return [
+            f"{self.success_rate:.0%} (SL {self.sl_success_rate:.0%})",
+            f"{self.team_return:.2f} (team)",
+            f"{self.sl_team_return:.2f} (team, SL)",
         ]
 
 
@@ -259,6 +291,79 @@ def impact_gates(
                 toward_share=check.toward_share,
                 push_recall=check.push_recall,
                 dead_pushes=tuple(dead_pushes(check, config)),
+            )
+        )
+    return gates
+
+
+def joint_gates(
+    joint_nets: StackedQNet,
+    combos: Sequence[Sequence[int]],
+    ego_task_nets: StackedQNet,
+    partner_task_nets: Sequence[StackedQNet],
+    config: JointConfig,
+    seed: int,
+) -> list[JointGate]:
+    """Does each JL network (member c learned combos[c]) earn its team what the ego's own task
+    network (member c of `ego_task_nets`) earns it, and reach its own target as often (module
+    docstring)? `partner_task_nets[k]` stacks the task network of every combination's k-th
+    partner, as the JL trained beside them."""
+    n_combos, n_eps, n_agents = len(combos), config.eval_episodes, len(combos[0])
+    rng = np.random.default_rng(seed)
+    goals_BN = np.repeat(np.asarray(combos), n_eps, axis=0)
+    starts = random_states(rng, (n_combos * n_eps,), n_agents)
+    world = BatchedParticleWorld(goals_BN, max_steps=config.eval_steps + 1, seed=seed)
+
+    def task_views(nets: FrozenTaskNets, obs_BD: np.ndarray) -> np.ndarray:
+        views = PARTICLE.task_views(obs_BD, n_agents)  # (B, K, D): Q averaged over K, as served
+        return nets.act(views.reshape(n_combos, n_eps, *views.shape[1:])).reshape(-1)
+
+    def make_policy(joint: bool) -> EgoPolicy:
+        generator = torch.Generator().manual_seed(seed)
+        ego_generator = torch.Generator().manual_seed(seed + 1)
+        partners = [FrozenTaskNets(n, config.alpha, generator) for n in partner_task_nets]
+        own = FrozenTaskNets(ego_task_nets, config.alpha, ego_generator)
+
+        def policy(state_BN4: np.ndarray, obs_BND: np.ndarray) -> np.ndarray:
+            if joint:
+                q = _grouped_q(joint_nets, obs_BND[:, 0], n_combos)
+                ego = sample_boltzmann_t(q, config.alpha, ego_generator).numpy().reshape(-1)
+            else:
+                ego = task_views(own, obs_BND[:, 0])
+            columns = [ego] + [task_views(p, obs_BND[:, k]) for k, p in enumerate(partners, 1)]
+            return np.stack(columns, axis=1)
+
+        return policy
+
+    def run(joint: bool) -> tuple[np.ndarray, np.ndarray]:
+        """Per episode: the team return and whether the ego reached its target."""
+        world.reset(starts.copy())
+        policy = make_policy(joint)
+        team_B = np.zeros(len(goals_BN))
+        reached_B = np.zeros(len(goals_BN), dtype=bool)
+        for _ in range(config.eval_steps):
+            result = world.step(policy(world.state, observations(world.state)))
+            team_B += result.rewards_BN.sum(axis=1)
+            reached_B |= in_target(world.state, goals_BN)[:, 0]
+        return team_B, reached_B
+
+    team, reached = run(joint=True)
+    sl_team, sl_reached = run(joint=False)
+    gates = []
+    for c, combo in enumerate(combos):
+        part = slice(c * n_eps, (c + 1) * n_eps)
+        success, sl_success = reached[part].mean(), sl_reached[part].mean()
+        mean, sl_mean = team[part].mean(), sl_team[part].mean()
+        allowed = max(config.return_margin * abs(sl_mean), config.return_slack)
+        passed = success >= sl_success - config.success_slack and mean >= sl_mean - allowed
+        gates.append(
+            JointGate(
+                goal="+".join(GOAL_IDS[g] for g in combo),
+                success_rate=float(success),
+                sl_success_rate=float(sl_success),
+                team_return=float(mean),
+                sl_team_return=float(sl_mean),
+                passed=bool(passed),
             )
         )
     return gates

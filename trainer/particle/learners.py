@@ -14,7 +14,7 @@ from policy.qnet import StackedQNet
 from trainer.config import ImpactConfig, JointConfig, TaskConfig
 from trainer.learners import TrainedBatch
 from trainer.loop import ProgressFn, train_soft_q
-from trainer.particle.gates import impact_gates, task_gates
+from trainer.particle.gates import impact_gates, joint_gates, task_gates
 from trainer.particle.rollouts import (
     ParticleImpactRollout,
     ParticleJointRollout,
@@ -86,13 +86,27 @@ class ParticleTrainer:
         *,
         seed: int,
         progress: ProgressFn | None,
+        ego_task_nets: StackedQNet | None = None,
     ) -> TrainedBatch:
-        rollout = ParticleJointRollout(
-            [_indices(c) for c in combos], partner_task_nets, config, seed
-        )
+        indices = [_indices(c) for c in combos]
+        rollout = ParticleJointRollout(indices, partner_task_nets, config, seed)
         learner, curves = train_soft_q(rollout, config, seed=seed, progress=progress)
+        gates = (
+            joint_gates(
+                learner.online,
+                indices,
+                ego_task_nets,
+                partner_task_nets,
+                config,
+                seed + GATE_SEED_OFFSET,
+            )
+            if ego_task_nets is not None
+            else []
+        )
         members: list[tuple[str, ...]] = [tuple(c) for c in combos]
-        return TrainedBatch("joint", members, learner.online, learner.spec, config, seed, curves)
+        return TrainedBatch(
+            "joint", members, learner.online, learner.spec, config, seed, curves, gates
+        )
 
     def print_gates(self, batches: Sequence[TrainedBatch], console: Any = None) -> None:
         """Nothing: the summary table shows every number of the particle gates."""
