@@ -29,10 +29,11 @@ Joint gate (per goal combination: the JL baseline), on seeded random starts, eve
 acting with its own task network at α (as the JL trained beside them), run twice on the same
 starts: the JL network as the ego, then the ego's own task network (SL, what coexist serves
 without partners). Sampled at α both, with the partners' actions drawn from one generator
-seeded alike. Passed when the JL ego reaches its own target in at least SL's share of episodes
-less `success_slack`, and the team return (Σ over agents) is within max(`return_margin` ×
-|SL's|, `return_slack`) of SL's or above: a JL that does not earn the team what SL earns it has
-not learned the team's reward.
+seeded alike. Passed when the team return (Σ over agents), what the JL learns, is within
+max(`return_margin` × |SL's|, `return_slack`) of SL's or above: a JL that does not earn the
+team what SL earns it has not learned the team's reward. How often its ego reaches its own
+target is reported beside SL's, not gated: where the partners gain more from the ego than it
+loses, the team's reward pays the ego to give up its own target, and a JL that learned it does.
 """
 
 from __future__ import annotations
@@ -305,8 +306,7 @@ def joint_gates(
     seed: int,
 ) -> list[JointGate]:
     """Does each JL network (member c learned combos[c]) earn its team what the ego's own task
-    network (member c of `ego_task_nets`) earns it, and reach its own target as often (module
-    docstring)? `partner_task_nets[k]` stacks the task network of every combination's k-th
+    network (member c of `ego_task_nets`) earns it (module docstring)? `partner_task_nets[k]` stacks the task network of every combination's k-th
     partner, as the JL trained beside them."""
     n_combos, n_eps, n_agents = len(combos), config.eval_episodes, len(combos[0])
     rng = np.random.default_rng(seed)
@@ -355,7 +355,7 @@ def joint_gates(
         success, sl_success = reached[part].mean(), sl_reached[part].mean()
         mean, sl_mean = team[part].mean(), sl_team[part].mean()
         allowed = max(config.return_margin * abs(sl_mean), config.return_slack)
-        passed = success >= sl_success - config.success_slack and mean >= sl_mean - allowed
+        passed = mean >= sl_mean - allowed
         gates.append(
             JointGate(
                 goal="+".join(GOAL_IDS[g] for g in combo),

@@ -66,16 +66,13 @@ def test_a_joint_network_that_acts_as_the_egos_task_network_passes_with_the_same
 
 def test_the_gate_compares_the_team_return_within_the_stated_margin() -> None:
     """A JL that only rests is judged by the same rule: passed exactly when its team return is
-    within max(margin x |SL's|, slack) of SL's and its ego reaches its target as often, less the
-    slack, whatever the networks."""
+    within max(margin x |SL's|, slack) of SL's, however often its ego reaches its target."""
     ego, resting = _nets(len(COMBOS), seed=0), _nets(len(COMBOS), seed=0, resting=True)
     partners = [_nets(len(COMBOS), seed=1)]
     for slack in (0.0, 1e9):
         config = replace(JointConfig(), **SMALL, return_margin=0.0, return_slack=slack)
         for gate in joint_gates(resting, _indices(COMBOS), ego, partners, config, seed=5):
-            team_ok = gate.team_return >= gate.sl_team_return - slack
-            success_ok = gate.success_rate >= gate.sl_success_rate - config.success_slack
-            assert gate.passed == (team_ok and success_ok), gate
+            assert gate.passed == (gate.team_return >= gate.sl_team_return - slack), gate
 
 
 def test_combinations_that_fail_train_again_with_twice_the_steps_and_a_fresh_seed(
