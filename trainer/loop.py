@@ -10,7 +10,7 @@ from __future__ import annotations
 import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Protocol, cast
 
 import numpy as np
 import torch
@@ -42,6 +42,15 @@ class Rollout(Protocol):
 
     def finished_returns(self) -> list[list[float]]:
         """Returns of the episodes finished since the last call, one list per network."""
+        ...
+
+
+class EndingRollout(Rollout, Protocol):
+    """A rollout whose environment ends episodes (beside the time limit): the learner must not
+    bootstrap past an ending (eq. 5 with r alone)."""
+
+    def ended(self) -> np.ndarray:
+        """(G, E) bool: which transitions of the last `step` ended their episode."""
         ...
 
 
@@ -107,7 +116,8 @@ def train_soft_q(
         alpha=config.alpha,
         generator=generator,
     )
-    replay = StackedReplay(rollout.n_nets, config.replay_size, rollout.obs_dim)
+    endings = callable(getattr(rollout, "ended", None))  # an `EndingRollout`
+    replay = StackedReplay(rollout.n_nets, config.replay_size, rollout.obs_dim, endings=endings)
     curves = TrainingCurves()
     pending: list[list[float]] = [[] for _ in range(rollout.n_nets)]
     losses = torch.zeros(rollout.n_nets)
@@ -117,7 +127,8 @@ def train_soft_q(
     for step in range(config.total_steps):
         act_GE = learner.act(view_GED, explore_eps=config.explore_eps)
         rew_GE, next_GED = rollout.step(act_GE.numpy())
-        replay.add(view_GED, act_GE, torch.from_numpy(rew_GE), torch.from_numpy(next_GED))
+        ended_GE = torch.from_numpy(cast(EndingRollout, rollout).ended()) if endings else None
+        replay.add(view_GED, act_GE, torch.from_numpy(rew_GE), torch.from_numpy(next_GED), ended_GE)
         view_GED = torch.from_numpy(rollout.observe())
 
         if step >= config.warmup_steps:

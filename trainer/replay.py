@@ -13,18 +13,22 @@ import torch
 
 @dataclass(frozen=True)
 class Batch:
-    """One minibatch per network: obs_GBD, act_GB, rew_GB, next_obs_GBD."""
+    """One minibatch per network: obs_GBD, act_GB, rew_GB, next_obs_GBD, and where the
+    environment can end an episode, ended_GB (1.0 where the transition ended it: no bootstrap)."""
 
     obs_GBD: torch.Tensor
     act_GB: torch.Tensor
     rew_GB: torch.Tensor
     next_obs_GBD: torch.Tensor
+    ended_GB: torch.Tensor | None = None
 
 
 class StackedReplay:
-    """G ring buffers of `capacity` transitions each, filled in lock-step."""
+    """G ring buffers of `capacity` transitions each, filled in lock-step; with `endings`, each
+    transition also records whether it ended its episode (an environment's termination, not a
+    time limit)."""
 
-    def __init__(self, n_nets: int, capacity: int, obs_dim: int) -> None:
+    def __init__(self, n_nets: int, capacity: int, obs_dim: int, *, endings: bool = False) -> None:
         if n_nets < 1 or capacity < 1 or obs_dim < 1:
             raise ValueError(
                 f"StackedReplay: n_nets, capacity, obs_dim must be >= 1, got {n_nets}, {capacity}, {obs_dim}"
@@ -34,6 +38,7 @@ class StackedReplay:
         self.next_obs_GCD = torch.zeros(n_nets, capacity, obs_dim)
         self.act_GC = torch.zeros(n_nets, capacity, dtype=torch.long)
         self.rew_GC = torch.zeros(n_nets, capacity)
+        self.ended_GC = torch.zeros(n_nets, capacity) if endings else None
         self.cursor = 0
         self.size = 0
 
@@ -43,14 +48,20 @@ class StackedReplay:
         act_GE: torch.Tensor,
         rew_GE: torch.Tensor,
         next_obs_GED: torch.Tensor,
+        ended_GE: torch.Tensor | None = None,
     ) -> None:
-        """Append E transitions to each of the G buffers (overwriting the oldest when full)."""
+        """Append E transitions to each of the G buffers (overwriting the oldest when full);
+        `ended_GE` is required exactly when the buffer records endings."""
+        if (ended_GE is None) != (self.ended_GC is None):
+            raise ValueError("StackedReplay.add: ended_GE is required exactly with endings=True")
         n_new = obs_GED.shape[1]
         idx = (self.cursor + torch.arange(n_new)) % self.capacity
         self.obs_GCD[:, idx] = obs_GED
         self.next_obs_GCD[:, idx] = next_obs_GED
         self.act_GC[:, idx] = act_GE
         self.rew_GC[:, idx] = rew_GE
+        if self.ended_GC is not None and ended_GE is not None:
+            self.ended_GC[:, idx] = ended_GE.to(self.ended_GC.dtype)
         self.cursor = (self.cursor + n_new) % self.capacity
         self.size = min(self.size + n_new, self.capacity)
 
@@ -67,4 +78,5 @@ class StackedReplay:
             act_GB=torch.gather(self.act_GC, 1, idx_GB),
             rew_GB=torch.gather(self.rew_GC, 1, idx_GB),
             next_obs_GBD=torch.gather(self.next_obs_GCD, 1, idx_GBD),
+            ended_GB=None if self.ended_GC is None else torch.gather(self.ended_GC, 1, idx_GB),
         )

@@ -30,10 +30,18 @@ class UpdateStats:
 
 
 def soft_q_target(
-    rew_GB: torch.Tensor, next_q_GBA: torch.Tensor, gamma: float, alpha: float
+    rew_GB: torch.Tensor,
+    next_q_GBA: torch.Tensor,
+    gamma: float,
+    alpha: float,
+    ended_GB: torch.Tensor | None = None,
 ) -> torch.Tensor:
-    """Eq. 5: r + γ V_target(s'), with V from eq. 3. No terminal mask: episodes only time out."""
-    return rew_GB + gamma * soft_value_t(next_q_GBA, alpha)
+    """Eq. 5: r + γ V_target(s'), with V from eq. 3; r alone where the transition ended its
+    episode (`ended_GB` 1.0: the environment's termination). A time limit is not an ending: the
+    state it cuts off still has its value."""
+    if ended_GB is None:
+        return rew_GB + gamma * soft_value_t(next_q_GBA, alpha)
+    return rew_GB + gamma * (1.0 - ended_GB) * soft_value_t(next_q_GBA, alpha)
 
 
 class StackedSoftQ:
@@ -86,7 +94,9 @@ class StackedSoftQ:
         `batch`, without stepping; returns the per-network loss and mean predicted Q."""
         with torch.no_grad():
             next_q_GBA = self.target(batch.next_obs_GBD)
-            target_GB = soft_q_target(batch.rew_GB, next_q_GBA, self.gamma, self.alpha)
+            target_GB = soft_q_target(
+                batch.rew_GB, next_q_GBA, self.gamma, self.alpha, batch.ended_GB
+            )
         q_GB = self.online(batch.obs_GBD).gather(2, batch.act_GB.unsqueeze(-1)).squeeze(-1)
         loss_G = 0.5 * (q_GB - target_GB).square().mean(dim=1)  # eq. 4, per network
         self.optimizer.zero_grad(set_to_none=True)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 import torch
 
 from policy.maths import soft_value
@@ -134,3 +135,31 @@ def test_each_network_gets_its_own_losss_gradient() -> None:
                 mine = grads[f"{kind}.{k}"]
                 assert mine is not None and theirs is not None
                 torch.testing.assert_close(mine[g], theirs, rtol=1e-5, atol=1e-7, msg=f"{kind}.{k}")
+
+
+def test_an_ending_transition_is_not_bootstrapped_and_a_time_limit_is() -> None:
+    """Eq. 5 stops at the environment's ending (r alone) and bootstraps everywhere else; a
+    replay that records endings hands them to the update, and refuses a step without them."""
+    q = torch.tensor([[[0.0, 1.0], [0.5, 0.0]]], dtype=torch.float64)
+    rew = torch.tensor([[1.0, 2.0]], dtype=torch.float64)
+    ended = torch.tensor([[1.0, 0.0]], dtype=torch.float64)
+    got = soft_q_target(rew, q, gamma=0.9, alpha=0.5, ended_GB=ended)
+    plain = soft_q_target(rew, q, gamma=0.9, alpha=0.5)
+    assert got[0, 0] == 1.0 and got[0, 1] == plain[0, 1]
+
+    replay = StackedReplay(1, 8, 8, endings=True)
+    obs = torch.zeros(1, 2, 8)
+    replay.add(
+        obs,
+        torch.zeros(1, 2, dtype=torch.long),
+        torch.zeros(1, 2),
+        obs,
+        torch.tensor([[True, False]]),
+    )
+    batch = replay.sample(64, torch.Generator().manual_seed(0))
+    assert batch.ended_GB is not None and set(batch.ended_GB.unique().tolist()) == {0.0, 1.0}
+    with pytest.raises(ValueError, match="ended_GE"):
+        replay.add(obs, torch.zeros(1, 2, dtype=torch.long), torch.zeros(1, 2), obs)
+    plain_replay = StackedReplay(1, 8, 8)
+    plain_replay.add(obs, torch.zeros(1, 2, dtype=torch.long), torch.zeros(1, 2), obs)
+    assert plain_replay.sample(4, torch.Generator().manual_seed(0)).ended_GB is None

@@ -26,7 +26,8 @@ Impact gate (per partner goal h), two checks that must both pass:
   it clearly needs may be dead. Episodes alone passed networks that never pushed left or down.
 
 Joint gate (per goal combination: the JL baseline), on seeded random starts, every partner
-acting with its own task network at α (as the JL trained beside them), run twice on the same
+acting with its own task network at α (as the JL trained beside them), episodes ending when
+every agent is inside its target at once (the environment's ending), run twice on the same
 starts: the JL network as the ego, then the ego's own task network (SL, what coexist serves
 without partners). Sampled at α both, with the partners' actions drawn from one generator
 seeded alike. Passed when the team return (Σ over agents), what the JL learns, is within
@@ -336,15 +337,19 @@ def joint_gates(
         return policy
 
     def run(joint: bool) -> tuple[np.ndarray, np.ndarray]:
-        """Per episode: the team return and whether the ego reached its target."""
+        """Per episode: the team return and whether the ego reached its target. An episode ends
+        when every agent is inside its target at once, as the environment's (and the JL's
+        training episodes) do, or after `eval_steps`."""
         world.reset(starts.copy())
         policy = make_policy(joint)
         team_B = np.zeros(len(goals_BN))
         reached_B = np.zeros(len(goals_BN), dtype=bool)
+        ended_B = np.zeros(len(goals_BN), dtype=bool)
         for _ in range(config.eval_steps):
             result = world.step(policy(world.state, observations(world.state)))
-            team_B += result.rewards_BN.sum(axis=1)
-            reached_B |= in_target(world.state, goals_BN)[:, 0]
+            team_B += np.where(ended_B, 0.0, result.rewards_BN.sum(axis=1))
+            reached_B |= ~ended_B & in_target(world.state, goals_BN)[:, 0]
+            ended_B |= result.terminated_B
         return team_B, reached_B
 
     team, reached = run(joint=True)

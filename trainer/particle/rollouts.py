@@ -195,6 +195,7 @@ class ParticleJointRollout:
         # partner_task_nets[k]: stacked task nets of the k-th partner's goal, one member per combo.
         self.partners = [FrozenTaskNets(n, config.alpha, generator) for n in partner_task_nets]
         self.tracker = EpisodeTracker(self.n_nets, self.envs_per_net)
+        self._ended_B = np.zeros(len(self.goals_BN), dtype=bool)
 
     def observe(self) -> np.ndarray:
         obs = self.obs_BND[:, 0].reshape(self.n_nets, self.envs_per_net, -1)
@@ -210,12 +211,22 @@ class ParticleJointRollout:
             columns.append(partner.act(views_BKD.reshape(shape)).reshape(-1))
         result = self.world.step(np.stack(columns, axis=1))
         team_B = result.rewards_BN.sum(axis=1)
-        done_B = self.world.steps >= self.world.max_steps  # time limit, whatever the state
+        # The episode ends when every agent is inside its target at once, as the environment's
+        # does (`envs.particle`) and as the evaluation scores it: the team's reward stops there.
+        # Without the ending a JL learns another task: in a world that never ends, a non-aligned
+        # partner keeps paying while the ego sits in its own target, and the team's best is for
+        # the ego to give its target up.
+        self._ended_B = result.terminated_B
+        done_B = self._ended_B | (self.world.steps >= self.world.max_steps)
         self.tracker.add(team_B, done_B)
         next_obs = result.next_obs_BND[:, 0].reshape(self.n_nets, self.envs_per_net, -1)
         self.obs_BND = self.world.reset_where(done_B) if done_B.any() else result.next_obs_BND
         shape = (self.n_nets, self.envs_per_net)
         return team_B.reshape(shape).astype(np.float32), next_obs.astype(np.float32)
+
+    def ended(self) -> np.ndarray:
+        """(G, E): the transitions of the last step that ended their episode (`EndingRollout`)."""
+        return self._ended_B.reshape(self.n_nets, self.envs_per_net)
 
     def finished_returns(self) -> list[list[float]]:
         return self.tracker.pop()

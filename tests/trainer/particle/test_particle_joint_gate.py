@@ -7,6 +7,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 import torch
 
@@ -18,6 +19,7 @@ from trainer.config import JointConfig, TaskConfig
 from trainer.learners import TrainedBatch
 from trainer.particle import learners as particle_learners
 from trainer.particle.gates import JointGate, joint_gates
+from trainer.particle.rollouts import ParticleJointRollout
 from trainer.zoo import RunState, run_joint, run_tasks
 
 SMALL: dict[str, Any] = dict(eval_episodes=16, eval_steps=40, alpha=0.02)
@@ -106,3 +108,19 @@ def test_combinations_that_fail_train_again_with_twice_the_steps_and_a_fresh_see
     assert run_joint(store, COMBOS, replace(JointConfig(), **TINY), gate_retries=2, **common) == []
     assert zoo.joint_without(store, "particle", COMBOS, "production") == [COMBOS[0]]
     store.close()
+
+
+def test_the_joint_rollout_ends_an_episode_when_every_agent_is_inside_its_target() -> None:
+    """As the environment does: the transition is marked as an ending (no bootstrap) and the
+    world restarts; a transition that does not end it is not marked."""
+    config = replace(JointConfig(), **TINY)
+    rollout = ParticleJointRollout(_indices([("c", "c4")]), [_nets(1, seed=1)], config, seed=0)
+    inside = np.zeros((config.envs_per_net, 2, 4))
+    inside[:, :, :2] = [0.5, 0.9]  # inside `c`'s target (x 0.4-0.6) and `c4`'s (also y 0.8-1)
+    rollout.obs_BND = rollout.world.reset(inside)
+    resting = np.zeros((1, config.envs_per_net), dtype=np.int64)
+    rollout.step(resting)
+    assert rollout.ended().shape == (1, config.envs_per_net) and rollout.ended().all()
+    assert (rollout.world.steps == 0).all()  # restarted from random starts
+    rollout.step(resting)
+    assert not rollout.ended().any()
