@@ -323,7 +323,7 @@ def _models_section(result: SuiteResult) -> str:
         "Versions whose quality gate failed (they serve because an operator promoted them; see "
         "the discussion): " + ", ".join(failed) + "."
         if failed
-        else "Every version used passed its quality gate (or has none: JL, --fast)."
+        else "Every version used passed its quality gate (or has none: --fast)."
     )
     if not result.gates:
         note = "Gate verdicts need the store (`--store-url`); not available for this run."

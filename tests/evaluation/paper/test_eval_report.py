@@ -102,8 +102,11 @@ def close(printed: float, value: float, digits: int = 2) -> bool:
 
 
 def same_p(printed: str, value: float) -> bool:
-    """A p printed with two significant digits is `value`."""
-    return bool(np.isclose(float(printed), value, rtol=0.051, atol=0.0))
+    """A p printed with two significant digits is `value`, recomputed from results.json: its
+    printing moves it by up to 5 %, and the returns results.json keeps (4 decimals) move the
+    smallest p's (below 1e-20) by up to 2 % more. A wrong family or label moves them by
+    factors."""
+    return bool(np.isclose(float(printed), value, rtol=0.075, atol=0.0))
 
 
 # -- the numbers from the episodes -----------------------------------------------------------
@@ -369,10 +372,11 @@ def test_report_files_checked(tmp_path: Path) -> None:
 
 
 @pytest.mark.slow
-def test_the_committed_report_matches_its_committed_results() -> None:
-    """reports/paper/REPORT.md as shipped: every scenario and pair-class table of tests against
-    the reports/paper/results.json it was generated from."""
-    root = Path(__file__).resolve().parents[3] / "reports" / "paper"
+@pytest.mark.parametrize(("folder", "tables"), [("paper", 10), ("joint_learner", 3)])
+def test_the_committed_report_matches_its_committed_results(folder: str, tables: int) -> None:
+    """reports/paper/REPORT.md and reports/joint_learner/REPORT.md as shipped: every scenario
+    and pair-class table of tests against the results.json it was generated from."""
+    root = Path(__file__).resolve().parents[3] / "reports" / folder
     data = json.loads((root / "results.json").read_text())
     checked = check_report_against_results((root / "REPORT.md").read_text(), data)
-    assert checked >= 10
+    assert checked >= tables
