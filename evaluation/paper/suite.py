@@ -12,13 +12,17 @@
 | goal sets    | five-agent goal sets drawn from the whole catalogue                  |
 | fields       | Fig. 6 direction fields for the non-aligned scenario                 |
 | training     | lineage curve summaries and costs (needs the store)                  |
+
+Every episode's returns are kept to `RETURN_DECIMALS` decimals as soon as they are measured, so
+that the report's statistics and the results.json it ships are the same numbers: a reader (and
+`tests/evaluation/paper/test_eval_report.py`) recomputes every table from the file alone.
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -40,6 +44,9 @@ from services.engine import ActRequest, PartnerSpec
 
 # (description, total steps) -> per-step callback
 ProgressFactory = Callable[[str, int], ProgressFn]
+
+
+RETURN_DECIMALS = 4  # an episode's returns, as measured and as results.json keeps them
 
 
 @dataclass
@@ -154,7 +161,7 @@ def run_suite(
         result.wall_s[label] = time.perf_counter() - start
         result.models |= out.models
         result.backend_calls += out.backend_calls
-        return out.results
+        return [replace(r, returns_EN=r.returns_EN.round(RETURN_DECIMALS)) for r in out.results]
 
     two = [s for s in scenarios if s.n_agents == 2]
     many = [s for s in scenarios if s.n_agents != 2]
@@ -191,7 +198,7 @@ def _cell_json(c: CellResult) -> dict[str, object]:
         "replicate": c.scenario.replicate,
         "start_seed": c.scenario.start_seed,
         "method": c.method,
-        "returns": c.returns_EN.round(4).tolist(),
+        "returns": c.returns_EN.round(RETURN_DECIMALS).tolist(),
         "success": c.success_EN.tolist(),
         "reached": c.reached_EN.tolist(),
         "length": c.length_E.tolist(),
