@@ -19,7 +19,7 @@ import logging
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Literal
+from typing import Literal, TypeVar
 
 import torch
 
@@ -48,6 +48,7 @@ log = logging.getLogger(__name__)
 # of N agents `seed + JOINT_SEED_OFFSET + N`; gate retry `attempt` of a stage adds
 # `RETRY_SEED_STEP x attempt` (the job backends use the same, `trainer.backends.jobs`).
 IMPACT_SEED_OFFSET = 1000
+Key = TypeVar("Key")
 JOINT_SEED_OFFSET = 2000
 RETRY_SEED_STEP = 7919
 
@@ -362,13 +363,8 @@ def joint_without(
     """Combinations whose joint network has no version under `alias`."""
     from model_store.naming import joint_model_name
 
-    left = []
-    for combo in combos:
-        try:
-            store.resolve(f"{joint_model_name(env, combo[0], combo[1:])}@{alias}")
-        except NotFound:
-            left.append(combo)
-    return left
+    names = [(c, joint_model_name(env, c[0], c[1:])) for c in combos]
+    return _without_alias(store, names, alias)
 
 
 def production_parents_required(env: str) -> bool:
@@ -393,10 +389,15 @@ def goals_without(
     from model_store.naming import impact_model_name
 
     name_of = task_model_name if kind == "task" else impact_model_name
+    return _without_alias(store, [(g, name_of(env, g)) for g in goals], alias)
+
+
+def _without_alias(store: ModelStore, named: Sequence[tuple[Key, str]], alias: str) -> list[Key]:
+    """The keys of the (key, model name) pairs whose model has no version under `alias`."""
     missing = []
-    for goal in goals:
+    for key, name in named:
         try:
-            store.resolve(f"{name_of(env, goal)}@{alias}")
+            store.resolve(f"{name}@{alias}")
         except NotFound:
-            missing.append(goal)
+            missing.append(key)
     return missing

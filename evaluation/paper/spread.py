@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from evaluation.config import METHOD_LABELS
+from evaluation.partners.spread import check_same_config
 
 SAME_CONFIG = ("seed", "episodes", "five_agent_episodes", "max_steps", "methods")
 SCENARIOS = {
@@ -27,17 +28,6 @@ SCENARIOS = {
     "non_aligned": "non-aligned",
     "five_agents": "five agents",
 }
-
-
-def _check_same(runs: Sequence[dict[str, Any]]) -> None:
-    first = runs[0]["config"]
-    for k, run in enumerate(runs[1:], start=1):
-        for name in SAME_CONFIG:
-            if run["config"][name] != first[name]:
-                raise ValueError(
-                    f"config.{name}: run {k} has {run['config'][name]!r}, run 0 "
-                    f"{first[name]!r}; the runs must differ by their zoo only"
-                )
 
 
 def _team(cell: dict[str, Any]) -> np.ndarray:
@@ -48,7 +38,7 @@ def spread_markdown(runs: Sequence[dict[str, Any]], labels: Sequence[str]) -> st
     """The table of the module docstring for `runs` (parsed results.json), one per zoo."""
     if not runs or len(runs) != len(labels):
         raise ValueError("runs: expected one results.json per zoo label, at least one")
-    _check_same(runs)
+    check_same_config(runs, SAME_CONFIG)
     methods = runs[0]["config"]["methods"]
     lines = [
         "| scenario | method | "

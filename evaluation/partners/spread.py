@@ -28,10 +28,12 @@ KINDS = {
 }
 
 
-def _check_same(runs: Sequence[dict[str, Any]]) -> None:
+def check_same_config(runs: Sequence[dict[str, Any]], fields: Sequence[str]) -> None:
+    """ValueError naming the first of `fields` whose value differs between the runs' configs:
+    runs set side by side must differ by their zoo only."""
     first = runs[0]["config"]
     for k, run in enumerate(runs[1:], start=1):
-        for name in SAME_CONFIG:
+        for name in fields:
             if run["config"][name] != first[name]:
                 raise ValueError(
                     f"config.{name}: run {k} has {run['config'][name]!r}, run 0 "
@@ -43,7 +45,7 @@ def spread_markdown(runs: Sequence[dict[str, Any]], labels: Sequence[str]) -> st
     """The table of the module docstring for `runs` (parsed results.json), one per zoo."""
     if not runs or len(runs) != len(labels):
         raise ValueError("runs: expected one results.json per zoo label, at least one")
-    _check_same(runs)
+    check_same_config(runs, SAME_CONFIG)
     rows_by_run = [
         {(r["partner_type"], r["kind"], r["method"]): r for r in run["rows"]} for run in runs
     ]

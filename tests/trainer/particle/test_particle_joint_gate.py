@@ -14,6 +14,7 @@ import torch
 from envs.particle.goals import goal_index
 from model_store.sql.sql_store import SqlModelStore
 from policy.qnet import QNetSpec, StackedQNet
+from tests.trainer.test_trainer_end_to_end import TINY
 from trainer import zoo
 from trainer.config import JointConfig, TaskConfig
 from trainer.learners import TrainedBatch
@@ -23,15 +24,6 @@ from trainer.particle.rollouts import ParticleJointRollout
 from trainer.zoo import RunState, run_joint, run_tasks
 
 SMALL: dict[str, Any] = dict(eval_episodes=16, eval_steps=40, alpha=0.02)
-TINY: dict[str, Any] = dict(
-    total_steps=60,
-    warmup_steps=10,
-    envs_per_net=4,
-    batch_size=16,
-    hidden=(16,),
-    eval_episodes=4,
-    eval_steps=20,
-)
 COMBOS: list[tuple[str, ...]] = [("a2", "b3"), ("c", "c4")]
 
 
