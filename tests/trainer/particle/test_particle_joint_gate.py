@@ -69,6 +69,34 @@ def test_the_gate_compares_the_team_return_within_the_stated_margin() -> None:
             assert gate.passed == (gate.team_return >= gate.sl_team_return - slack), gate
 
 
+def _heads_for_the_centre_column() -> StackedQNet:
+    """A task network for goal `c` (x in [0.4, 0.6], any y) by hand: push left right of x = 0.5,
+    right left of it, never up or down; it reaches its target from any start."""
+    nets = _nets(1, seed=0, resting=True)
+    with torch.no_grad():
+        nets.biases[-1][:, 0] = 0.0
+        nets.weights[0][:, 0, 0], nets.biases[0][:, 0] = 1.0, -0.5  # relu(x - 0.5)
+        nets.weights[0][:, 1, 0], nets.biases[0][:, 1] = -1.0, 0.5  # relu(0.5 - x)
+        nets.weights[1][:, 3, 0], nets.weights[1][:, 3, 1] = 20.0, -20.0  # left
+        nets.weights[1][:, 4, 0], nets.weights[1][:, 4, 1] = -20.0, 20.0  # right
+        nets.biases[-1][:, 1:3] = -1.0  # up, down
+    return nets
+
+
+def test_a_joint_network_that_leaves_its_ego_outside_its_target_fails_at_the_defaults() -> None:
+    """The gate a user would need: beside an SL that walks into its target, a JL that rests where
+    it starts costs the team its distance every step, and fails at the default thresholds."""
+    sl = _heads_for_the_centre_column()
+    resting = _nets(1, seed=0, resting=True)
+    partners = [_nets(1, seed=1)]
+    config = replace(JointConfig(), **SMALL)
+    (gate,) = joint_gates(resting, _indices([("c", "c4")]), sl, partners, config, seed=5)
+    assert gate.sl_success_rate == 1.0 and gate.success_rate < 0.5, gate
+    assert gate.team_return < gate.sl_team_return and not gate.passed, gate
+    (same,) = joint_gates(sl, _indices([("c", "c4")]), sl, partners, config, seed=5)
+    assert same.passed, same
+
+
 def test_combinations_that_fail_train_again_with_twice_the_steps_and_a_fresh_seed(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
