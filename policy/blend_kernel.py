@@ -67,166 +67,128 @@ _BLEND_SIGNATURE = types.void(
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _largest(v):
-    """The largest entry of a non-empty vector (a loop: the array method would take a
-    reference to v, an atomic operation, on every row)."""
-    top = v[0]
-    for a in range(1, v.size):
+def _largest(v, start, n):
+    """The largest of v[start : start + n], n >= 1."""
+    top = v[start]
+    for a in range(start + 1, start + n):
         top = max(top, v[a])
     return top
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _boltzmann(q, alpha, out):
-    """`maths.boltzmann` (eq. 2) of one Q-vector into `out`; returns the sum of its
-    exponentials (with `_log_policy`, the policy's logarithm without a logarithm per action)."""
-    top = _largest(q)
+def _centre(q, start, n, alpha, values, divisors):
+    """q - max q of the Q-vector q[start : start + n] into the same entries of `values`, and α
+    into those of `divisors`: `_divide` then gives (q - max q) / α, the exponent of eq. 2's
+    Boltzmann policy (and, less the log of its sum, the policy's logarithm)."""
+    top = _largest(q, start, n)
+    for a in range(start, start + n):
+        values[a] = q[a] - top
+        divisors[a] = alpha
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _sum_into(values, start, n, divisors):
+    """The sum of values[start : start + n] into the same entries of `divisors` (for a
+    `_divide` that normalises each group of n); returns it."""
     total = 0.0
-    for a in range(q.size):
-        out[a] = exp((q[a] - top) / alpha)
-        total += out[a]
-    for a in range(q.size):
-        out[a] = out[a] / total
+    for a in range(start, start + n):
+        total += values[a]
+    for a in range(start, start + n):
+        divisors[a] = total
     return total
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _renormalised(p, out):
-    """p divided by its sum (as `policy._validate.prob_array` hands policies to `maths`);
-    returns that sum."""
-    total = 0.0
-    for a in range(p.size):
-        total += p[a]
-    for a in range(p.size):
-        out[a] = p[a] / total
-    return total
+# The loops over whole flat blocks below are what LLVM vectorises: 4 (AVX2) or 8 (AVX-512)
+# divisions, exponentials or logarithms at a time, where a row's five actions alone would not
+# fill a vector (`policy.kernel_maths`).
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _log_policy(q, alpha, log_shift, out):
-    """log of `_boltzmann(q, alpha)` renormalised once: (q - max q)/α minus `log_shift` (the log
-    of the exponentials' sum plus the log of the renormalising sum). Finite where the policy
-    underflowed to 0, and there never read: every sum below skips p = 0."""
-    top = _largest(q)
-    for a in range(q.size):
-        out[a] = (q[a] - top) / alpha - log_shift
+def _divide(values, divisors, out):
+    for i in range(values.size):
+        out[i] = values[i] / divisors[i]
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _entropy(p, log_p):
-    """`maths.normalized_entropy` of the (renormalised) policy p, in [0, 1]; 0 for one action.
-    Σ p log p with log p given (`_log_policy`): the same sum, one log per row, not per action."""
-    if p.size == 1:
+def _exp_all(values):
+    for i in range(values.size):
+        values[i] = exp(values[i])
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _log_all(values):
+    for i in range(values.size):
+        values[i] = log(values[i])
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _mixture_ratios(x, y, to_x, to_y):
+    """x / m and y / m with m = (x + y) / 2, elementwise (1 where the numerator is 0: its KL
+    term adds 0). The ratio, not a difference of logs, is what eq. 10's KL takes the log of:
+    near a copy (x ≈ m) the difference cancels to its rounding, and the square root of eq. 10
+    magnifies it."""
+    for i in range(x.size):
+        m = 0.5 * (x[i] + y[i])
+        to_x[i] = x[i] / m if x[i] > 0 else 1.0
+        to_y[i] = y[i] / m if y[i] > 0 else 1.0
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _entropy(p, log_p, start, n):
+    """`maths.normalized_entropy` of the (renormalised) policy p[start : start + n], in [0, 1];
+    0 for one action. Σ p log p with log p given: the same sum, one log per row, not per
+    action."""
+    if n == 1:
         return 0.0
     h = 0.0
-    for a in range(p.size):
+    for a in range(start, start + n):
         if p[a] > 0:
             h -= p[a] * log_p[a]
-    return min(max(h / math.log(p.size), 0.0), 1.0)
+    return min(max(h / math.log(n), 0.0), 1.0)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _impact_policies(q_impact, b, mask, alpha, out):
-    """The renormalised Boltzmann policy (eq. 2) of each active partner slot s of row b, into
-    out[s A : (s + 1) A] (an inactive slot's: uniform, never read). As `_boltzmann` then
-    `_renormalised` per slot, but with every exponential in one loop over the block, which
-    LLVM vectorises (`policy.kernel_maths`)."""
-    n_slots, n_actions = q_impact.shape[1], q_impact.shape[2]
-    for s in range(n_slots):
-        row = s * n_actions
-        if mask[b, s]:
-            top = q_impact[b, s, 0]
-            for a in range(1, n_actions):
-                top = max(top, q_impact[b, s, a])
-            for a in range(n_actions):
-                out[row + a] = (q_impact[b, s, a] - top) / alpha
-        else:
-            for a in range(n_actions):
-                out[row + a] = 0.0
-    for i in range(n_slots * n_actions):
-        out[i] = exp(out[i])
-    for s in range(n_slots):
-        row = s * n_actions
-        for _ in range(2):  # divided by the sum, then renormalised as `maths` sees a policy
-            total = 0.0
-            for a in range(n_actions):
-                total += out[row + a]
-            for a in range(n_actions):
-                out[row + a] = out[row + a] / total
-
-
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _js_distances(p, pi_impact, b, mask, log_ratios, distances):
-    """`maths.js_distance` (eq. 10) of the task policy p to each active slot's policy in
-    `pi_impact` (`_impact_policies`' layout), into `distances` (P,) (0 for inactive slots);
-    `log_ratios` (2 P A) is scratch. KL(x ‖ m) in bits is Σ x log2(x / m) over x > 0 (inf where
-    m underflowed to 0): the log of the ratio, not a difference of logs, since near a copy
-    (x ≈ m) the difference cancels to its rounding and the square root of eq. 10 magnifies
-    it. The ratios of every slot are formed first and their logarithms taken in one loop over
-    the block (vectorised); a term with x = 0 has ratio 1, so adds 0."""
-    n_actions = p.size
-    n_slots = distances.size
-    for s in range(n_slots):
-        for a in range(n_actions):
-            x = pi_impact[s * n_actions + a]
-            m = 0.5 * (p[a] + x)
-            log_ratios[2 * s * n_actions + a] = p[a] / m if p[a] > 0 else 1.0
-            log_ratios[(2 * s + 1) * n_actions + a] = x / m if x > 0 else 1.0
-    for i in range(2 * n_slots * n_actions):
-        log_ratios[i] = log(log_ratios[i])
-    for s in range(n_slots):
-        distances[s] = 0.0
-        if mask[b, s]:
-            to_task = 0.0  # KL(p ‖ m), in nats
-            to_impact = 0.0  # KL(π_s ‖ m)
-            for a in range(n_actions):
-                to_task += p[a] * log_ratios[2 * s * n_actions + a]
-                to_impact += pi_impact[s * n_actions + a] * log_ratios[(2 * s + 1) * n_actions + a]
-            divergence = (0.5 * to_task + 0.5 * to_impact) * LOG2_E
-            distances[s] = math.sqrt(min(max(divergence, 0.0), 1.0))
-
-
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _standardise(q, z):
-    """`blend.standardise` of one Q-vector: z-scores into `z`, the scale returned (z = 0 and
-    scale 0 when flat)."""
-    n = q.size
+def _standardise(q, start, n, z, z_start):
+    """`blend.standardise` of the Q-vector q[start : start + n]: z-scores into
+    z[z_start : z_start + n], the scale returned (z = 0 and scale 0 when flat)."""
     magnitude = 0.0
     for a in range(n):
-        magnitude = max(magnitude, abs(q[a]))
+        magnitude = max(magnitude, abs(q[start + a]))
     divisor = magnitude if magnitude > 0 else 1.0
     mean = 0.0
     for a in range(n):
-        z[a] = q[a] / divisor
-        mean += z[a]
+        z[z_start + a] = q[start + a] / divisor
+        mean += z[z_start + a]
     mean = mean / n
     squares = 0.0
-    for a in range(n):
+    for a in range(z_start, z_start + n):
         z[a] = z[a] - mean
         squares += z[a] * z[a]
     std = math.sqrt(squares / n)
     if std <= FLAT_STD_RTOL:
-        for a in range(n):
+        for a in range(z_start, z_start + n):
             z[a] = 0.0
         return 0.0
-    for a in range(n):
-        z[a] = z[a] / std
+    unit = 1.0 / std  # std > FLAT_STD_RTOL: a finite reciprocal, multiplied
+    for a in range(z_start, z_start + n):
+        z[a] = z[a] * unit
     return std * magnitude
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _bound(probs, q_task, pi_task, epsilon):
-    """Eq. R1 (`regret_bound.bound_rows`) of one row, in place: the actions within ε of the
-    task's best share the task policy's mass on them as the blend says, every other action
-    keeps its task probability; the task policy itself where the blend puts nothing on them."""
-    lowest = _largest(q_task) - epsilon
+def _bound(probs, q_task, pi_task, start, n, epsilon):
+    """Eq. R1 (`regret_bound.bound_rows`) of the row at [start, start + n) of the flat `probs`,
+    `q_task` and `pi_task`, in place: the actions within ε of the task's best share the task
+    policy's mass on them as the blend says, every other action keeps its task probability;
+    the task policy itself where the blend puts nothing on them."""
+    lowest = _largest(q_task, start, n) - epsilon
     task_mass = 0.0
     blend_mass = 0.0
-    for a in range(q_task.size):
+    for a in range(start, start + n):
         if q_task[a] >= lowest:
             task_mass += pi_task[a]
             blend_mass += probs[a]
-    for a in range(q_task.size):
+    for a in range(start, start + n):
         if not blend_mass > 0.0 or q_task[a] < lowest:
             probs[a] = pi_task[a]
         else:
@@ -253,7 +215,12 @@ def blend_rows(
     bounded by eq. R1 with ε = epsilon[b] where `bounded` (AAIL only), into the caller's
     q_out (B, A), probs_out (B, A), entropy_out (B,), weight_out (B,), partners_out (B, P).
     (Output arrays handed in: numba's boxing of a returned tuple of arrays costs more than a
-    row's blend.)"""
+    row's blend.)
+
+    In phases over all rows: each phase that takes exponentials or logarithms gathers its
+    arguments from every row into one flat block and takes them in one loop, which LLVM
+    vectorises (`policy.kernel_maths`); a row's five values alone would not fill a vector. The
+    other phases go row by row. Every value depends on its own row only."""
     n_rows, n_actions = q_task.shape
     n_slots = q_impact.shape[1]
     if not (
@@ -280,83 +247,179 @@ def blend_rows(
                     if not math.isfinite(q_impact[b, s, a]):
                         raise FloatingPointError("a Q-value is NaN or infinite")
     partners_out[:] = 0.0
-    # working memory, one block (an allocation costs more than a row's arithmetic)
-    work = np.empty((4 + 4 * n_slots) * n_actions)
-    pi_task = work[:n_actions]
-    p_task = work[n_actions : 2 * n_actions]  # the task policy as `maths` sees it (renormalised)
-    log_p_task = work[2 * n_actions : 3 * n_actions]
-    z_task = work[3 * n_actions : 4 * n_actions]
-    block = n_slots * n_actions
-    pi_impact = work[4 * n_actions : 4 * n_actions + block]  # slot s at [s A, (s + 1) A)
-    log_ratios = work[4 * n_actions + block : 4 * n_actions + 3 * block]
-    z_impact = work[4 * n_actions + 3 * block :].reshape((n_slots, n_actions))
+    rows, pairs = n_rows * n_actions, n_rows * n_slots * n_actions  # flat sizes of the blocks
+    # Flat working memory, one allocation (an allocation costs more than a row's arithmetic);
+    # row b's policy at [b A, (b + 1) A), slot s of row b at [(b P + s) A, (b P + s + 1) A)
+    work = np.empty(
+        6 * rows + 2 * n_rows + 5 * pairs + n_rows * n_slots + (1 + n_slots) * n_actions
+    )
+    used = 0
+    pi_task = work[used : used + rows]  # eq. 2's task policy of each row
+    used += rows
+    p_task = work[used : used + rows]  # the same renormalised, as `maths` sees a policy
+    used += rows
+    log_p = work[used : used + rows]  # its logarithm
+    used += rows
+    final = work[used : used + rows]  # the blended Q's Boltzmann policy
+    used += rows
+    row_divisors = work[used : used + rows]
+    used += rows
+    log_sums = work[used : used + n_rows]
+    used += n_rows
+    powers = work[used : used + n_rows]  # eq. 9's A^H
+    used += n_rows
+    pi_impact = work[used : used + pairs]  # each slot's impact policy
+    used += pairs
+    p_beside = work[used : used + pairs]  # the row's task policy beside each of its slots
+    used += pairs
+    to_task = work[used : used + 2 * pairs]  # log(p / m), then log(π / m): eq. 10's ratios
+    to_impact = to_task[pairs:]
+    used += 2 * pairs
+    pair_divisors = work[used : used + pairs]
+    used += pairs
+    distances = work[used : used + n_rows * n_slots]
+    used += n_rows * n_slots
+    blended = work[used : used + rows]  # the blended Q of each row (q_out's rows)
+    used += rows
+    z = work[used:]  # z-scores: the task's, then each slot's
+    q_flat = q_task.reshape(rows)  # the inputs flat, read with one index rule (no row views)
+    q_slots = q_impact.reshape(pairs)
+
+    # eq. 2, the task policy: its exponents, their exponentials, the sums and their logarithms
     for b in range(n_rows):
-        q, weights, out = q_task[b], partners_out[b], q_out[b]
-        active = 0
-        for s in range(n_slots):
-            if mask[b, s]:
-                active += 1
-        sums = _boltzmann(q, alpha[b], pi_task) * _renormalised(pi_task, p_task)
-        _log_policy(q, alpha[b], math.log(sums), log_p_task)
-        entropy_out[b] = _entropy(p_task, log_p_task)
-        if method == SL:
-            out[:] = q
+        _centre(q_flat, b * n_actions, n_actions, alpha[b], log_p, row_divisors)
+    _divide(log_p, row_divisors, log_p)
+    pi_task[:] = log_p
+    _exp_all(pi_task)
+    for b in range(n_rows):
+        log_sums[b] = _sum_into(pi_task, b * n_actions, n_actions, row_divisors)
+    _divide(pi_task, row_divisors, pi_task)
+    for b in range(n_rows):
+        log_sums[b] *= _sum_into(pi_task, b * n_actions, n_actions, row_divisors)
+    _divide(pi_task, row_divisors, p_task)
+    _log_all(log_sums)
+    for b in range(n_rows):
+        start = b * n_actions
+        for a in range(start, start + n_actions):
+            log_p[a] -= log_sums[b]  # log of the renormalised policy, finite where p = 0
+        entropy_out[b] = _entropy(p_task, log_p, start, n_actions)
+    if method == SL:
+        for b in range(n_rows):
             weight_out[b] = 1.0
-            probs_out[b] = pi_task
-            continue
-        if method == NAIL:  # the plain mean of the raw Q-vectors
-            out[:] = 0.0
+            for a in range(n_actions):
+                q_out[b, a] = q_flat[b * n_actions + a]
+                probs_out[b, a] = pi_task[b * n_actions + a]
+        return
+    if method == NAIL:  # the plain mean of the raw Q-vectors
+        for b in range(n_rows):
+            active = 0
             for s in range(n_slots):
                 if mask[b, s]:
-                    out += q_impact[b, s]
+                    active += 1
             for a in range(n_actions):
-                out[a] = (q[a] + out[a]) / (1.0 + active)
+                total = q_flat[b * n_actions + a]
+                for s in range(n_slots):
+                    if mask[b, s]:
+                        total += q_slots[(b * n_slots + s) * n_actions + a]
+                blended[b * n_actions + a] = total / (1.0 + active)
             for s in range(n_slots):
-                weights[s] = (1.0 if mask[b, s] else 0.0) / max(active, 1)
+                partners_out[b, s] = (1.0 if mask[b, s] else 0.0) / max(active, 1)
             weight_out[b] = 1.0 / (1.0 + active)
-            _boltzmann(out, alpha[b], probs_out[b])
-            continue
-        # AAIL. Eq. 9 on the task policy's normalised entropy (the reference renormalises the
-        # policy once more first, a change in the last bit); the task alone without a partner
-        w_t = 1.0
-        if active > 0 and n_actions > 1:
-            w_t = 1.0 - float(n_actions) ** entropy_out[b] / n_actions
-        weight_out[b] = w_t
-        # eq. 10: the JS distance of the task policy to each active impact policy, then ŵ
-        _impact_policies(q_impact, b, mask, alpha[b], pi_impact)
-        _js_distances(p_task, pi_impact, b, mask, log_ratios, weights)
-        total = 0.0
-        for s in range(n_slots):
-            total += weights[s]
-        for s in range(n_slots):
-            if total > 0:
-                weights[s] = weights[s] / total
-            else:  # every impact policy equals the task policy: equal shares
-                weights[s] = (1.0 if mask[b, s] else 0.0) / max(active, 1)
-        # eq. 8, on the raw Q-vectors or on the standardised preferences and their scales
-        if not normalise:
-            for a in range(n_actions):
-                mixed = 0.0  # Σ_i ŵ_i Q_i
-                for s in range(n_slots):
-                    if mask[b, s]:
-                        mixed += weights[s] * q_impact[b, s, a]
-                out[a] = w_t * q[a] + (1.0 - w_t) * mixed
-        else:
-            s_task = _standardise(q, z_task)
-            s_mixed = 0.0  # Σ_i ŵ_i s_i
+    else:  # AAIL
+        # eq. 2, each active impact policy (an inactive slot's: uniform, never read), divided
+        # by its sum, then renormalised as `maths` sees a policy
+        for b in range(n_rows):
+            for s in range(n_slots):
+                start = (b * n_slots + s) * n_actions
+                if mask[b, s]:
+                    _centre(q_slots, start, n_actions, alpha[b], pi_impact, pair_divisors)
+                else:
+                    for a in range(start, start + n_actions):
+                        pi_impact[a] = 0.0
+                        pair_divisors[a] = 1.0
+                for a in range(n_actions):
+                    p_beside[start + a] = p_task[b * n_actions + a]
+        _divide(pi_impact, pair_divisors, pi_impact)
+        _exp_all(pi_impact)
+        for _ in range(2):
+            for i in range(0, pairs, n_actions):
+                _sum_into(pi_impact, i, n_actions, pair_divisors)
+            _divide(pi_impact, pair_divisors, pi_impact)
+        # eq. 10: KL(x ‖ m) in bits is Σ x log2(x / m) over x > 0 (inf where m underflowed)
+        _mixture_ratios(p_beside, pi_impact, to_task, to_impact)
+        _log_all(to_task)  # both blocks: to_impact is its second half
+        for i in range(n_rows * n_slots):
+            kl_task = 0.0  # KL(p ‖ m), in nats
+            kl_impact = 0.0  # KL(π_s ‖ m)
+            for a in range(i * n_actions, (i + 1) * n_actions):
+                kl_task += p_beside[a] * to_task[a]
+                kl_impact += pi_impact[a] * to_impact[a]
+            distances[i] = min(max((0.5 * kl_task + 0.5 * kl_impact) * LOG2_E, 0.0), 1.0)
+        for i in range(n_rows * n_slots):
+            distances[i] = math.sqrt(distances[i])
+        for i in range(n_rows):  # eq. 9's A^H, as an exponential (libm's pow costs 4 of them)
+            powers[i] = entropy_out[i] * math.log(n_actions)
+        _exp_all(powers)
+        for b in range(n_rows):
+            active = 0
             for s in range(n_slots):
                 if mask[b, s]:
-                    s_mixed += weights[s] * _standardise(q_impact[b, s], z_impact[s])
-            s_blend = w_t * s_task + (1.0 - w_t) * s_mixed
-            for a in range(n_actions):
-                mixed = 0.0  # Σ_i ŵ_i z_i
+                    active += 1
+            # eq. 9 on the task policy's normalised entropy; the task alone without a partner
+            w_t = 1.0
+            if active > 0 and n_actions > 1:
+                w_t = 1.0 - powers[b] / n_actions
+            weight_out[b] = w_t
+            # eq. 10's distances of the active slots, then ŵ
+            total = 0.0
+            for s in range(n_slots):
+                if mask[b, s]:
+                    partners_out[b, s] = distances[b * n_slots + s]
+                total += partners_out[b, s]
+            for s in range(n_slots):
+                if total > 0:
+                    partners_out[b, s] = partners_out[b, s] / total
+                else:  # every impact policy equals the task policy: equal shares
+                    partners_out[b, s] = (1.0 if mask[b, s] else 0.0) / max(active, 1)
+            # eq. 8, on the raw Q-vectors or on the standardised preferences and their scales
+            row, slots = b * n_actions, b * n_slots * n_actions
+            if not normalise:
+                for a in range(n_actions):
+                    mixed = 0.0  # Σ_i ŵ_i Q_i
+                    for s in range(n_slots):
+                        if mask[b, s]:
+                            mixed += partners_out[b, s] * q_slots[slots + s * n_actions + a]
+                    blended[row + a] = w_t * q_flat[row + a] + (1.0 - w_t) * mixed
+            else:
+                s_task = _standardise(q_flat, row, n_actions, z, 0)
+                s_mixed = 0.0  # Σ_i ŵ_i s_i
                 for s in range(n_slots):
                     if mask[b, s]:
-                        mixed += weights[s] * z_impact[s, a]
-                out[a] = s_blend * (w_t * z_task[a] + (1.0 - w_t) * mixed)
-        _boltzmann(out, alpha[b], probs_out[b])
+                        s_mixed += partners_out[b, s] * _standardise(
+                            q_slots, slots + s * n_actions, n_actions, z, (1 + s) * n_actions
+                        )
+                s_blend = w_t * s_task + (1.0 - w_t) * s_mixed
+                for a in range(n_actions):
+                    mixed = 0.0  # Σ_i ŵ_i z_i
+                    for s in range(n_slots):
+                        if mask[b, s]:
+                            mixed += partners_out[b, s] * z[(1 + s) * n_actions + a]
+                    blended[row + a] = s_blend * (w_t * z[a] + (1.0 - w_t) * mixed)
+    # eq. 2 on the blended Q, then eq. R1 where bounded
+    for b in range(n_rows):
+        _centre(blended, b * n_actions, n_actions, alpha[b], final, row_divisors)
+    _divide(final, row_divisors, final)
+    _exp_all(final)
+    for b in range(n_rows):
+        _sum_into(final, b * n_actions, n_actions, row_divisors)
+    _divide(final, row_divisors, final)
+    for b in range(n_rows):
+        start = b * n_actions
         if bounded:
-            _bound(probs_out[b], q, pi_task, epsilon[b])
+            _bound(final, q_flat, pi_task, start, n_actions, epsilon[b])
+        for a in range(n_actions):
+            q_out[b, a] = blended[start + a]
+            probs_out[b, a] = final[start + a]
 
 
 @njit(
