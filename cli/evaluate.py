@@ -138,6 +138,14 @@ def evaluate(
             help="--suite pairs: the environment (any registered one: `coexist env list`)."
         ),
     ] = None,
+    no_goal_oracle: Annotated[
+        bool,
+        typer.Option(
+            "--no-goal-oracle",
+            help="--suite partners: AAIL-B asks the environment neither whether the ego's goal "
+            "is reached nor which actions keep it (R1 on every row).",
+        ),
+    ] = False,
     print_combos: Annotated[
         bool,
         typer.Option(
@@ -151,6 +159,8 @@ def evaluate(
         chosen = get_suite(suite)
     except ValueError as err:
         raise typer.BadParameter(str(err), param_hint="--suite") from None
+    if no_goal_oracle and chosen.name != "partners":
+        raise typer.BadParameter("--suite partners only", param_hint="--no-goal-oracle")
     options = EvalOptions(
         server=server,
         store_url=store_url,
@@ -176,6 +186,7 @@ def evaluate(
         print_combos=print_combos,
         partner_types=tuple(t.strip() for t in (partner_types or "").split(",") if t.strip()),
         env=env,
+        no_goal_oracle=no_goal_oracle,
     )
     ui = _ConsoleUi()
     try:

@@ -199,12 +199,23 @@ def _listed(values: Any) -> list[float] | None:
     return None if values is None else np.asarray(values, dtype=np.float64).tolist()
 
 
-def policy_backend(server: str | None, store: ModelStore | None) -> PolicyBackend:
-    """The server at `server` (`server_backend`), else the in-process engine over `store`."""
+def policy_backend(
+    server: str | None, store: ModelStore | None, *, goal_oracle: bool = True
+) -> PolicyBackend:
+    """The server at `server` (`server_backend`), else the in-process engine over `store`;
+    `goal_oracle` False: the engine's AAIL-B asks the environment nothing (in process only,
+    `InferenceEngine`)."""
     if server is not None:
+        if not goal_oracle:
+            raise ValueError("goal_oracle: only the in-process engine can be told not to ask")
         return server_backend(server)
     if store is None:
         raise ValueError("store: the in-process engine needs a model store (or give a server)")
+    if not goal_oracle:
+        return EngineBackend(
+            InferenceEngine(store, goal_oracle=False),
+            "in-process engine without the goal oracle (AAIL-B's R2-R4 off: R1 on every row)",
+        )
     return EngineBackend(InferenceEngine(store))
 
 

@@ -55,6 +55,7 @@ class EvalOptions:
     print_combos: bool = False
     partner_types: tuple[str, ...] = ()  # the partners suite's partner types (empty: all)
     env: str | None = None  # the pairs suite's environment (any registered one)
+    no_goal_oracle: bool = False  # the partners suite: AAIL-B without the environment's answers
 
 
 class OptionError(ValueError):

@@ -118,7 +118,11 @@ class InferenceEngine:
 
     `plans`: the memory of request plans and layouts (a new `PlanCache` if None).
     `numpy_forward`: numpy's forward even where the compiled one is built (the reference;
-    then every request is served from its own group, `networks.forward_group`)."""
+    then every request is served from its own group, `networks.forward_group`).
+    `goal_oracle`: whether `aail_bounded` asks the environment whether the ego's goal is
+    reached and which actions keep it (R2-R4, `aail_bounded_guard`); False serves it as in an
+    environment whose observations cannot tell (R1 on every row): what the blend is worth
+    without those answers (`coexist eval --suite partners --no-goal-oracle`)."""
 
     def __init__(
         self,
@@ -130,6 +134,7 @@ class InferenceEngine:
         max_batch: int = 4096,
         plans: PlanCache | None = None,
         numpy_forward: bool = False,
+        goal_oracle: bool = True,
     ) -> None:
         for name, value in (("cache_size", cache_size), ("stack_cache_size", stack_cache_size)):
             if value < 1:
@@ -147,6 +152,7 @@ class InferenceEngine:
         )
         self.plans = PlanCache() if plans is None else plans
         self.numpy_forward = numpy_forward
+        self.goal_oracle = goal_oracle
         # whether a network's Q-values on a row are the same bits in any group and beside any
         # other rows (module docstring, "Goal distributions"): the compiled forward's are
         self.rows_independent = ROW_FORWARD and not numpy_forward
@@ -194,7 +200,9 @@ class InferenceEngine:
         inputs = member_inputs(checked, members, group, layout)
         q_members = forward_group(group, inputs, numpy_forward=self.numpy_forward)
         method, batch = request.method, checked.obs_BD.shape[0]
-        epsilon_B, finished_B, kept_BA = aail_bounded_guard(request, group, checked)
+        epsilon_B, finished_B, kept_BA = aail_bounded_guard(
+            request, group, checked, ask_domain=self.goal_oracle
+        )
         q_task_BA = task_q(method, q_members[0], batch, finished_B)
         blend_method = BLEND_OF[method]
         if blend_method == "sl":  # the task/joint network alone: no impact network evaluated
@@ -447,10 +455,11 @@ def task_q(
 
 
 def aail_bounded_guard(
-    request: ActRequest, group: StackedGroup, checked: CheckedRequest
+    request: ActRequest, group: StackedGroup, checked: CheckedRequest, *, ask_domain: bool = True
 ) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None]:
     """What `aail_bounded` needs from the environment (`policy.regret_bound`), from one
-    `goal_reached` call and, where a row's goal is reached, one `goal_kept` call:
+    `goal_reached` call and, where a row's goal is reached, one `goal_kept` call (neither
+    where `ask_domain` is False: then as where the domain cannot tell, ε on every row):
 
     - ε per row, (B,): the request's, else `DEFAULT_EPSILON_PER_ALPHA` × the task network's
       training α; 0 where the ego's own goal is not reached yet (R2);
@@ -469,7 +478,11 @@ def aail_bounded_guard(
         epsilon = DEFAULT_EPSILON_PER_ALPHA * float(group.nets[0].alpha or DEFAULT_TEMPERATURE)
     domain = checked.runtime.domain
     batch = checked.obs_BD.shape[0]
-    reached = domain.goal_reached(checked.obs_BD, checked.n_agents, request.ego_goal)
+    reached = (
+        domain.goal_reached(checked.obs_BD, checked.n_agents, request.ego_goal)
+        if ask_domain
+        else None
+    )
     if reached is None:
         return np.full(batch, epsilon), None, None
     blending_B = np.asarray(reached, dtype=bool) & (epsilon > 0.0)

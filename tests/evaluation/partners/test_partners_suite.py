@@ -55,6 +55,29 @@ def test_fast_suite_writes_a_report_whose_tables_match_the_episodes(tmp_path: Pa
     # folders of the machine the run was made on
     command = next(line for line in report.splitlines() if line.startswith("- Command:"))
     assert "sqlite:///$ZOO/models.db" in command and str(tmp_path) not in command
+    # without the goal oracle: the same episodes for every method but AAIL-B, and the report
+    # says how it was run
+    blind = tmp_path / "blind"
+    args[args.index(str(out))] = str(blind)
+    result = CliRunner().invoke(app, [*args, "--no-goal-oracle"])
+    assert result.exit_code == 0, result.output
+    blind_report = (blind / "REPORT.md").read_text()
+    assert "--no-goal-oracle" in blind_report and "without the goal oracle" in blind_report
+    blind_rows = json.loads((blind / "results.json").read_text())["rows"]
+    for r, b in zip(rows, blind_rows, strict=True):
+        if r["method"] != "aail_bounded":
+            assert json.dumps(r) == json.dumps(b)  # NaN where a cell has no value
+
+
+@pytest.mark.parametrize(
+    "more", [["--suite", "paper"], ["--suite", "partners", "--server", "http://127.0.0.1:9"]]
+)
+def test_no_goal_oracle_is_refused_where_it_cannot_act(more: list[str]) -> None:
+    """Only the partners suite's in-process engine can be told not to ask the environment: a
+    paper run or a server would silently ignore the flag."""
+    result = CliRunner().invoke(app, ["eval", *more, "--fast", "--no-goal-oracle"])
+    assert result.exit_code == 2
+    assert "--no-goal-oracle" in result.output
 
 
 def test_rows_are_computed_from_the_cells() -> None:

@@ -169,6 +169,25 @@ def test_the_progress_guard_blends_only_inside_the_target(tiny_zoo) -> None:
     np.testing.assert_allclose(single.probs, bounded[1], atol=1e-12)  # the single-row path too
 
 
+def test_without_the_goal_oracle_the_bound_applies_on_every_row(tiny_zoo) -> None:
+    """`InferenceEngine(goal_oracle=False)`: aail_bounded asks the domain nothing, so R1 with
+    the default ε on every row, inside the target or not, and no R3 or R4: `policy.blend`'s
+    aail_bounded on the task and impact Q-values themselves."""
+    obs_BD = np.array([[0.1, 0.5, 0, 0, 0.7, 0.6, 0, 0], [0.6, 0.5, 0, 0, 0.7, 0.6, 0, 0]])
+    request = ActRequest("particle", "a2", obs_BD, (PartnerSpec(1, goal="b3"),))
+    rows = InferenceEngine(tiny_zoo.store, goal_oracle=False).act(request)
+    with_oracle = InferenceEngine(tiny_zoo.store).act(request)
+    for row, result in zip(obs_BD, rows, strict=True):
+        ego, partner = row[:4], row[4:]
+        q_task = _q(tiny_zoo.store, "particle/task/a2", None, row)[None]
+        q_impact = _q(tiny_zoo.store, "particle/impact/b3", None, np.r_[ego, partner])[None, None]
+        epsilon = DEFAULT_EPSILON_PER_ALPHA * tiny_zoo.alpha
+        want = blend("aail_bounded", q_task, q_impact, tiny_zoo.alpha, regret_bound=epsilon)
+        np.testing.assert_allclose(result.probs, want.probs_BA[0], atol=ATOL)
+    # inside the target the oracle's R3 flattens the task Q and R4 keeps the target: not so here
+    assert not np.allclose(rows[0].probs, with_oracle[0].probs, atol=1e-6)
+
+
 def test_the_blend_keeps_the_reached_target(tiny_zoo) -> None:
     """R4: inside its target area, AAIL-B gives no probability to an action after which the ego
     would leave it (or coast out resting) while another action keeps it; ε = 0 is still SL."""
