@@ -159,8 +159,6 @@ def evaluate(
         chosen = get_suite(suite)
     except ValueError as err:
         raise typer.BadParameter(str(err), param_hint="--suite") from None
-    if no_goal_oracle and chosen.name != "partners":
-        raise typer.BadParameter("--suite partners only", param_hint="--no-goal-oracle")
     options = EvalOptions(
         server=server,
         store_url=store_url,

@@ -67,6 +67,12 @@ class OptionError(ValueError):
         self.option = option
 
 
+def refuse_no_goal_oracle(options: EvalOptions) -> None:
+    """`--no-goal-oracle` is the partners suite's: another suite would ignore it silently."""
+    if options.no_goal_oracle:
+        raise OptionError("--suite partners only", "--no-goal-oracle")
+
+
 class Ui(Protocol):
     """What a suite shows while it runs (the CLI's console)."""
 

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from evaluation.base import EvalOptions, OptionError, Ui
+from evaluation.base import EvalOptions, OptionError, Ui, refuse_no_goal_oracle
 from evaluation.command_line import portable_command
 
 if TYPE_CHECKING:
@@ -69,6 +69,7 @@ class CookingSuite:
     help = "(Fig. 9)"
 
     def run(self, options: EvalOptions, ui: Ui) -> CookingRun:
+        refuse_no_goal_oracle(options)
         from evaluation.backend import policy_backend
         from evaluation.cooking.suite import evaluate_cooking
         from model_store.defaults import open_store

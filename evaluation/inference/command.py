@@ -17,7 +17,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from evaluation.base import EvalOptions, OptionError, Ui
+from evaluation.base import EvalOptions, OptionError, Ui, refuse_no_goal_oracle
 from evaluation.command_line import portable_command
 
 if TYPE_CHECKING:
@@ -39,6 +39,7 @@ class InferenceSuite:
     help = "(online goal inference)"
 
     def run(self, options: EvalOptions, ui: Ui) -> InferenceRun:
+        refuse_no_goal_oracle(options)
         from evaluation.inference.suite import run_inference_suite
         from model_store.defaults import open_store
         from services.engine import InferenceEngine

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from evaluation.base import EvalOptions, OptionError, Ui
+from evaluation.base import EvalOptions, OptionError, Ui, refuse_no_goal_oracle
 from evaluation.command_line import portable_command
 
 METHODS = ("sl", "nail", "aail", "aail_bounded", "aail_budget")
@@ -47,6 +47,7 @@ class PairsSuite:
     help = "(every method on goal pairs of any environment: needs --env)"
 
     def run(self, options: EvalOptions, ui: Ui) -> PairsRun:
+        refuse_no_goal_oracle(options)
         from envs.registry import env_plugin
         from evaluation.backend import policy_backend
         from evaluation.pairs.report import summarise

@@ -21,7 +21,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from evaluation.base import EvalOptions, OptionError, Ui
+from evaluation.base import EvalOptions, OptionError, Ui, refuse_no_goal_oracle
 from evaluation.command_line import portable_command
 
 if TYPE_CHECKING:
@@ -60,6 +60,7 @@ class PaperSuite:
     help = "(§4.2)"
 
     def run(self, options: EvalOptions, ui: Ui) -> PaperRun | None:
+        refuse_no_goal_oracle(options)
         from evaluation.backend import policy_backend
         from evaluation.paper.suite import run_suite
         from model_store.defaults import open_store
