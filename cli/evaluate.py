@@ -143,7 +143,15 @@ def evaluate(
         typer.Option(
             "--no-goal-oracle",
             help="--suite partners: AAIL-B asks the environment neither whether the ego's goal "
-            "is reached nor which actions keep it (R1 on every row).",
+            "is reached nor which actions keep it (its goal monitors answer where registered).",
+        ),
+    ] = False,
+    no_goal_monitor: Annotated[
+        bool,
+        typer.Option(
+            "--no-goal-monitor",
+            help="--suite partners: AAIL-B asks no goal monitor (`coexist train monitor`) "
+            "where the environment does not answer.",
         ),
     ] = False,
     print_combos: Annotated[
@@ -185,6 +193,7 @@ def evaluate(
         partner_types=tuple(t.strip() for t in (partner_types or "").split(",") if t.strip()),
         env=env,
         no_goal_oracle=no_goal_oracle,
+        no_goal_monitor=no_goal_monitor,
     )
     ui = _ConsoleUi()
     try:

@@ -353,6 +353,53 @@ def task(
     write_curves(batches, run_dir)
 
 
+@app.command("monitor")
+def monitor(
+    env: EnvOpt = "particle",
+    goals: GoalsOpt = "all",
+    seed: SeedOpt = 0,
+    steps: Annotated[
+        int | None, typer.Option(min=1, help="Adam steps, each on fresh states (default: 6000).")
+    ] = None,
+    store_url: StoreOpt = None,
+    alias: Annotated[
+        str, typer.Option(help="Alias for monitors that pass their gate.")
+    ] = "production",
+) -> None:
+    """Train one goal monitor per goal: which actions keep a reached goal, so that AAIL-B asks
+    the environment nothing at execution (trainer/monitor.py)."""
+    from envs.registry import env_plugin
+    from model_store.defaults import open_store
+    from trainer.monitor import MonitorConfig, publish_monitors, train_gated
+    from trainer.plugins import env_trainer
+
+    goal_ids = _goals(env, goals)
+    states = getattr(env_trainer(env), "monitor_states", None)
+    if states is None:
+        raise typer.BadParameter(f"env {env!r} has no states for goal monitors", param_hint="--env")
+    config = MonitorConfig() if steps is None else MonitorConfig(steps=steps)
+    domain = env_plugin(env).domain
+    with open_store(store_url, create=True) as store, progress_bars() as progress:
+        attempts = train_gated(domain, states, goal_ids, config, seed, progress)
+        for trained in attempts:
+            publish_monitors(store, trained, env=env, alias=alias)
+    last = {
+        g: gate
+        for trained in attempts
+        for g, gate in zip(trained.goals, trained.gates, strict=True)
+    }
+    failed = [g for g in goal_ids if not last[g].passed]
+    worst = max(gate.false_keeps for gate in last.values())
+    print(
+        f"{len(goal_ids) - len(failed)} of {len(goal_ids)} monitors passed their gate (false "
+        f"keeps at most {config.max_false_keeps:.0%}; the worst {worst:.2%}; "
+        f"{len(attempts) - 1} retries)"
+    )
+    if failed:
+        print(f"failed (registered as latest only): {', '.join(failed)}")
+        raise typer.Exit(1)
+
+
 @app.command("impact")
 def impact(
     env: EnvOpt = "particle",

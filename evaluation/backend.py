@@ -200,23 +200,32 @@ def _listed(values: Any) -> list[float] | None:
 
 
 def policy_backend(
-    server: str | None, store: ModelStore | None, *, goal_oracle: bool = True
+    server: str | None,
+    store: ModelStore | None,
+    *,
+    goal_oracle: bool = True,
+    goal_monitors: bool = True,
 ) -> PolicyBackend:
     """The server at `server` (`server_backend`), else the in-process engine over `store`;
-    `goal_oracle` False: the engine's AAIL-B asks the environment nothing (in process only,
-    `InferenceEngine`)."""
+    `goal_oracle` False: the engine's AAIL-B asks the environment nothing, and with
+    `goal_monitors` False no goal monitor either (in process only, `InferenceEngine`)."""
     if server is not None:
-        if not goal_oracle:
+        if not (goal_oracle and goal_monitors):
             raise ValueError("goal_oracle: only the in-process engine can be told not to ask")
         return server_backend(server)
     if store is None:
         raise ValueError("store: the in-process engine needs a model store (or give a server)")
-    if not goal_oracle:
-        return EngineBackend(
-            InferenceEngine(store, goal_oracle=False),
-            "in-process engine without the goal oracle (AAIL-B's R2-R4 off: R1 on every row)",
-        )
-    return EngineBackend(InferenceEngine(store))
+    engine = InferenceEngine(store, goal_oracle=goal_oracle, goal_monitors=goal_monitors)
+    if goal_oracle and goal_monitors:
+        return EngineBackend(engine)
+    asks = (
+        "the goal monitors where registered, else R1 on every row"
+        if goal_monitors
+        else ("neither: R1 on every row")
+    )
+    oracle = "without the goal oracle" if not goal_oracle else "with the goal oracle"
+    monitors = "" if goal_monitors else " and without goal monitors"
+    return EngineBackend(engine, f"in-process engine {oracle}{monitors} (AAIL-B's R2-R4: {asks})")
 
 
 def server_backend(url: str) -> ServerBackend:

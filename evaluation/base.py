@@ -56,6 +56,7 @@ class EvalOptions:
     partner_types: tuple[str, ...] = ()  # the partners suite's partner types (empty: all)
     env: str | None = None  # the pairs suite's environment (any registered one)
     no_goal_oracle: bool = False  # the partners suite: AAIL-B without the environment's answers
+    no_goal_monitor: bool = False  # the partners suite: AAIL-B without goal monitors
 
 
 class OptionError(ValueError):
@@ -68,9 +69,12 @@ class OptionError(ValueError):
 
 
 def refuse_no_goal_oracle(options: EvalOptions) -> None:
-    """`--no-goal-oracle` is the partners suite's: another suite would ignore it silently."""
+    """`--no-goal-oracle` and `--no-goal-monitor` are the partners suite's: another suite would
+    ignore them silently."""
     if options.no_goal_oracle:
         raise OptionError("--suite partners only", "--no-goal-oracle")
+    if options.no_goal_monitor:
+        raise OptionError("--suite partners only", "--no-goal-monitor")
 
 
 class Ui(Protocol):

@@ -22,8 +22,8 @@ from typing import Any, Generic, Literal, TypeVar
 
 from model_store.errors import InvalidArtifact, brief
 
-ModelKind = Literal["task", "impact", "joint"]
-MODEL_KINDS: tuple[str, ...] = ("task", "impact", "joint")
+ModelKind = Literal["task", "impact", "joint", "monitor"]
+MODEL_KINDS: tuple[str, ...] = ("task", "impact", "joint", "monitor")
 VersionStatus = Literal["ready", "archived"]
 EVENT_KINDS: tuple[str, ...] = (
     "model_created",

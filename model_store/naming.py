@@ -141,6 +141,11 @@ def impact_model_name(env: str, goal: str) -> str:
     return validate_model_name(f"{validate_env(env)}/impact/{validate_goal(goal)}")
 
 
+def monitor_model_name(env: str, goal: str) -> str:
+    """`{env}/monitor/{goal}`: which actions keep the reached goal of an agent with `goal`."""
+    return validate_model_name(f"{validate_env(env)}/monitor/{validate_goal(goal)}")
+
+
 def joint_model_name(env: str, ego: str, partners: Sequence[str]) -> str:
     """`{env}/joint/{ego}+{p1}+...`: the joint-learner baseline for one goal combination."""
     if isinstance(partners, str) or not partners:

@@ -93,9 +93,20 @@ import math
 
 import numpy as np
 
-__all__ = ["DEFAULT_EPSILON_PER_ALPHA", "bound_rows", "check_regret_bound", "keep_goal_rows"]
+__all__ = [
+    "DEFAULT_EPSILON_PER_ALPHA",
+    "MONITOR_KEEP_LOGIT",
+    "bound_rows",
+    "check_regret_bound",
+    "keep_goal_rows",
+]
 
 DEFAULT_EPSILON_PER_ALPHA = 2.0
+# A goal monitor (`trainer.monitor`) calls an action keeping where it gives it a probability of
+# at least 0.9 (logit log 9): a false keep can let the blend pull the ego out of its target, a
+# miss only costs help, and the monitors' errors sit at the target's edge
+# (`reports/partners/draw6262/monitor/`).
+MONITOR_KEEP_LOGIT = math.log(9.0)
 
 
 def check_regret_bound(value: float) -> float:

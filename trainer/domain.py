@@ -57,7 +57,9 @@ class EnvTrainer(Protocol):
     """Why the environment has no joint-learner baseline ("" where it has one)."""
     production_parents_only: bool
     """Whether an impact network may only learn beside a `production` task network (one that
-    passed its gate), or may fall back to `latest` (`trainer.zoo`)."""
+    passed its gate), or may fall back to `latest` (`trainer.zoo`). A trainer may also have
+    `monitor_states`, a `trainer.monitor.StateSampler`: where it does (the particle world),
+    `coexist train monitor` trains the environment's goal monitors."""
 
     def default_configs(self) -> tuple[SoftQConfig, SoftQConfig]:
         """The task and the impact learner's configuration."""

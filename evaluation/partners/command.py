@@ -6,13 +6,15 @@ with the run's seed.
                  [--aligned-pairs 12] [--non-aligned-pairs 12] [--pair-episodes 20]
                  [--five-agent-sets 4] [--set-episodes 50] [--max-steps 400]
                  [--alias production] [--partner-alias partners] [--out reports/partners]
-                 [--no-goal-oracle]
+                 [--no-goal-oracle] [--no-goal-monitor]
 
 The store needs the particle zoo at `--alias` and a partner population (task networks of
 another training seed) at `--partner-alias`: `coexist train task --goals all --seed 1 --alias
 partners`. Writes `REPORT.md` and `results.json` into `--out`. `--no-goal-oracle`: the
 engine's AAIL-B asks the environment neither whether the ego's goal is reached nor which
-actions keep it (R2-R4 off, R1 on every row), as in an environment that cannot tell.
+actions keep it, as in an environment that cannot tell: AAIL-B asks the ego goal's monitor
+(`coexist train monitor`) where one is registered, else R1 on every row; `--no-goal-monitor`:
+no monitor either.
 """
 
 from __future__ import annotations
@@ -98,12 +100,18 @@ class PartnersSuite:
             store = None
             if options.server is None:
                 store = stack.enter_context(open_store(options.store_url))
-            if options.no_goal_oracle and options.server is not None:
-                raise OptionError(
-                    "needs the in-process engine (a server asks its environment)",
-                    "--no-goal-oracle",
-                )
-            backend = policy_backend(options.server, store, goal_oracle=not options.no_goal_oracle)
+            for flag, switched_off in (
+                ("--no-goal-oracle", options.no_goal_oracle),
+                ("--no-goal-monitor", options.no_goal_monitor),
+            ):
+                if switched_off and options.server is not None:
+                    raise OptionError("needs the in-process engine (a server asks as set)", flag)
+            backend = policy_backend(
+                options.server,
+                store,
+                goal_oracle=not options.no_goal_oracle,
+                goal_monitors=not options.no_goal_monitor,
+            )
             with ui.progress("episodes running") as bars:
                 start = time.perf_counter()
                 result = run_partners(backend, config, bars)
@@ -138,4 +146,6 @@ def _command(options: EvalOptions, out: Path, settings: dict[str, Any]) -> str:
         words += ["--partner-types", ",".join(options.partner_types)]
     if options.no_goal_oracle:
         words.append("--no-goal-oracle")
+    if options.no_goal_monitor:
+        words.append("--no-goal-monitor")
     return portable_command([*words, "--out", str(out)])

@@ -57,16 +57,17 @@ from __future__ import annotations
 
 import logging
 import threading
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
 from envs.registry import known_envs
 from model_store.errors import ModelStoreError
+from model_store.naming import monitor_model_name
 from model_store.store import ModelStore
 from policy.blend import BlendMethod, blend_checked
 from policy.maths import boltzmann, soft_value
-from policy.regret_bound import DEFAULT_EPSILON_PER_ALPHA, keep_goal_rows
+from policy.regret_bound import DEFAULT_EPSILON_PER_ALPHA, MONITOR_KEEP_LOGIT, keep_goal_rows
 from policy.regret_budget import DEFAULT_BUDGET_PER_ALPHA, budget_rows, initial_budget
 from policy.row_forward import mean_views
 from policy.sampling import sample_rows
@@ -82,6 +83,7 @@ from services.engine.messages import (
     EngineStatus,
     EnvInfo,
     Member,
+    ModelUsed,
 )
 from services.engine.model_cache import ModelCache
 from services.engine.networks import ROW_FORWARD, StackedGroup, forward_group, overflow_error
@@ -121,8 +123,10 @@ class InferenceEngine:
     then every request is served from its own group, `networks.forward_group`).
     `goal_oracle`: whether `aail_bounded` asks the environment whether the ego's goal is
     reached and which actions keep it (R2-R4, `aail_bounded_guard`); False serves it as in an
-    environment whose observations cannot tell (R1 on every row): what the blend is worth
-    without those answers (`coexist eval --suite partners --no-goal-oracle`)."""
+    environment whose observations cannot tell: what the blend is worth without those answers
+    (`coexist eval --suite partners --no-goal-oracle`).
+    `goal_monitors`: whether `aail_bounded` then asks the ego goal's monitor instead (where one
+    is registered); False: R1 on every row (`--no-goal-monitor`)."""
 
     def __init__(
         self,
@@ -135,6 +139,7 @@ class InferenceEngine:
         plans: PlanCache | None = None,
         numpy_forward: bool = False,
         goal_oracle: bool = True,
+        goal_monitors: bool = True,
     ) -> None:
         for name, value in (("cache_size", cache_size), ("stack_cache_size", stack_cache_size)):
             if value < 1:
@@ -153,6 +158,7 @@ class InferenceEngine:
         self.plans = PlanCache() if plans is None else plans
         self.numpy_forward = numpy_forward
         self.goal_oracle = goal_oracle
+        self.goal_monitors = goal_monitors
         # whether a network's Q-values on a row are the same bits in any group and beside any
         # other rows (module docstring, "Goal distributions"): the compiled forward's are
         self.rows_independent = ROW_FORWARD and not numpy_forward
@@ -200,8 +206,17 @@ class InferenceEngine:
         inputs = member_inputs(checked, members, group, layout)
         q_members = forward_group(group, inputs, numpy_forward=self.numpy_forward)
         method, batch = request.method, checked.obs_BD.shape[0]
+        monitors: list[ModelUsed] = []  # the goal monitor, where AAIL-B asked one
+
+        def monitor() -> np.ndarray | None:
+            return self._monitor_kept(request, checked, plans, inputs[0], monitors)
+
         epsilon_B, finished_B, kept_BA = aail_bounded_guard(
-            request, group, checked, ask_domain=self.goal_oracle
+            request,
+            group,
+            checked,
+            ask_domain=self.goal_oracle,
+            monitor=monitor if self.goal_monitors else None,
         )
         q_task_BA = task_q(method, q_members[0], batch, finished_B)
         blend_method = BLEND_OF[method]
@@ -239,7 +254,7 @@ class InferenceEngine:
         actions_B, greedy_B = sample_rows(probs_BA, rng.random((batch,)))
         return ActColumns(
             method=method,
-            models=list(layout.models),
+            models=[*layout.models, *monitors],
             probs=probs_BA,
             actions=actions_B,
             greedy_actions=greedy_B,
@@ -253,6 +268,40 @@ class InferenceEngine:
             budget_total=total_B,
             budget_value=value_B,
         )
+
+    def _monitor_kept(
+        self,
+        request: ActRequest,
+        checked: CheckedRequest,
+        plans: Plans,
+        task_rows: np.ndarray,
+        used: list[ModelUsed],
+    ) -> np.ndarray | None:
+        """The actions, (B, A) bool, that the ego goal's monitor (`trainer.monitor`) says keep
+        its goal, on the task views `task_rows` (B K rows; a logit mean over the K views), or
+        None where no monitor is registered under the request's alias (remembered until the
+        store's generation moves). Appends the monitor's `ModelUsed` to `used`."""
+        domain = checked.runtime.domain
+        key = ("monitor", domain.name, request.ego_goal, request.alias)
+        if plans.get(key) is False:
+            return None
+        name = monitor_model_name(domain.name, request.ego_goal)
+        needs: Needs = plans.remember(
+            ("monitor needs", name), lambda: ((name, "ego_goal", "no goal monitor"),)
+        )
+        members: tuple[Member, ...] = plans.remember(
+            ("monitor members", name), lambda: (("monitor", request.ego_goal),)
+        )
+        try:
+            _, group = self.cache.resolve_group(needs, request.alias, {}, members, domain)
+        except ModelNotFound:
+            plans.put(key, False)
+            return None
+        q = forward_group(group, [task_rows], numpy_forward=self.numpy_forward)
+        logits_BA = mean_views(q[0], len(task_rows) // checked.obs_BD.shape[0])
+        net = group.nets[0]
+        used.append(ModelUsed("monitor", net.name, net.version, net.sha256, None, request.ego_goal))
+        return np.asarray(logits_BA > MONITOR_KEEP_LOGIT)
 
     def _resolve_members(
         self, request: ActRequest, checked: CheckedRequest, plans: Plans, *, check_pins: bool
@@ -455,11 +504,18 @@ def task_q(
 
 
 def aail_bounded_guard(
-    request: ActRequest, group: StackedGroup, checked: CheckedRequest, *, ask_domain: bool = True
+    request: ActRequest,
+    group: StackedGroup,
+    checked: CheckedRequest,
+    *,
+    ask_domain: bool = True,
+    monitor: Callable[[], np.ndarray | None] | None = None,
 ) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None]:
     """What `aail_bounded` needs from the environment (`policy.regret_bound`), from one
     `goal_reached` call and, where a row's goal is reached, one `goal_kept` call (neither
-    where `ask_domain` is False: then as where the domain cannot tell, ε on every row):
+    where `ask_domain` is False). Where the domain cannot tell (or is not asked), the ego goal's
+    monitor answers both, `monitor()`: the actions it says keep the goal are K (R4) and the goal
+    is reached where K is not empty (R2); without a monitor, ε on every row:
 
     - ε per row, (B,): the request's, else `DEFAULT_EPSILON_PER_ALPHA` × the task network's
       training α; 0 where the ego's own goal is not reached yet (R2);
@@ -483,15 +539,21 @@ def aail_bounded_guard(
         if ask_domain
         else None
     )
+    kept: np.ndarray | None = None
+    if reached is None and monitor is not None:
+        kept = monitor()
+        if kept is not None:
+            reached = np.asarray(kept.any(axis=1))
     if reached is None:
         return np.full(batch, epsilon), None, None
     blending_B = np.asarray(reached, dtype=bool) & (epsilon > 0.0)
     if not blending_B.any():
         return np.zeros(batch), None, None
     epsilon_B = np.where(blending_B, epsilon, 0.0)
-    if domain.goal_is_final:
+    if kept is None and domain.goal_is_final:
         return epsilon_B, blending_B, None
-    kept = domain.goal_kept(checked.obs_BD, checked.n_agents, request.ego_goal)
+    if kept is None:
+        kept = domain.goal_kept(checked.obs_BD, checked.n_agents, request.ego_goal)
     if kept is None:
         return epsilon_B, None, None
     kept_BA = np.where(blending_B[:, None], np.asarray(kept, dtype=bool), True)

@@ -26,7 +26,7 @@ import numpy as np
 
 Method = Literal["aail_bounded", "aail_budget", "aail", "nail", "sl", "jl"]
 METHODS: tuple[Method, ...] = ("aail_bounded", "aail_budget", "aail", "nail", "sl", "jl")
-Role = Literal["task", "impact", "joint"]
+Role = Literal["task", "impact", "joint", "monitor"]
 Member = tuple[Role, str]  # one network a request needs: its role and the goal it serves
 DEFAULT_ALIAS = "production"
 DEFAULT_METHOD: Method = "aail_bounded"  # measured: reports/paper/REPORT.md

@@ -14,7 +14,7 @@ from model_store.naming import MAX_SIZE, MAX_VERSION
 class ModelCreate(BaseModel):
     name: str = Field(examples=["particle/task/a3"])
     env: str = Field(examples=["particle"])
-    kind: Literal["task", "impact", "joint"]
+    kind: Literal["task", "impact", "joint", "monitor"]
     goals: list[str] = Field(min_length=1, examples=[["a3"]])
     obs_dim: int = Field(gt=0, le=MAX_SIZE, examples=[8])
     n_actions: int = Field(gt=0, le=MAX_SIZE, examples=[5])

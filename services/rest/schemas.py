@@ -142,7 +142,7 @@ class BudgetOut(BaseModel):
 
 
 class ModelUsedOut(BaseModel):
-    role: Literal["task", "impact", "joint"]
+    role: Literal["task", "impact", "joint", "monitor"]
     name: str
     version: int
     sha256: str

@@ -69,15 +69,18 @@ def test_fast_suite_writes_a_report_whose_tables_match_the_episodes(tmp_path: Pa
             assert json.dumps(_unadjusted(r)) == json.dumps(_unadjusted(b))
 
 
+@pytest.mark.parametrize("flag", ["--no-goal-oracle", "--no-goal-monitor"])
 @pytest.mark.parametrize(
     "more", [["--suite", "paper"], ["--suite", "partners", "--server", "http://127.0.0.1:9"]]
 )
-def test_no_goal_oracle_is_refused_where_it_cannot_act(more: list[str]) -> None:
-    """Only the partners suite's in-process engine can be told not to ask the environment: a
-    paper run or a server would silently ignore the flag."""
-    result = CliRunner().invoke(app, ["eval", *more, "--fast", "--no-goal-oracle"])
+def test_the_goal_answer_flags_are_refused_where_they_cannot_act(
+    more: list[str], flag: str
+) -> None:
+    """Only the partners suite's in-process engine can be told not to ask the environment or
+    the monitors: a paper run or a server would silently ignore the flag."""
+    result = CliRunner().invoke(app, ["eval", *more, "--fast", flag])
     assert result.exit_code == 2
-    assert "--no-goal-oracle" in result.output
+    assert flag in result.output
 
 
 def test_rows_are_computed_from_the_cells() -> None:
