@@ -28,11 +28,13 @@ CURRENT = {  # AAIL-B's current rule, the same three zoos' seeds
 }
 DRAW = REPORTS / "draw6262"  # a fresh draw on a zoo of seed 0 trained on another machine
 BLIND = DRAW / "no_oracle"  # the same draw, AAIL-B without the environment's answers
+MONITOR = DRAW / "monitor"  # the same draw, AAIL-B asking its goal monitors instead
 REPORTED = {
     **{f"current rule, {k}": v for k, v in CURRENT.items()},
     **{f"earlier rule, {k}": v for k, v in RUNS.items()},
     "current rule, draw 6262": DRAW,
     "no goal oracle, draw 6262": BLIND,
+    "goal monitors, draw 6262": MONITOR,
 }
 DEFAULT = "aail_bounded"  # the server's default blend, as each report names it
 
@@ -62,18 +64,24 @@ def test_zoos_is_the_spread_of_the_three_runs(zoos: dict[str, Path], folder: Pat
     assert table in (folder / "ZOOS.md").read_text()
 
 
-def test_the_run_without_the_oracle_differs_only_in_aail_b() -> None:
-    """The no-oracle run is the same draw, episodes and engine but for AAIL-B's R2-R4: every
-    other method's row is the oracle run's, and its report says how AAIL-B ran."""
+@pytest.mark.parametrize(
+    ("run", "flags"),
+    [(BLIND, ["--no-goal-oracle", "--no-goal-monitor"]), (MONITOR, ["--no-goal-oracle"])],
+)
+def test_the_runs_without_the_oracle_differ_only_in_aail_b(run: Path, flags: list[str]) -> None:
+    """The runs without the oracle are the same draw, episodes and engine but for AAIL-B's
+    R2-R4: every other method's row is the oracle run's, and each report says how AAIL-B ran."""
     with_oracle = json.loads((DRAW / "results.json").read_text())
-    without = json.loads((BLIND / "results.json").read_text())
+    without = json.loads((run / "results.json").read_text())
     assert with_oracle["config"] == without["config"]
     for a, b in zip(with_oracle["rows"], without["rows"], strict=True):
         assert (a["partner_type"], a["method"]) == (b["partner_type"], b["method"])
         if a["method"] != DEFAULT:  # Holm's adjustment runs over a family AAIL-B is in
             assert _unadjusted(a) == _unadjusted(b)
-    report = (BLIND / "REPORT.md").read_text()
-    assert "--no-goal-oracle" in report and "without the goal oracle" in report
+    report = (run / "REPORT.md").read_text()
+    command = next(line for line in report.splitlines() if line.startswith("- Command:"))
+    assert all(flag in command for flag in flags) and "without the goal oracle" in report
+    assert ("--no-goal-monitor" in command) == ("without goal monitors" in report)
 
 
 def _unadjusted(row: dict[str, Any]) -> str:
