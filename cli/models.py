@@ -113,7 +113,7 @@ def _when(ts: Any) -> str:
 @app.command("list")
 def list_models(
     env: Annotated[str | None, typer.Option(help="Only this environment.")] = None,
-    kind: Annotated[str | None, typer.Option(help="task, impact or joint.")] = None,
+    kind: Annotated[str | None, typer.Option(help="task, impact, joint or monitor.")] = None,
     goal: Annotated[str | None, typer.Option(help="Only models with this goal.")] = None,
     tag: Annotated[str | None, typer.Option(help="'key' or 'key=value'.")] = None,
     store_url: StoreUrl = None,

@@ -134,7 +134,7 @@ def list_models(
     page_size: int = 50,
     page_token: str | None = None,
 ) -> Plan[ModelPage]:
-    """One page of models, filtered by env, kind (task, impact, joint), goal or tag."""
+    """One page of models, filtered by env, kind (task, impact, joint, monitor), goal or tag."""
     wanted = {"env": env, "kind": kind, "goal": goal, "tag": tag, "page_token": page_token}
     params: dict[str, Any] = {k: v for k, v in wanted.items() if v is not None}
     params["page_size"] = page_size

@@ -52,7 +52,7 @@ class Diagnostics:
 
 @dataclass(frozen=True)
 class ModelUsed:
-    role: str  # "task", "impact" or "joint"
+    role: str  # "task", "impact", "joint" or "monitor"
     name: str
     version: int
     sha256: str

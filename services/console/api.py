@@ -81,7 +81,7 @@ def models_overview(
     store: StoreDep,
     _: ReadAuth,
     env: str | None = None,
-    kind: Annotated[str | None, Query(pattern="^(task|impact|joint)$")] = None,
+    kind: Annotated[str | None, Query(pattern="^(task|impact|joint|monitor)$")] = None,
 ) -> dict[str, Any]:
     """Every model (up to the store's largest page) with its versions, newest first."""
     page = store.list_models(env=env, kind=kind, page_size=STORE_PAGE)

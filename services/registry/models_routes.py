@@ -67,7 +67,7 @@ def list_models(
     store: StoreDep,
     _: ReadAuth,
     env: str | None = None,
-    kind: Annotated[str | None, Query(pattern="^(task|impact|joint)$")] = None,
+    kind: Annotated[str | None, Query(pattern="^(task|impact|joint|monitor)$")] = None,
     goal: str | None = None,
     tag: Annotated[str | None, Query(description="`key` or `key=value`")] = None,
     page_size: Annotated[int, Query(ge=1, le=1000)] = 50,
