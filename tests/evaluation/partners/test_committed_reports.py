@@ -26,15 +26,16 @@ CURRENT = {  # AAIL-B's current rule, the same three zoos' seeds
     "zoo seed 10": REPORTS / "zoo10",
     "zoo seed 20": REPORTS / "zoo20",
 }
-DRAW = REPORTS / "draw6262"  # a fresh draw on a zoo of seed 0 trained on another machine
-BLIND = DRAW / "no_oracle"  # the same draw, AAIL-B without the environment's answers
-MONITOR = DRAW / "monitor"  # the same draw, AAIL-B asking its goal monitors instead
+# A fresh draw on three zoos retrained on another machine (seeds 0, 10, 20): per zoo, AAIL-B
+# with the environment's answers, without them (no_oracle) and with goal monitors instead
+DRAW = REPORTS / "draw6262"
+DRAWS = {"zoo seed 0": DRAW, "zoo seed 10": DRAW / "zoo10", "zoo seed 20": DRAW / "zoo20"}
+FLAGS = {"no_oracle": ["--no-goal-oracle", "--no-goal-monitor"], "monitor": ["--no-goal-oracle"]}
 REPORTED = {
     **{f"current rule, {k}": v for k, v in CURRENT.items()},
     **{f"earlier rule, {k}": v for k, v in RUNS.items()},
-    "current rule, draw 6262": DRAW,
-    "no goal oracle, draw 6262": BLIND,
-    "goal monitors, draw 6262": MONITOR,
+    **{f"draw 6262, {k}": v for k, v in DRAWS.items()},
+    **{f"draw 6262, {k}, {way}": v / way for k, v in DRAWS.items() for way in FLAGS},
 }
 DEFAULT = "aail_bounded"  # the server's default blend, as each report names it
 
@@ -57,21 +58,30 @@ def test_each_report_holds_the_tables_its_results_give(label: str) -> None:
     assert report.endswith(tables_markdown(rows, DEFAULT, methods))
 
 
-@pytest.mark.parametrize(("zoos", "folder"), [(CURRENT, REPORTS), (RUNS, PREVIOUS)])
-def test_zoos_is_the_spread_of_the_three_runs(zoos: dict[str, Path], folder: Path) -> None:
+@pytest.mark.parametrize(
+    ("zoos", "page"),
+    [
+        (CURRENT, REPORTS / "ZOOS.md"),
+        (RUNS, PREVIOUS / "ZOOS.md"),
+        (DRAWS, DRAW / "ZOOS.md"),
+        ({k: v / "monitor" for k, v in DRAWS.items()}, DRAW / "MONITORS.md"),
+    ],
+)
+def test_each_spread_page_is_the_spread_of_its_three_runs(
+    zoos: dict[str, Path], page: Path
+) -> None:
     runs = [json.loads((run / "results.json").read_text()) for run in zoos.values()]
     table = spread_markdown(runs, list(zoos))
-    assert table in (folder / "ZOOS.md").read_text()
+    assert table in page.read_text()
 
 
-@pytest.mark.parametrize(
-    ("run", "flags"),
-    [(BLIND, ["--no-goal-oracle", "--no-goal-monitor"]), (MONITOR, ["--no-goal-oracle"])],
-)
-def test_the_runs_without_the_oracle_differ_only_in_aail_b(run: Path, flags: list[str]) -> None:
+@pytest.mark.parametrize("way", sorted(FLAGS))
+@pytest.mark.parametrize("zoo", sorted(DRAWS))
+def test_the_runs_without_the_oracle_differ_only_in_aail_b(zoo: str, way: str) -> None:
     """The runs without the oracle are the same draw, episodes and engine but for AAIL-B's
     R2-R4: every other method's row is the oracle run's, and each report says how AAIL-B ran."""
-    with_oracle = json.loads((DRAW / "results.json").read_text())
+    run, flags = DRAWS[zoo] / way, FLAGS[way]
+    with_oracle = json.loads((DRAWS[zoo] / "results.json").read_text())
     without = json.loads((run / "results.json").read_text())
     assert with_oracle["config"] == without["config"]
     for a, b in zip(with_oracle["rows"], without["rows"], strict=True):
