@@ -104,8 +104,8 @@ __all__ = [
 DEFAULT_EPSILON_PER_ALPHA = 2.0
 # A goal monitor (`trainer.monitor`) calls an action keeping where it gives it a probability of
 # at least 0.9 (logit log 9): a false keep can let the blend pull the ego out of its target, a
-# miss only costs help, and the monitors' errors sit at the target's edge
-# (`reports/partners/draw6262/monitor/`).
+# miss only costs help; chosen on tuning draws (`reports/paper/blend_choice.md`, "The goal
+# monitors' threshold").
 MONITOR_KEEP_LOGIT = math.log(9.0)
 
 
