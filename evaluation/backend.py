@@ -216,16 +216,19 @@ def policy_backend(
     if store is None:
         raise ValueError("store: the in-process engine needs a model store (or give a server)")
     engine = InferenceEngine(store, goal_oracle=goal_oracle, goal_monitors=goal_monitors)
-    if goal_oracle and goal_monitors:
-        return EngineBackend(engine)
-    asks = (
-        "the goal monitors where registered, else R1 on every row"
-        if goal_monitors
-        else ("neither: R1 on every row")
-    )
-    oracle = "without the goal oracle" if not goal_oracle else "with the goal oracle"
-    monitors = "" if goal_monitors else " and without goal monitors"
-    return EngineBackend(engine, f"in-process engine {oracle}{monitors} (AAIL-B's R2-R4: {asks})")
+    return EngineBackend(engine, _ENGINE_DESCRIPTIONS[(goal_oracle, goal_monitors)])
+
+
+# how the in-process engine's AAIL-B gets R2-R4, by (goal_oracle, goal_monitors)
+_ENGINE_DESCRIPTIONS = {
+    (True, True): "in-process engine",
+    (True, False): "in-process engine without goal monitors (AAIL-B's R2-R4: the environment's "
+    "answers where it gives them, else R1 on every row)",
+    (False, True): "in-process engine without the goal oracle (AAIL-B's R2-R4: the goal "
+    "monitors where registered, else R1 on every row)",
+    (False, False): "in-process engine without the goal oracle and without goal monitors "
+    "(AAIL-B's R2-R4: neither: R1 on every row)",
+}
 
 
 def server_backend(url: str) -> ServerBackend:

@@ -3,14 +3,15 @@ kernel, and the inverse-CDF sampling of `policy.sampling`.
 
 Why compiled: the blend of one row is a few hundred double operations over vectors of a
 handful of actions; numpy spends ~40 calls on them, and its per-call overhead, not the
-arithmetic, then sets a single act's latency. Here each row is plain loops over doubles.
+arithmetic, then sets a single act's latency. Here a batch is plain loops over doubles, in
+phases over its rows (`blend_rows`).
 
 The semantics are those of `policy.blend`'s vectorised numpy path, the reference, documented
 there (standardisation and scale rule, the Σw = 0 fallback, rows without partners, one
 action); each helper below names the numpy function it follows. Sums run in plain order, so
 the results differ from numpy's (pairwise sums) by rounding: tests/policy/test_blend_kernel.py
-holds them to the reference within 1e-9. Every row is computed alone, so a row of a batch
-equals the same row blended on its own, bit for bit.
+holds them to the reference within 1e-9. Every value depends on its own row only, so a row of
+a batch equals the same row blended on its own, bit for bit.
 
 Inputs are trusted (`policy.blend` checks them: alpha > 0, A >= 1, C-contiguous float64),
 except for finiteness: a NaN or infinite Q-value of an unmasked slot raises

@@ -10,10 +10,9 @@ them it strands its ego (`reports/partners/draw6262/no_oracle/`). The ego's task
 one model of its own goal the server holds; this probe measures whether its Q-values tell the
 actions that keep the target from those that lose it, on states where the answer matters.
 
-States: per goal, `--states` egos drawn uniformly in the goal's target area widened by
-`MARGIN` on each side (clipped to the world), with a speed up to the cap in a random direction
-(30 % at rest), beside a partner drawn anywhere; the truth is the domain's `goal_kept` for each
-action. Reported, pooled over the goals:
+States: per goal, `--states` drawn as the goal monitors' are (`trainer.particle.monitor_states`:
+mostly at and around the target area, some anywhere, beside a partner anywhere); the truth is
+the domain's `goal_kept` for each action. Reported, pooled over the goals:
 
 - boundary rows (some actions keep the target, some lose it): how often the network's best
   action is one that loses it;
@@ -34,15 +33,13 @@ import numpy as np
 import torch
 
 from envs.particle.domain import ParticleDomain
-from envs.particle.goals import GOAL_IDS, TARGET_BOXES_G4, goal_index
-from envs.particle.world import MAX_SPEED
+from envs.particle.goals import GOAL_IDS
 from evaluation.command_line import portable_command
 from model_store.defaults import open_store
 from model_store.store import ModelStore
+from trainer.particle.monitor_states import monitor_states
 from trainer.zoo import load_task_nets
 
-MARGIN = 0.15  # how far outside the target area egos are drawn (three full-speed steps)
-REST_SHARE = 0.3  # egos drawn at rest
 THRESHOLDS = (-0.1, 0.0, 0.1)  # Q levels tried as "keeps the target"
 
 
@@ -68,16 +65,7 @@ def probe(
     rng = np.random.default_rng(seed)
     q_rows, kept_rows = [], []
     for g, goal in enumerate(goals):
-        box = TARGET_BOXES_G4[goal_index(goal)]
-        low, high = np.array([box[0], box[2]]) - MARGIN, np.array([box[1], box[3]]) + MARGIN
-        ego_xy = np.clip(rng.uniform(low, high, (states, 2)), 0.0, 1.0)
-        speed = rng.uniform(0.0, MAX_SPEED, states) * (rng.random(states) >= REST_SHARE)
-        angle = rng.uniform(0.0, 2 * np.pi, states)
-        ego_v = np.stack([np.cos(angle), np.sin(angle)], axis=1) * speed[:, None]
-        partner = np.concatenate(
-            [rng.uniform(0.0, 1.0, (states, 2)), rng.uniform(-0.35, 0.35, (states, 2))], axis=1
-        )
-        obs = np.concatenate([ego_xy, ego_v, partner], axis=1)
+        obs = monitor_states(rng, goal, states)
         views = torch.zeros(len(goals), states, domain.pair_obs_dim)
         views[g] = torch.from_numpy(domain.task_views(obs, 2)[:, 0]).float()
         with torch.no_grad():

@@ -207,16 +207,14 @@ class InferenceEngine:
         q_members = forward_group(group, inputs, numpy_forward=self.numpy_forward)
         method, batch = request.method, checked.obs_BD.shape[0]
         monitors: list[ModelUsed] = []  # the goal monitor, where AAIL-B asked one
+        monitor = None
+        if method == "aail_bounded" and self.goal_monitors:
 
-        def monitor() -> np.ndarray | None:
-            return self._monitor_kept(request, checked, plans, inputs[0], monitors)
+            def monitor() -> np.ndarray | None:
+                return self._monitor_kept(request, checked, plans, inputs[0], monitors)
 
         epsilon_B, finished_B, kept_BA = aail_bounded_guard(
-            request,
-            group,
-            checked,
-            ask_domain=self.goal_oracle,
-            monitor=monitor if self.goal_monitors else None,
+            request, group, checked, ask_domain=self.goal_oracle, monitor=monitor
         )
         q_task_BA = task_q(method, q_members[0], batch, finished_B)
         blend_method = BLEND_OF[method]

@@ -11,6 +11,7 @@ import pytest
 from typer.testing import CliRunner
 
 from cli.main import app
+from evaluation.backend import EngineBackend, policy_backend
 from evaluation.partners.report import rows_of
 from evaluation.partners.suite import PartnersConfig, scenarios
 from evaluation.prepare import train_tiny_zoo
@@ -144,3 +145,22 @@ def test_the_spread_table_puts_each_zoo_in_its_column_and_refuses_other_configs(
 
 def _unadjusted(row: dict) -> dict:
     return {k: v for k, v in row.items() if "holm" not in k}
+
+
+@pytest.mark.parametrize(
+    ("oracle", "monitors", "says"),
+    [
+        (True, True, "in-process engine"),
+        (True, False, "the environment's answers where it gives them"),
+        (False, True, "the goal monitors where registered"),
+        (False, False, "neither: R1 on every row"),
+    ],
+)
+def test_the_backend_says_how_aail_b_gets_its_answers(
+    tmp_path: Path, oracle: bool, monitors: bool, says: str
+) -> None:
+    with SqlModelStore(f"sqlite:///{tmp_path}/models.db") as store:
+        backend = policy_backend(None, store, goal_oracle=oracle, goal_monitors=monitors)
+        assert says in backend.description
+        assert isinstance(backend, EngineBackend)
+        assert (backend.engine.goal_oracle, backend.engine.goal_monitors) == (oracle, monitors)
