@@ -377,10 +377,11 @@ def monitor(
     states = getattr(env_trainer(env), "monitor_states", None)
     if states is None:
         raise typer.BadParameter(f"env {env!r} has no states for goal monitors", param_hint="--env")
+    labels = getattr(env_trainer(env), "monitor_labels", None)
     config = MonitorConfig() if steps is None else MonitorConfig(steps=steps)
     domain = env_plugin(env).domain
     with open_store(store_url, create=True) as store, progress_bars() as progress:
-        attempts = train_gated(domain, states, goal_ids, config, seed, progress)
+        attempts = train_gated(domain, states, goal_ids, config, seed, progress, labels)
         for trained in attempts:
             publish_monitors(store, trained, env=env, alias=alias)
     last = {

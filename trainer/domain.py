@@ -59,7 +59,8 @@ class EnvTrainer(Protocol):
     """Whether an impact network may only learn beside a `production` task network (one that
     passed its gate), or may fall back to `latest` (`trainer.zoo`). A trainer may also have
     `monitor_states`, a `trainer.monitor.StateSampler`: where it does (the particle world),
-    `coexist train monitor` trains the environment's goal monitors."""
+    `coexist train monitor` trains the environment's goal monitors, on the labels of its
+    `monitor_labels` (a `trainer.monitor.Labeller`) where it has one."""
 
     def default_configs(self) -> tuple[SoftQConfig, SoftQConfig]:
         """The task and the impact learner's configuration."""

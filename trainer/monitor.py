@@ -13,7 +13,9 @@ What. For goal g, a network M_g of the task networks' form (the same pair view i
 action) whose output is the logit of P(after action a the agent is at its goal and can stay:
 `Domain.goal_kept`). Trained at training time, where the environment is at hand, by logistic
 regression (binary cross-entropy) on states drawn fresh at every step from `states(rng, goal,
-n)`, labelled by the domain's `goal_kept`: the same labels R4 uses, learnt once per goal. At
+n)`, labelled by the domain's `goal_kept` (the answer R4 uses), or by a conservative version of
+it where the environment's trainer gives one (`monitor_labels`: the particle world's shrinks the
+target area, so that the monitor's errors at the edge fall inside it). At
 execution the engine reads K = {a : M_g(s, a) > log 9}, the actions it gives a probability of
 at least 0.9 (`policy.regret_bound.MONITOR_KEEP_LOGIT`), as R4's, the goal reached where K is
 not empty (R2), and asks the environment nothing (`services.engine.engine.aail_bounded_guard`).
@@ -46,6 +48,9 @@ RETRY_SEED = 7919  # seed offset per retry
 
 # (rng, goal, n) -> n observations of a two-agent scene, the monitored agent first
 StateSampler = Callable[[np.random.Generator, str, int], np.ndarray]
+# (observations (n, D), goal) -> (n, A) bool: the labels a monitor learns where they are not the
+# domain's `goal_kept` itself (a conservative version of it: `trainer.particle.monitor_states`)
+Labeller = Callable[[np.ndarray, str], np.ndarray]
 
 
 @dataclass(frozen=True)
@@ -84,18 +89,24 @@ class TrainedMonitors:
 
 
 def _labelled(
-    domain: Domain, states: StateSampler, goals: Sequence[str], n: int, rng: np.random.Generator
+    domain: Domain,
+    states: StateSampler,
+    goals: Sequence[str],
+    n: int,
+    rng: np.random.Generator,
+    labels: Labeller | None = None,
 ) -> tuple[torch.Tensor, torch.Tensor]:
-    """(G, n, view) inputs and (G, n, A) 0/1 labels: n fresh states per goal."""
-    views, labels = [], []
+    """(G, n, view) inputs and (G, n, A) 0/1 labels: n fresh states per goal, labelled by
+    `labels` (None: the domain's `goal_kept`)."""
+    views, targets = [], []
     for goal in goals:
         obs = states(rng, goal, n)
-        kept = domain.goal_kept(obs, 2, goal)
+        kept = domain.goal_kept(obs, 2, goal) if labels is None else labels(obs, goal)
         if kept is None:
             raise ValueError(f"env {domain.name!r}: goal_kept answers None, nothing to learn")
         views.append(domain.task_views(obs, 2)[:, 0])
-        labels.append(np.asarray(kept, dtype=np.float32))
-    return torch.from_numpy(np.stack(views)).float(), torch.from_numpy(np.stack(labels))
+        targets.append(np.asarray(kept, dtype=np.float32))
+    return torch.from_numpy(np.stack(views)).float(), torch.from_numpy(np.stack(targets))
 
 
 def train_monitors(
@@ -105,15 +116,17 @@ def train_monitors(
     config: MonitorConfig,
     seed: int,
     progress: Callable[[int, int], None] | None = None,
+    labels: Labeller | None = None,
 ) -> TrainedMonitors:
-    """One monitor per goal, trained together as one stacked network, then gated."""
+    """One monitor per goal, trained together as one stacked network on `labels` (None: the
+    domain's `goal_kept`), then gated against the domain's `goal_kept`."""
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
     spec = QNetSpec(domain.pair_obs_dim, domain.n_actions, hidden=config.hidden)
     nets = StackedQNet(spec, len(goals), generator=torch.Generator().manual_seed(seed))
     optimiser = torch.optim.Adam(nets.parameters(), lr=config.lr)
     for step in range(config.steps):
-        x, y = _labelled(domain, states, goals, config.states, rng)
+        x, y = _labelled(domain, states, goals, config.states, rng, labels)
         loss = F.binary_cross_entropy_with_logits(nets(x), y)
         optimiser.zero_grad()
         loss.backward()
@@ -141,6 +154,7 @@ def train_gated(
     config: MonitorConfig,
     seed: int,
     progress: Callable[[str, int], Callable[[int, int], None]] | None = None,
+    labels: Labeller | None = None,
 ) -> list[TrainedMonitors]:
     """`train_monitors` of `goals`, then of the goals whose gate failed again, with twice the
     steps and a fresh seed, up to `GATE_RETRIES` times (as the zoo's networks are retried);
@@ -152,7 +166,9 @@ def train_gated(
         run = replace(config, steps=steps)
         label = f"monitor {todo[0]}..{todo[-1]}" + (f" (retry {attempt})" if attempt else "")
         advance = None if progress is None else progress(label, run.steps)
-        trained = train_monitors(domain, states, todo, run, seed + RETRY_SEED * attempt, advance)
+        trained = train_monitors(
+            domain, states, todo, run, seed + RETRY_SEED * attempt, advance, labels
+        )
         attempts.append(trained)
         todo = [g for g, gate in zip(trained.goals, trained.gates, strict=True) if not gate.passed]
         if not todo:

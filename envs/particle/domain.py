@@ -93,6 +93,17 @@ def _target_corners(goal_index: int) -> tuple[np.ndarray, np.ndarray]:
     return low, high
 
 
+def box_kept(ego_B4: np.ndarray, box_4: np.ndarray) -> np.ndarray:
+    """(B, A) bool: whether after each action an agent at `ego_B4` ([x, y, vx, vy]) is inside
+    the box [x_lo, x_hi, y_lo, y_hi] and stays inside if it rests from then on (the geometry of
+    `ParticleDomain.goal_kept`; the goal monitors' labels use a shrunk box)."""
+    next_BA4 = integrate(ego_B4[:, None].astype(np.float64), ACTION_DIRECTIONS_A2)
+    coast_BA2 = np.clip(next_BA4[..., :2] + (COAST * DT) * next_BA4[..., 2:], 0.0, 1.0)
+    ends_BAE2 = np.stack([next_BA4[..., :2], coast_BA2], axis=2)
+    inside_BAE2 = (ends_BAE2 >= box_4[[0, 2]]) & (ends_BAE2 <= box_4[[1, 3]])
+    return np.asarray(inside_BAE2.all(axis=(2, 3)))
+
+
 class ParticleDomain(DomainCounts):
     """Domain description of the particle world (implements `envs.base.Domain`)."""
 
@@ -172,12 +183,7 @@ class ParticleDomain(DomainCounts):
         the position after the action and the coast's end clipped to the world: both inside the
         box means the whole coast is."""
         box_4 = TARGET_BOXES_G4[check_goal(self, goal)]
-        ego_B14 = self._blocks(obs_BD, n_agents)[:, :1].astype(np.float64)
-        next_BA4 = integrate(ego_B14, ACTION_DIRECTIONS_A2)  # each action from each row
-        coast_BA2 = np.clip(next_BA4[..., :2] + (COAST * DT) * next_BA4[..., 2:], 0.0, 1.0)
-        ends_BAE2 = np.stack([next_BA4[..., :2], coast_BA2], axis=2)
-        inside_BAE2 = (ends_BAE2 >= box_4[[0, 2]]) & (ends_BAE2 <= box_4[[1, 3]])
-        return inside_BAE2.all(axis=(2, 3))
+        return box_kept(self._blocks(obs_BD, n_agents)[:, 0], box_4)
 
     def recover_action(
         self, prev_obs_D: np.ndarray, obs_D: np.ndarray, n_agents: int, partner: int

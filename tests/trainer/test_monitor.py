@@ -21,7 +21,7 @@ from trainer.monitor import (
     train_gated,
     train_monitors,
 )
-from trainer.particle.monitor_states import monitor_states
+from trainer.particle.monitor_states import LABEL_MARGIN, monitor_labels, monitor_states
 
 DOMAIN = ParticleDomain()
 SMALL = MonitorConfig(steps=800, states=128, hidden=(64, 64), holdout=1000)
@@ -48,6 +48,42 @@ def test_a_monitor_learns_the_domain_s_goal_kept() -> None:
         gate = trained.gates[g]
         assert 0.0 <= gate.false_keeps <= 1.0 and 0.0 <= gate.misses <= 1.0
         assert gate.passed == (gate.false_keeps <= SMALL.max_false_keeps)
+
+
+@pytest.mark.parametrize("goal", ["e0", "a2", "c", "3"])
+def test_the_particle_labels_are_goal_kept_in_the_area_less_its_margin(goal: str) -> None:
+    obs = monitor_states(np.random.default_rng(5), goal, 4000)
+    truth = np.asarray(DOMAIN.goal_kept(obs, 2, goal), dtype=bool)
+    labels = monitor_labels(obs, goal)
+    assert labels.shape == truth.shape
+    assert not (labels & ~truth).any()  # never keeping where the area itself is lost
+    assert 0.5 * truth.sum() < labels.sum() < truth.sum()  # only the strip along the edge is lost
+    # an agent at rest keeps the shrunk area exactly where it lies inside it
+    box = {"e0": (0.8, 1.0, 0.0, 0.2)}.get(goal)
+    if box is not None:
+        rest = np.zeros((3, 8))
+        rest[:, :2] = [[0.8 - 0.003, 0.1], [0.8 + LABEL_MARGIN / 2, 0.1], [0.9, 0.1]]
+        assert monitor_labels(rest, goal)[:, 0].tolist() == [False, False, True]
+        assert DOMAIN.goal_kept(rest, 2, goal)[:, 0].tolist() == [False, True, True]
+        at_wall = np.array([[1.0, 0.0, 0.0, 0.0, 0.5, 0.5, 0.0, 0.0]])  # a corner on two walls
+        assert monitor_labels(at_wall, goal)[0, 0]
+
+
+def test_monitors_learn_the_labeller_s_answer_and_are_gated_on_goal_kept() -> None:
+    """Trained on labels that never keep, a monitor calls nothing keeping: no false keeps (the
+    gate passes) and every keeping action of `goal_kept` a miss."""
+    never = np.zeros
+    trained = train_monitors(
+        DOMAIN,
+        monitor_states,
+        ["a2"],
+        SMALL,
+        seed=0,
+        labels=lambda obs, goal: never((len(obs), DOMAIN.n_actions), dtype=bool),
+    )
+    gate = trained.gates[0]
+    assert gate.false_keeps == 0.0 and gate.passed
+    assert gate.misses == 1.0
 
 
 def test_failed_gates_are_retrained_with_twice_the_steps() -> None:

@@ -15,7 +15,7 @@ from trainer.config import ImpactConfig, JointConfig, TaskConfig
 from trainer.learners import TrainedBatch
 from trainer.loop import ProgressFn, train_soft_q
 from trainer.particle.gates import impact_gates, joint_gates, task_gates
-from trainer.particle.monitor_states import monitor_states
+from trainer.particle.monitor_states import monitor_labels, monitor_states
 from trainer.particle.rollouts import (
     ParticleImpactRollout,
     ParticleJointRollout,
@@ -35,6 +35,7 @@ class ParticleTrainer:
     no_joint_reason = ""
     production_parents_only = False  # quick tiny zoos (`--fast`, tests) serve failed networks
     monitor_states = staticmethod(monitor_states)  # goal monitors' states (`trainer.monitor`)
+    monitor_labels = staticmethod(monitor_labels)  # and what they learn
 
     def default_configs(self) -> tuple[TaskConfig, ImpactConfig]:
         return TaskConfig(), ImpactConfig()
