@@ -165,7 +165,8 @@ def start_server(
     return Server(process, f"http://127.0.0.1:{http_port}", f"127.0.0.1:{grpc_port}", log_path)
 
 
-def wait_ready(server: Server, timeout: float = 60.0) -> None:
+def wait_ready(server: Server, timeout: float = 180.0) -> None:
+    # generous: a server importing torch on a 2-core machine busy with the rest of the suite
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         if server.process.poll() is not None:
