@@ -45,7 +45,7 @@ def test_one_local_client_cannot_pass_its_session_cap_by_forging_the_header(
         COEXIST_FORWARDED_ALLOW_IPS=proxies,
     )
     server = start_server("forwarded", env, tmp_path)
-    with running([server], timeout=240):
+    with running([server]):
         statuses = _open_sessions(server.http_url, CAP + 2)
     if not proxies:  # the header is ignored: one client, capped
         assert statuses == [201] * CAP + [429, 429], statuses

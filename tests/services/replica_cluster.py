@@ -165,8 +165,12 @@ def start_server(
     return Server(process, f"http://127.0.0.1:{http_port}", f"127.0.0.1:{grpc_port}", log_path)
 
 
-def wait_ready(server: Server, timeout: float = 180.0) -> None:
-    # generous: a server importing torch on a 2-core machine busy with the rest of the suite
+# Generous: a server importing torch, or compiling its numba kernels afresh (an unpacked wheel
+# has no kernel cache), on a 2-core machine busy with the rest of the suite.
+READY_TIMEOUT_S = 240.0
+
+
+def wait_ready(server: Server, timeout: float = READY_TIMEOUT_S) -> None:
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         if server.process.poll() is not None:
@@ -181,7 +185,9 @@ def wait_ready(server: Server, timeout: float = 180.0) -> None:
 
 
 @contextmanager
-def running(servers: Sequence[Server], timeout: float = 60.0) -> Iterator[Sequence[Server]]:
+def running(
+    servers: Sequence[Server], timeout: float = READY_TIMEOUT_S
+) -> Iterator[Sequence[Server]]:
     """Wait for every server to be ready (each within `timeout`); stop them all afterwards."""
     try:
         for server in servers:

@@ -115,7 +115,7 @@ def test_a_jobs_store_password_is_in_no_log_command_line_or_answer(tmp_path: Pat
         seed_zoo(store_url)  # particle/task/a2 versions 1 and 2
         # The operator's own command line carries no URL either: the environment does.
         server = start_server("secret", server_env(store_url, tmp_path / "data"), tmp_path)
-        with running([server], timeout=240):
+        with running([server]):
             base = server.http_url
             with ProcessTable() as ps:
                 job = httpx.post(

@@ -89,7 +89,7 @@ def test_jobs_answer_503_when_the_disk_is_read_only_then_full(
     url = f"sqlite:///{own_disk / 'models.db'}"
     seed_zoo(url)
     server = start_server("disk", server_env(url, tmp_path / "data"), tmp_path)
-    with running([server], timeout=240):
+    with running([server]):
         base = server.http_url
         assert httpx.get(f"{base}/v1/jobs").status_code == 200  # the table is open
         subprocess.run(["mount", "-o", "remount,ro", str(own_disk)], check=True)
@@ -124,7 +124,7 @@ def test_jobs_answer_503_when_the_database_is_dropped(tmp_path: Path) -> None:
     try:
         seed_zoo(url)
         server = start_server("dropped", server_env(url, tmp_path / "data"), tmp_path)
-        with running([server], timeout=240):
+        with running([server]):
             base = server.http_url
             assert httpx.get(f"{base}/v1/jobs").status_code == 200
             with psycopg.connect(PG_URL, autocommit=True) as conn:
@@ -143,7 +143,7 @@ def test_deleting_the_version_production_serves_is_refused(tmp_path: Path) -> No
     with pg_schema_url() as url:
         seed_zoo(url)  # particle/task/a2: version 1 at production, version 2 at latest
         server = start_server("delete", server_env(url, tmp_path / "data"), tmp_path)
-        with running([server], timeout=240):
+        with running([server]):
             base = server.http_url
             versions = f"{base}/v1/registry/models/particle/task/a2/-/versions"
             for version, alias in ((1, "production"), (2, "latest")):

@@ -98,7 +98,7 @@ def test_a_session_outlives_the_replica_that_served_it(zoo_url: str, tmp_path: P
             start_server("b", env, tmp_path),
         ]
         try:
-            with running(replicas, timeout=120):
+            with running(replicas):
                 created = httpx.post(f"{replicas[0].http_url}/v1/sessions", json=CREATE)
                 assert created.status_code == 201, created.text
                 session_id = created.json()["session_id"]

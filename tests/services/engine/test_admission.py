@@ -120,7 +120,7 @@ def served(tmp_path: Path) -> Iterator[tuple[str, Server]]:
     with pg_schema_url() as url:
         seed_zoo(url)  # a2: version 1 at production, version 2 at latest
         server = start_server("admission", server_env(url, tmp_path / "data"), tmp_path)
-        with running([server], timeout=240):
+        with running([server]):
             yield url, server
 
 
@@ -179,7 +179,7 @@ def test_unservable_networks_are_refused_and_production_keeps_serving(
 
     # A fresh server has no good version loaded: 503 naming the network, not the observation.
     fresh = start_server("fresh", server_env(url, tmp_path / "data"), tmp_path)
-    with running([fresh], timeout=240):
+    with running([fresh]):
         answer = httpx.post(f"{fresh.http_url}/v1/act", json=act_body(), timeout=30)
         assert answer.status_code == 503, answer.text
         assert answer.json()["field"] != "observation"
