@@ -60,29 +60,45 @@ def host_allowed(header: str, allowed: Sequence[str]) -> bool:
 
 
 class AllowedHosts:
-    """ASGI middleware: HTTP and WebSocket requests with a `Host` outside `allowed` get 400."""
+    """ASGI middleware: HTTP and WebSocket requests with a `Host` outside `allowed` get 400.
+    The `Host` values found allowed are remembered (up to `REMEMBERED` of them): a client
+    sends the same one on every request, and a set look-up is cheaper than the patterns."""
+
+    REMEMBERED = 64
 
     def __init__(self, app: Any, allowed: Sequence[str]) -> None:
         self.app, self.allowed = app, list(allowed)
+        self._any = "*" in self.allowed
+        self._seen_allowed: set[bytes] = set()
 
     async def __call__(self, scope: Any, receive: Any, send: Any) -> None:
-        if scope["type"] in ("http", "websocket") and "*" not in self.allowed:
-            host = next((v.decode("latin-1") for k, v in scope["headers"] if k == b"host"), "")
-            if not host_allowed(host, self.allowed):
-                answer = error_response(
-                    400,
-                    "invalid_host",
-                    f"Host {host[:100]!r} is not a name this server answers to "
-                    "(COEXIST_ALLOWED_HOSTS)",
-                    field="host",
-                    instance=scope.get("path"),
-                )
-                if scope["type"] == "websocket":  # refuse the upgrade
-                    await send({"type": "websocket.close", "code": 1008})
+        if not self._any and scope["type"] in ("http", "websocket"):
+            host = b""
+            for name, value in scope["headers"]:
+                if name == b"host":
+                    host = value
+                    break
+            if host not in self._seen_allowed:
+                text = host.decode("latin-1")
+                if not host_allowed(text, self.allowed):
+                    await self._refuse(text, scope, receive, send)
                     return
-                await answer(scope, receive, send)
-                return
+                if len(self._seen_allowed) < self.REMEMBERED:
+                    self._seen_allowed.add(host)
         await self.app(scope, receive, send)
+
+    async def _refuse(self, host: str, scope: Any, receive: Any, send: Any) -> None:
+        if scope["type"] == "websocket":  # refuse the upgrade
+            await send({"type": "websocket.close", "code": 1008})
+            return
+        answer = error_response(
+            400,
+            "invalid_host",
+            f"Host {host[:100]!r} is not a name this server answers to (COEXIST_ALLOWED_HOSTS)",
+            field="host",
+            instance=scope.get("path"),
+        )
+        await answer(scope, receive, send)
 
 
 def served_app() -> AllowedHosts:

@@ -40,7 +40,7 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from services.rest.json_body import OFFLOAD_BYTES, FastJsonRequest, parse_json
 
-CALL_KEY = "coexist.direct_call"  # the scope key that carries a validated call to the endpoint
+ERROR_KEY = "coexist.endpoint_error"  # the scope key that carries an endpoint's exception
 
 
 class DirectCall(NamedTuple):
@@ -103,7 +103,7 @@ class DirectJson:
         self.app = app
         self.routes = tuple(routes)
         self._prefixes = tuple({r.route.path.split("{")[0] for r in self.routes})
-        self._endpoints: ExceptionMiddleware | None = None  # the app's handlers, at first use
+        self._errors: ExceptionMiddleware | None = None  # the app's handlers, at first error
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         path = scope.get("path", "")
@@ -143,28 +143,40 @@ class DirectJson:
         except Exception:  # malformed or invalid: FastAPI's handler says why, from the same bytes
             await self.app(scope, replay, send)
             return
-        if self._endpoints is None:  # the app's handlers but the server error's, as Starlette's
-            handlers = {
-                key: handler
-                for key, handler in scope["app"].exception_handlers.items()
-                if key not in (500, Exception)
-            }
-            self._endpoints = ExceptionMiddleware(_endpoint, handlers=handlers)
         scope.update(
             path_params=params, route=direct.route, endpoint=direct.route.endpoint
         )  # as the router sets them (the access log and metrics read the route's template)
-        scope[CALL_KEY] = (direct.call, value)
-        await self._endpoints(scope, replay, send)
+        call = direct.call
+        arguments: dict[str, Any] = {name: params[name] for name in call.path_names}
+        arguments[call.body_name] = value
+        arguments[call.request_name] = FastJsonRequest(scope, replay)
+        try:
+            response = await direct.route.endpoint(**arguments)
+        except Exception as exc:
+            # Answered by the app's handler for it, found as the router's would be: Starlette's
+            # `ExceptionMiddleware` around an app that raises it. Built only when an endpoint
+            # raises: wrapping every call costs a share of an act (docs/performance.md).
+            scope[ERROR_KEY] = exc
+            await self._handled(scope["app"])(scope, replay, send)
+            return
+        await response(scope, replay, send)
+
+    def _handled(self, app: Any) -> ExceptionMiddleware:
+        """`ExceptionMiddleware` with the app's handlers but the server error's (as Starlette
+        builds it) around `_raise_error`."""
+        if self._errors is None:
+            handlers = {
+                key: handler
+                for key, handler in app.exception_handlers.items()
+                if key not in (500, Exception)
+            }
+            self._errors = ExceptionMiddleware(_raise_error, handlers=handlers)
+        return self._errors
 
 
-async def _endpoint(scope: Scope, receive: Receive, send: Send) -> None:
-    """The endpoint of `scope["route"]` on the validated body (inside `ExceptionMiddleware`)."""
-    call, value = scope.pop(CALL_KEY)
-    request = FastJsonRequest(scope, receive)
-    arguments: dict[str, Any] = {name: scope["path_params"][name] for name in call.path_names}
-    arguments[call.body_name], arguments[call.request_name] = value, request
-    response = await scope["endpoint"](**arguments)
-    await response(scope, receive, send)
+async def _raise_error(scope: Scope, receive: Receive, send: Send) -> None:
+    """Raise the endpoint's exception that `DirectJson` put in the scope."""
+    raise scope.pop(ERROR_KEY)
 
 
 def _validated(model: type[BaseModel], body: bytes) -> BaseModel:
