@@ -1,7 +1,8 @@
 """Where a session step's time goes, in-process (no transport): the parts of
 `benchmarks/session_bench.py`'s REST cases, timed on the same store and the same episode.
 
-Run: `OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/session_breakdown.py --store URL`
+Run: `OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/session_breakdown.py --store URL
+[--belief-noise ETA]`
 (session_bench.py runs it on its temporary store and puts the table in its report).
 
 | part                          | call                                                         |
@@ -68,9 +69,17 @@ def _median_ms(call: Callable[[int], Any], calls: int, timed: bool = False) -> f
     return statistics.median(times) * 1e3
 
 
-def breakdown(url: str, obs_TD: np.ndarray, actions_TP: np.ndarray, calls: int) -> dict[str, float]:
-    """Median milliseconds of every part of the module docstring (2-agent episode)."""
+def breakdown(
+    url: str,
+    obs_TD: np.ndarray,
+    actions_TP: np.ndarray,
+    calls: int,
+    belief_noise: float | None = None,
+) -> dict[str, float]:
+    """Median milliseconds of every part of the module docstring (2-agent episode);
+    `belief_noise`: the sessions' `belief.noise` η instead of the default."""
     from model_store.sql import SqlModelStore
+    from policy.belief import BeliefConfig
     from services.engine import ActRequest, InferenceEngine, PartnerSpec
     from services.sessions.messages import Observed, SessionPartner, SessionSettings
     from services.sessions.session import Session
@@ -92,8 +101,9 @@ def breakdown(url: str, obs_TD: np.ndarray, actions_TP: np.ndarray, calls: int) 
         """One call: a step (`timed` "step"; `ahead`: after an untimed `prepare_next`) or a
         `prepare_next` (`timed` "prepare", after an untimed step)."""
         partners = (SessionPartner(1, infer=True),)
+        belief = BeliefConfig() if belief_noise is None else BeliefConfig(noise=belief_noise)
         settings = SessionSettings(
-            "particle", "a2", partners, blend_mass=mass, blend_max_goals=most
+            "particle", "a2", partners, belief=belief, blend_mass=mass, blend_max_goals=most
         )
         s = Session(engine, settings, prefetch=ahead or timed == "prepare")
         s.step(obs_TD[0])
@@ -213,9 +223,14 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--store", required=True, help="a store with every particle network")
     parser.add_argument("--calls", type=int, default=1000)
+    parser.add_argument(
+        "--belief-noise", type=float, default=None, help="belief.noise (η) of the Session rows"
+    )
     args = parser.parse_args()
     obs_TD, actions_TP = episode(2, 200)
-    for name, ms in breakdown(args.store, obs_TD, actions_TP, args.calls).items():
+    for name, ms in breakdown(
+        args.store, obs_TD, actions_TP, args.calls, args.belief_noise
+    ).items():
         print(f"| {name} | {ms:.3f} |")
 
 
