@@ -160,8 +160,15 @@ def mix_uniform_noise(log_lik: np.ndarray, noise: float, n_actions: int) -> np.n
     NaN and +inf stay, so a row that was no evidence (`evidence_rows`) still is none."""
     if noise == 0:
         return log_lik
-    with np.errstate(invalid="ignore"):  # NaN in is NaN out, meant
-        return np.logaddexp(log_lik + math.log1p(-noise), math.log(noise / n_actions))
+    spread = noise / n_actions
+    if spread == 0.0:  # η / A below the smallest double: the mixture is the policy's share alone
+        return log_lik + math.log1p(-noise)
+    # In probabilities, which needs no floating-point guard (`logaddexp` on the log scale took a
+    # `np.errstate`, several times this one's cost on a session step's row): exp of a log
+    # probability (<= 0, -inf, +inf or NaN) neither overflows nor warns, and the log's argument
+    # is at least η / A > 0. p underflowing to 0 leaves log(η / A), the mixture's value there
+    # to double precision.
+    return np.log(np.exp(log_lik) * (1.0 - noise) + spread)
 
 
 def prior_log_probs(

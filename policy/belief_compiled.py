@@ -73,7 +73,7 @@ def compiled_views(log_b: np.ndarray, goals: Sequence[str], k: int) -> list[Beli
     """`belief_views(log_b, goals, k)` of a whole-belief blend compiled, or None (module
     docstring); `log_b` (P, G) float64, checked by the caller."""
     probs, blend, top, entropy, usable = belief_kernel.view_rows(np.ascontiguousarray(log_b), k)
-    if not usable.all():
+    if not usable:
         return None
     every_goal = list(range(log_b.shape[1]))
     return [

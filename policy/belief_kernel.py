@@ -77,19 +77,19 @@ def update_rows(log_b, lik, pull, has_pull, lam, floor_scale, floored, floor_log
 
 
 @njit(
-    types.Tuple(
-        (out_array(f8, 2), out_array(f8, 2), out_array(i8, 2), out_array(f8, 1), out_array(b1, 1))
-    )(in_array(f8, 2), i8),
+    types.Tuple((out_array(f8, 2), out_array(f8, 2), out_array(i8, 2), out_array(f8, 1), b1))(
+        in_array(f8, 2), i8
+    ),
     cache=True,
     nogil=True,
     error_model="numpy",
 )
 def view_rows(log_b, k):
-    """(probs, blend_probs, top (E, min(k, G)), entropy, usable) of each row: `belief_views`'
+    """(probs, blend_probs, top (E, min(k, G)), entropy, usable) of the rows: `belief_views`'
     numbers where every probability is > 0 and the whole belief is blended: b = exp(log_b),
     blend_probs = b / Σ b, the k most probable goals (the first k of the stable order of
-    -log b), entropy = max(0, -Σ b log b). usable False for a row with a zero probability (the
-    caller takes the numpy path for it)."""
+    -log b), entropy = max(0, -Σ b log b). usable False, and the rest unfinished, where a row
+    has a zero probability (the caller takes the numpy path)."""
     n_rows, n_goals = log_b.shape
     if k < 1:
         raise ValueError("k: expected >= 1")
@@ -98,18 +98,16 @@ def view_rows(log_b, k):
     blend = np.empty((n_rows, n_goals))
     top = np.empty((n_rows, top_k), dtype=np.int64)
     entropy = np.zeros(n_rows)
-    usable = np.ones(n_rows, dtype=np.bool_)
     taken = np.empty(n_goals, dtype=np.bool_)
     for e in range(n_rows):
         p, row = probs[e], log_b[e]
         h = 0.0
         total = 0.0
         for g in range(n_goals):
-            usable[e] = usable[e] and p[g] > 0
+            if not p[g] > 0:
+                return probs, blend, top, entropy, False
             h += p[g] * row[g]
             total += p[g]
-        if not usable[e]:
-            continue
         entropy[e] = max(0.0, -h)
         for g in range(n_goals):
             blend[e, g] = p[g] / total
@@ -123,7 +121,7 @@ def view_rows(log_b, k):
                     best = g
             taken[best] = True
             top[e, j] = best
-    return probs, blend, top, entropy, usable
+    return probs, blend, top, entropy, True
 
 
 @njit(
