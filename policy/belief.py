@@ -163,11 +163,10 @@ def mix_uniform_noise(log_lik: np.ndarray, noise: float, n_actions: int) -> np.n
     spread = noise / n_actions
     if spread == 0.0:  # η / A below the smallest double: the mixture is the policy's share alone
         return log_lik + math.log1p(-noise)
-    # In probabilities, which needs no floating-point guard (`logaddexp` on the log scale took a
-    # `np.errstate`, several times this one's cost on a session step's row): exp of a log
-    # probability (<= 0, -inf, +inf or NaN) neither overflows nor warns, and the log's argument
-    # is at least η / A > 0. p underflowing to 0 leaves log(η / A), the mixture's value there
-    # to double precision.
+    # In probabilities, which needs no floating-point guard (`logaddexp` on the log scale needs
+    # `np.errstate` for NaN): exp of a log probability (<= 0, -inf, +inf or NaN) neither
+    # overflows nor warns, and the log's argument is at least η / A > 0. p underflowing to 0
+    # leaves log(η / A), the mixture's value there to double precision.
     return np.log(np.exp(log_lik) * (1.0 - noise) + spread)
 
 

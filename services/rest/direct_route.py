@@ -154,8 +154,8 @@ class DirectJson:
             response = await direct.route.endpoint(**arguments)
         except Exception as exc:
             # Answered by the app's handler for it, found as the router's would be: Starlette's
-            # `ExceptionMiddleware` around an app that raises it. Built only when an endpoint
-            # raises: wrapping every call costs a share of an act (docs/performance.md).
+            # `ExceptionMiddleware` around an app that raises it, entered only when an endpoint
+            # raises, so a call that succeeds passes through no exception layer.
             scope[ERROR_KEY] = exc
             await self._handled(scope["app"])(scope, replay, send)
             return

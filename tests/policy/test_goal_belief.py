@@ -174,6 +174,10 @@ def test_mixing_keeps_what_is_no_evidence_and_zero_noise_is_the_identity() -> No
     np.testing.assert_allclose(mixed[2], math.log(0.02), rtol=1e-12)
     np.testing.assert_array_equal(evidence_rows(mixed), evidence_rows(lik) | [False, False, True])
     assert mix_uniform_noise(lik, 0.0, 5) is lik
+    tiny = 5e-324  # η / A below the smallest double: the policy's share alone, no log(0)
+    with np.errstate(all="raise"):
+        mixed = mix_uniform_noise(np.array([-1.0, 0.0, -np.inf]), tiny, 5)
+    np.testing.assert_allclose(mixed, [-1.0, 0.0, -np.inf], rtol=1e-15, atol=1e-300)
     with pytest.raises(ValueError, match=r"^noise: expected"):
         boltzmann_log_likelihoods(Q_3GOALS_1GA, np.array([0]), np.ones(3), noise=1.0)
 
